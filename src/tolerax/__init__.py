@@ -1,0 +1,25 @@
+"""tolerax: differentiable simulation of planetary-gear pointing mechanisms with clearances."""
+
+import jax as _jax
+
+# SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
+_jax.config.update("jax_enable_x64", True)
+
+from . import _smooth as smooth
+from ._contact import (
+    AbstractContactLaw as AbstractContactLaw,
+    AdamsImpact as AdamsImpact,
+    BaiZhao as BaiZhao,
+    ContactState as ContactState,
+    Flores as Flores,
+    HertzLN as HertzLN,
+    JournalBearing as JournalBearing,
+    composite_modulus as composite_modulus,
+    contact_kinematics as contact_kinematics,
+    effective_impact_rate as effective_impact_rate,
+    impact_rate_derivative as impact_rate_derivative,
+    normal_force as normal_force,
+    rate_derivative as rate_derivative,
+)
+
+__version__ = "0.1.0"
