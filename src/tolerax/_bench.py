@@ -165,7 +165,7 @@ def _controller(rtol, atol, dtmax):
 
 
 @eqx.filter_jit
-def _solve(bench, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps):
+def _solve(bench, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps, progress):
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(bench.vector_field),
         solver,
@@ -177,6 +177,7 @@ def _solve(bench, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps):
         stepsize_controller=_controller(rtol, atol, dtmax),
         max_steps=max_steps,
         throw=False,
+        progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
     )
 
     def outputs(t, y):
@@ -201,6 +202,7 @@ def simulate_bench(
     max_steps: int = 2_000_000,
     throw: bool = True,
     y0: tuple | None = None,
+    progress: bool = False,
 ) -> BenchResult:
     """Run the bench from rigid kinematics at the commanded speed.
 
@@ -217,6 +219,7 @@ def simulate_bench(
     - `max_steps`: step budget.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set.
     - `y0`: initial `(q, qd, impact_rates)` (default `bench.initial_state()`).
+    - `progress`: print diffrax's text progress meter (static: compiles a separate program).
     """
     bench = TestBench() if bench is None else bench
     solver = diffrax.Tsit5() if solver is None else solver
@@ -224,7 +227,12 @@ def simulate_bench(
         raise ValueError(f"duration must be a positive finite time in seconds, got {duration!r}.")
     ts = jnp.linspace(0.0, duration, n_save)
     y0 = bench.initial_state() if y0 is None else y0
-    sol, forces = _solve(bench, y0, duration, ts, solver, rtol, atol, dt0, dtmax, max_steps)
+    # Values as arrays so that only structure (solver, n_save, max_steps, progress) retraces.
+    f64 = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
+    sol, forces = _solve(
+        bench, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmax),
+        max_steps, bool(progress),
+    )
     q, qd, v = sol.ys
     lay = bench.stage.layout
     omega = bench.servo.output_rate

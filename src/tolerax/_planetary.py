@@ -743,7 +743,7 @@ def default_stage(
     bearing_damping: float = 0.0,
     restitution: float = 0.9,
     contact_law: _contact.AbstractContactLaw | None = None,
-    smoothing_width: float = 1e-8,
+    smoothing_width: float = 1e-9,
     impact_rate_floor: float = 1e-3,
     impact_memory_time: float = 1e-5,
 ) -> PlanetaryStage:
