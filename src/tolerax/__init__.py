@@ -22,4 +22,22 @@ from ._contact import (
     rate_derivative as rate_derivative,
 )
 
+from ._mesh import dynamic_backlash as dynamic_backlash, mesh_stiffness as mesh_stiffness
+from ._planetary import (
+    AddedInertia as AddedInertia,
+    Mesh as Mesh,
+    Modes as Modes,
+    PlanetaryStage as PlanetaryStage,
+    Support as Support,
+    default_stage as default_stage,
+    natural_frequencies as natural_frequencies,
+)
+from ._bench import (
+    BenchResult as BenchResult,
+    SimulationError as SimulationError,
+    SpeedServo as SpeedServo,
+    TestBench as TestBench,
+    simulate_bench as simulate_bench,
+)
+
 __version__ = "0.1.0"
