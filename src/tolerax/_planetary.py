@@ -179,7 +179,7 @@ class PlanetaryStage(eqx.Module):
     ring_torsion: Float[Array, ""] | None
     sun_mesh: Mesh
     ring_mesh: Mesh
-    contact_law: _contact.AbstractContactLaw
+    contact_law: _contact.AbstractContactLaw | None  # None only for a stage without clearances
     smoothing_width: Float[Array, ""]
     impact_rate_floor: Float[Array, ""]
     impact_memory_time: Float[Array, ""]
@@ -187,6 +187,9 @@ class PlanetaryStage(eqx.Module):
     def __check_init__(self):
         if self.ring_support.kind == "clearance":
             raise ValueError("The ring support must be 'rigid' or 'spring' (no ring clearance).")
+        clearances = [s.kind == "clearance" for s in (self.sun_support, self.carrier_support, self.planet_support)]
+        if any(clearances) and self.contact_law is None:
+            raise ValueError("A stage with a 'clearance' support needs a `contact_law`.")
         if self.ring_support.kind == "spring" and self.ring_torsion is None:
             raise ValueError("A spring-mounted ring needs `ring_torsion` (N/m on u = r theta).")
 
@@ -376,7 +379,6 @@ def deflections(stage: PlanetaryStage, q: Array) -> dict:
     supports, and `sun_u`, `carrier_u`, `ring_u` for torsional springs.
     """
     lay = stage.layout
-    n = stage.n_planets
     psi = stage.planet_angles
     th_s, th_c, th_r = q[lay.sun_theta], q[lay.carrier_theta], _ring_theta(q, lay)
     th_p = q[lay.planet_theta]
@@ -454,7 +456,6 @@ def deflections(stage: PlanetaryStage, q: Array) -> dict:
     ):
         if k is not None and not (name == "ring" and lay.ring_theta is None):
             out[f"{name}_u"] = value
-    del n
     return out
 
 
