@@ -125,11 +125,11 @@ def test_energy_conserved_without_damping():
     bench = _bench.TestBench(
         stage, servo=_bench.SpeedServo(math.radians(30.0), 0.0, 0.0), load_torque=0.0, start="steady"
     )
-    q0, qd0, v0 = bench.initial_state()
+    q0, qd_rigid, v0 = bench.initial_state()
     lay = stage.layout
     # Throw each planet radially and tangentially at its pin: impacts within the run.
     kick = jnp.tile(jnp.array([0.01, -0.005]), stage.n_planets)
-    qd0 = qd0.at[lay.planet_xy].set(kick)
+    qd0 = qd_rigid.at[lay.planet_xy].set(kick)
     v0 = P.initial_impact_rates(stage, q0, qd0)
     res = _bench.simulate_bench(
         bench, 0.004, n_save=101, rtol=1e-11, atol=1e-14, dtmax=1e-5, y0=(q0, qd0, v0)
@@ -141,8 +141,13 @@ def test_energy_conserved_without_damping():
 
     e = np.asarray(jax.vmap(energy)(q, qd))
     assert np.asarray(res.contact_force).max() > 1.0  # the planets did hit their pins
-    drift = np.abs(e - e[0]).max() / e[0]
-    # rtol 1e-11 per step over ~1e4 steps: drift well below 1e-7 if the model is conservative.
+    # Measure the drift against the energy of the kick (what the contacts exchange), not the
+    # total, which the rotating load dominates (0.14 J against 1e-5 J of the kick alone).
+    kick_energy = 0.5 * float(stage.planet_mass) * float(jnp.sum(kick**2))
+    assert kick_energy > 0
+    drift = np.abs(e - e[0]).max() / kick_energy
+    # Measured 1e-9 at rtol 1e-11 and 1e-6 at rtol 1e-8 (the drift follows the tolerance, as
+    # a conservative model's must); 1e-7 leaves margin for other platforms' rounding.
     assert drift < 1e-7, drift
 
 
