@@ -211,8 +211,9 @@ def simulate_bench(
     - `bench`: the `TestBench` (default: the default joint at 0.98 °/s, 100 µm clearances).
     - `duration`: simulated time (s).
     - `n_save`: number of equally spaced save times.
-    - `solver`: a diffrax solver (default `Tsit5`; the contact and mesh modes are fast, not
-      stiff enough to pay for an implicit solve at these tolerances, see benchmarks).
+    - `solver`: a diffrax solver (default `Tsit5`, explicit: its step is held near its
+      stability limit by the ~18 kHz sun-translation/mesh mode, see
+      `benchmarks/bench_profile.py`; implicit solvers are not yet compared).
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax`: first and largest step (s).
