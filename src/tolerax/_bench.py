@@ -204,7 +204,7 @@ def simulate_bench(
     y0: tuple | None = None,
     progress: bool = False,
 ) -> BenchResult:
-    """Run the bench from rigid kinematics at the commanded speed.
+    """Run the bench from `bench.initial_state()` (at rest or in steady rolling, per `start`).
 
     **Arguments:**
 
