@@ -13,6 +13,7 @@ from jaxtyping import Array, Float
 
 from . import _planetary
 from ._planetary import AddedInertia, PlanetaryStage
+from ._solve import SimulationError, raise_on_failure, solve
 
 
 class SpeedServo(eqx.Module):
@@ -118,6 +119,11 @@ class TestBench(eqx.Module):
         qdd = jnp.linalg.solve(_planetary.mass_matrix(stage, q, self.added), rhs)
         return qdd, forces
 
+    def observe(self, t, y):
+        """The `StageForces` at a saved state."""
+        q, qd, v = y
+        return self.accelerations(t, q, qd, v)[1]
+
     def vector_field(self, t, y, args):
         q, qd, v = y
         with jax.named_scope("bench_dynamics"):
@@ -156,39 +162,6 @@ class BenchResult(eqx.Module):
         return bool(self.result == diffrax.RESULTS.successful)
 
 
-class SimulationError(RuntimeError):
-    """The integrator did not reach the final time."""
-
-
-def _controller(rtol, atol, dtmax):
-    return diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax)
-
-
-@eqx.filter_jit
-def _solve(bench, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps, progress):
-    sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(bench.vector_field),
-        solver,
-        t0=0.0,
-        t1=t1,
-        dt0=dt0,
-        y0=y0,
-        saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=_controller(rtol, atol, dtmax),
-        max_steps=max_steps,
-        throw=False,
-        progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
-    )
-
-    def outputs(t, y):
-        q, qd, v = y
-        _, forces = bench.accelerations(t, q, qd, v)
-        return forces
-
-    forces = jax.vmap(outputs)(sol.ts, sol.ys)
-    return sol, forces
-
-
 def simulate_bench(
     bench: TestBench | None = None,
     duration: float = 2.0,
@@ -224,15 +197,9 @@ def simulate_bench(
     """
     bench = TestBench() if bench is None else bench
     solver = diffrax.Tsit5() if solver is None else solver
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a positive finite time in seconds, got {duration!r}.")
-    ts = jnp.linspace(0.0, duration, n_save)
     y0 = bench.initial_state() if y0 is None else y0
-    # Values as arrays so that only structure (solver, n_save, max_steps, progress) retraces.
-    f64 = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
-    sol, forces = _solve(
-        bench, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmax),
-        max_steps, bool(progress),
+    sol, forces = solve(
+        bench, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress
     )
     q, qd, v = sol.ys
     lay = bench.stage.layout
@@ -252,12 +219,6 @@ def simulate_bench(
         num_rejected=sol.stats["num_rejected_steps"],
         contact_names=bench.stage.contact_names,
     )
-    if throw and not result.success:
-        finite = np.isfinite(np.asarray(theta_c))
-        reached = float(np.asarray(sol.ts)[finite][-1]) if finite.any() else 0.0
-        raise SimulationError(
-            f"The bench simulation failed ({sol.result}) after {int(result.num_steps)} steps; "
-            f"last saved time reached {reached:.6g} s of {duration:.6g} s. Try a larger "
-            f"`max_steps`, looser `rtol`/`atol`, or a larger `smoothing_width`."
-        )
+    if throw:
+        raise_on_failure(sol, duration, "bench")
     return result

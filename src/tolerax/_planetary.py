@@ -745,7 +745,7 @@ def default_stage(
     contact_law: _contact.AbstractContactLaw | None = None,
     smoothing_width: float = 1e-9,
     impact_rate_floor: float = 1e-3,
-    impact_memory_time: float = 1e-5,
+    impact_memory_time: float = 1e-4,
 ) -> PlanetaryStage:
     """The default joint of MODEL.md §4 (all values overridable; SI units).
 
@@ -755,6 +755,12 @@ def default_stage(
     $\\xi$ = 0.06, $c_e$ = 0.9 (Bai–Zhao law). Journals: sun 5 mm, carrier output 15 mm, planet pins
     4 mm radius, 8 mm long. Clearances and backlash 100 µm (the paper's cases). Support kinds
     `"rigid"`, `"spring"` (stiffness `bearing_stiffness`) or `"clearance"`.
+
+    `impact_memory_time` $\\tau$ = 0.1 ms: after a contact separates, the offset between the
+    impact-rate state and $\\dot\\delta$ decays as $e^{-t/\\tau}$ (1 % after 0.46 ms), which is short
+    against a flight across a 10–100 µm clearance at the mm/s speeds of these joints. Its
+    eigenvalue $-1/\\tau$ bounds an explicit solver's step (3.5e-4 s for Tsit5); 10 µs made it the
+    step limit of the lumped joint (9x more steps, measured). The restitution tests pass with both.
     """
     if ring_teeth != sun_teeth + 2 * planet_teeth:
         raise ValueError(
