@@ -32,12 +32,26 @@ from ._planetary import (
     default_stage as default_stage,
     natural_frequencies as natural_frequencies,
 )
+from ._solve import SimulationError as SimulationError
 from ._bench import (
     BenchResult as BenchResult,
-    SimulationError as SimulationError,
     SpeedServo as SpeedServo,
     TestBench as TestBench,
     simulate_bench as simulate_bench,
+)
+
+from ._mechanism import (
+    Geometry as Geometry,
+    Inertias as Inertias,
+    Joint as Joint,
+    LumpedMesh as LumpedMesh,
+    Mechanism as Mechanism,
+    MechanismResult as MechanismResult,
+    TorqueDrive as TorqueDrive,
+    antenna as antenna,
+    lumped_mesh as lumped_mesh,
+    simulate as simulate,
+    vibration_amplitude as vibration_amplitude,
 )
 
 __version__ = "0.1.0"

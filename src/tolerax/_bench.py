@@ -8,12 +8,11 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float
 
 from . import _planetary
 from ._planetary import AddedInertia, PlanetaryStage
-from ._solve import SimulationError, raise_on_failure, solve
+from ._solve import SimulationError, raise_on_failure, solve  # noqa: F401 (SimulationError: re-exported)
 
 
 class SpeedServo(eqx.Module):

@@ -67,6 +67,25 @@ def _demo(args) -> int:
     return 0
 
 
+def _studies(parser, args) -> int:
+    from . import _studies as S
+
+    names = args.names or list(S.STUDIES)
+    for name in names:
+        if name not in S.STUDIES:
+            parser.error(f"unknown study {name!r}; choose from {', '.join(S.STUDIES)}")
+    if args.size not in S.SIZES:
+        parser.error(f"--size must be one of {', '.join(S.SIZES)}, got {args.size!r}")
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        rows = S.run(name, args.size)
+        path = out / f"{name}-{args.size}.json"
+        path.write_text(json.dumps(rows, indent=1))
+        print(f"wrote {path}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tolerax", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -77,7 +96,13 @@ def main(argv=None) -> int:
     demo.add_argument("--backlash", type=float, default=100.0, help="every mesh backlash, um (default 100)")
     demo.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
     demo.add_argument("--progress", action="store_true", help="show the integrator's progress")
+    studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
+    studies.add_argument("names", nargs="*", help="studies to run (default: all)")
+    studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
+    studies.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
     args = parser.parse_args(argv)
+    if args.command == "studies":
+        return _studies(parser, args)
     for name in ("duration", "clearance", "backlash", "rate"):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name == "duration" and value == 0):

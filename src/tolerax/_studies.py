@@ -1,0 +1,176 @@
+"""The reference paper's studies (Han, Liang, Zhao 2021, §3) as grids of scenes, and the
+metrics we compare with its figures and tables.
+
+Each study is a list of scenes (a label and a `Mechanism`), run at a *size*: `"small"` (a few
+scenes, a few hundredths of a second: it proves the pipeline in CI) or `"full"` (the paper's
+grids, coarser where noted, 1 s each with metrics over the last 0.7 s: about an hour of CPU). Scenes start in steady rolling at the commanded rate (free base) so
+that the window after `settle` is not the servo's start-up.
+
+Fidelity per joint, chosen for what each study asks: the *driving* joint is `"planetary"` (the
+studies vary its planet, carrier and mesh clearances); the non-driving joint, which the paper
+keeps at 100 µm throughout, is `"lumped"` (its output-bearing clearance and backlash, no
+internal gear clearances). Dual-axis scenes have both joints planetary. The `fidelity` study
+runs the 0.98 °/s scenes at lumped/lumped and planetary/planetary to measure what the cheap
+fidelity misses.
+"""
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from . import _mechanism as M
+from ._planetary import default_stage
+
+UM = 1e-6
+ARCSEC = math.pi / (180 * 3600)
+
+
+@dataclasses.dataclass(frozen=True)
+class StudySize:
+    duration: float  # s per scene
+    settle: float  # s skipped before metrics
+    n_save: int
+    full_grid: bool
+
+
+SIZES = {
+    "small": StudySize(duration=0.03, settle=0.01, n_save=61, full_grid=False),
+    "full": StudySize(duration=1.0, settle=0.3, n_save=1001, full_grid=True),
+}
+
+STUDIES = ("speed", "fidelity", "radial_clearance", "clearance_grid", "backlash", "coupling", "coupling_grid")
+
+
+def _stage(carrier=100 * UM, planet=100 * UM, sun=100 * UM, backlash=100 * UM):
+    return default_stage(
+        carrier_clearance=carrier, planet_clearance=planet, sun_clearance=sun, backlash=backlash
+    )
+
+
+def _single(mode, driving_stage, rate_deg=0.98, other=None, fidelity=None):
+    """Single-axis scene: the driving joint planetary with `driving_stage`, the other lumped
+    with all 100 µm (or `other`)."""
+    other = _stage() if other is None else other
+    if mode == "azimuth":
+        stages, fids = (driving_stage, other), ("planetary", "lumped")
+    else:
+        stages, fids = (other, driving_stage), ("lumped", "planetary")
+    return M.antenna(
+        mode,
+        fidelity=fids if fidelity is None else fidelity,
+        rate=math.radians(rate_deg),
+        azimuth_stage=stages[0],
+        pitch_stage=stages[1],
+    )
+
+
+def scenes(study: str, size: str = "small") -> list[tuple[dict, M.Mechanism]]:
+    """The scenes of one study: `[(labels, mechanism), ...]` (labels in µm and °/s)."""
+    if study not in STUDIES:
+        raise ValueError(f"study={study!r} is unknown; use one of {STUDIES}.")
+    if size not in SIZES:
+        raise ValueError(f"size={size!r} is unknown; use one of {tuple(SIZES)}.")
+    full = SIZES[size].full_grid
+    out = []
+    modes = ("azimuth", "pitch")
+    if study == "speed":  # Figs. 5-6 (single axis), 17-20 (dual); all clearances 100 um
+        rates = (0.49, 0.98, 1.96) if full else (0.98,)
+        for mode in ("azimuth", "pitch", "dual") if full else ("azimuth", "dual"):
+            for r in rates:
+                if mode == "dual":
+                    mech = M.antenna("dual", fidelity="planetary", rate=math.radians(r))
+                else:
+                    mech = _single(mode, _stage(), r)
+                out.append((dict(mode=mode, rate=r), mech))
+    elif study == "fidelity":  # the 0.98 deg/s scenes at both fidelities
+        for mode in ("azimuth", "pitch", "dual") if full else ("azimuth",):
+            for fid in ("lumped", "planetary"):
+                out.append((dict(mode=mode, fidelity=fid), M.antenna(mode, fidelity=fid)))
+    elif study == "radial_clearance":  # Table 3, Figs. 7-8: driving-joint backlash 10 um
+        cases = {"a": (100, 100), "b": (100, 10), "c": (10, 100)}
+        for mode in modes if full else ("azimuth",):
+            for case, (cc, cp) in cases.items() if full else list(cases.items())[:2]:
+                st = _stage(carrier=cc * UM, planet=cp * UM, backlash=10 * UM)
+                out.append((dict(mode=mode, case=case, carrier=cc, planet=cp), _single(mode, st)))
+    elif study == "clearance_grid":  # Fig. 9, Tables 4-5: vibration vs (carrier, planet) clearance
+        values = (10, 100)  # the paper's Fig. 9 is a fine grid: too costly here
+        for mode in modes if full else ("pitch",):
+            for cc in values:
+                for cp in values if full else (100,):
+                    st = _stage(carrier=cc * UM, planet=cp * UM, backlash=10 * UM)
+                    out.append((dict(mode=mode, carrier=cc, planet=cp), _single(mode, st)))
+    elif study == "backlash":  # Table 6, Figs. 10-11: clearances 10 um, backlash 10-100 um
+        values = (10, 55, 100) if full else (10, 100)
+        for mode in modes if full else ("azimuth",):
+            for b in values:
+                st = _stage(carrier=10 * UM, planet=10 * UM, sun=10 * UM, backlash=b * UM)
+                out.append((dict(mode=mode, backlash=b), _single(mode, st)))
+    elif study == "coupling":  # Table 7, Figs. 12-14: planet clearance x backlash, others 10 um
+        cases = {"a": (100, 100), "b": (100, 10), "c": (10, 100)}
+        for mode in modes if full else ("pitch",):
+            for case, (cp, b) in cases.items() if full else list(cases.items())[:2]:
+                st = _stage(carrier=10 * UM, sun=10 * UM, planet=cp * UM, backlash=b * UM)
+                out.append((dict(mode=mode, case=case, planet=cp, backlash=b), _single(mode, st)))
+    elif study == "coupling_grid":  # Figs. 15-16, Tables 8-9: pitch joint, cpp x b, 20-100 um
+        values = (20, 60, 100) if full else (20, 100)  # the paper's grid is finer
+        for cp in values:
+            for b in values if full else (100,):
+                st = _stage(carrier=10 * UM, sun=10 * UM, planet=cp * UM, backlash=b * UM)
+                out.append((dict(mode="pitch", planet=cp, backlash=b), _single("pitch", st)))
+    return out
+
+
+def metrics(mech: M.Mechanism, res: M.MechanismResult, settle: float, min_frequency: float = 2.0) -> dict:
+    """Summary numbers of one run over `t >= settle` (units in the key names).
+
+    - `force_*_N`: output-bearing radial contact force of the driving joint (azimuth for dual)
+      — peak, mean and standard deviation — and `force_other_peak_N` of the other joint.
+    - `pointing_rms_arcsec`, `pointing_peak_arcsec`: pointing error (includes the servo lag).
+    - `speed_error_peak_{x,y,z}_urad_s`: tracking speed error, peak per base-frame component.
+    - `position_error_peak_{x,y,z}_um`: reflector-centre position error, peak per component.
+    - `radial_vibration_um`: `vibration_amplitude` of the reflector-centre position error's
+      magnitude (µm, peak spectral amplitude above `min_frequency`).
+    - `torsional_vibration_urad`: the same for the driving joint's angle error
+      (commanded − actual output angle, µrad).
+    """
+    ts = np.asarray(res.ts)
+    w = ts >= settle
+    drive = 1 if mech.azimuth.drive.output_rate == 0 else 0  # pitch-only scenes drive joint 1
+    force = np.asarray(res.output_force)[w]
+    pointing = np.asarray(res.pointing_error)[w]
+    speed = np.asarray(res.tracking_speed_error)[w]
+    pos = np.asarray(res.position_error)[w]
+    angle_err = np.asarray(res.commanded_angle[:, drive] - res.joint_angle[:, drive])[w]
+    out = dict(
+        force_peak_N=float(force[:, drive].max()),
+        force_mean_N=float(force[:, drive].mean()),
+        force_std_N=float(force[:, drive].std()),
+        force_other_peak_N=float(force[:, 1 - drive].max()),
+        pointing_rms_arcsec=float(np.sqrt(np.mean(pointing**2)) / ARCSEC),
+        pointing_peak_arcsec=float(pointing.max() / ARCSEC),
+        radial_vibration_um=float(M.vibration_amplitude(np.linalg.norm(pos, axis=1), ts[w], min_frequency)) / UM,
+        torsional_vibration_urad=float(M.vibration_amplitude(angle_err, ts[w], min_frequency)) / UM,
+        steps=int(res.num_steps),
+        rejected=int(res.num_rejected),
+    )
+    for k, axis in enumerate("xyz"):
+        out[f"speed_error_peak_{axis}_urad_s"] = float(np.abs(speed[:, k]).max()) / UM
+        out[f"position_error_peak_{axis}_um"] = float(np.abs(pos[:, k]).max()) / UM
+    return out
+
+
+def run(study: str, size: str = "small", progress: bool = True) -> list[dict]:
+    """Run every scene of `study` at `size`; one dict per scene (labels, metrics, wall time)."""
+    spec = SIZES[size] if size in SIZES else None
+    rows = []
+    for labels, mech in scenes(study, size):
+        start = time.perf_counter()
+        res = M.simulate(mech, spec.duration, n_save=spec.n_save, steady=True)
+        wall = time.perf_counter() - start
+        row = dict(study=study, **labels, **metrics(mech, res, spec.settle), wall_s=wall)
+        rows.append(row)
+        if progress:
+            print(f"{study} {labels}: {wall:.1f} s wall, {row['steps']} steps", flush=True)
+    return rows
