@@ -183,6 +183,8 @@ def test_bad_options_are_rejected():
         M.Inertias(reflector_mass=-8.0)
     with pytest.raises(TypeError, match="drive"):
         M.Joint(drive=1.5)
+    with pytest.raises(ValueError, match="nothing to integrate"):
+        M.simulate(M.antenna("dual", fidelity="ideal", base="fixed"), 0.1)
 
 
 def test_vibration_amplitude_recovers_a_sinusoid():

@@ -876,6 +876,12 @@ def simulate(
     `progress` (diffrax's text meter). Only structure recompiles (fidelities, supports, solver, `n_save`).
     """
     mech = Mechanism() if mechanism is None else mechanism
+    if mech.layout.size_u == 0:
+        raise ValueError(
+            "This mechanism has nothing to integrate: a fixed base with both joints ideal and "
+            "speed-driven is pure prescribed kinematics. Use base='free', a torque drive, or a "
+            "lumped/planetary joint."
+        )
     solver = diffrax.Tsit5() if solver is None else solver
     if y0 is None:
         y0 = mech.initial_state(steady)
