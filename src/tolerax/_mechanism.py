@@ -567,7 +567,7 @@ class Mechanism(eqx.Module):
 
         `steady=False`: the joints at rest (a servo start-up follows). `steady=True`: each
         servo-driven joint already turning at its commanded rate in rigid kinematics (sun at
-        $i\Omega$, planets rolling), so a short run skips most of the start-up transient.
+        $i\\Omega$, planets rolling), so a short run skips most of the start-up transient.
         Prescribed (ideal) joints are at their commanded state either way."""
         lay = self.layout
         q = jnp.zeros(lay.size_q)
