@@ -21,7 +21,7 @@ def _momentum_scale(mech, res):
         pos, rot = mech.poses(q_, t_)
         v, w = mech.twists(q_, u_, t_)
         lin = masses[:, None] * v
-        inertia = jnp.einsum("bij,bj,bkj->bik", rot, principal, rot)
+        inertia = M._world_inertia(rot, principal)
         ang = jnp.cross(pos, lin) + jnp.einsum("bij,bj->bi", inertia, w)
         return jnp.sum(jnp.linalg.norm(lin, axis=1)), jnp.sum(jnp.linalg.norm(ang, axis=1))
 

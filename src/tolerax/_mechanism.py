@@ -76,6 +76,18 @@ def _f(x):
     return jnp.asarray(x, dtype=float)
 
 
+def _set_checked(module, owner: str, values: dict, shape_of, positive: bool, unit: str):
+    """Validate finite numbers of the expected shape (and sign) and set them as float arrays."""
+    for name, value in values.items():
+        arr = np.asarray(value, dtype=float)
+        shape = shape_of(name)
+        bad = arr.shape != shape or not np.all(np.isfinite(arr)) or (positive and np.any(arr <= 0))
+        if bad:
+            sign = "positive " if positive else ""
+            raise ValueError(f"{owner}.{name} must be {sign}finite, shape {shape} ({unit}), got {value!r}.")
+        setattr(module, name, _f(arr))
+
+
 class TorqueDrive(eqx.Module):
     """Prescribed drive torque $T(t) = A\\cos(2\\pi f t + \\varphi)$ at the joint output (N m).
 
@@ -271,11 +283,7 @@ class Geometry(eqx.Module):
             link2_centre=link2_centre,
             reflector_centre=reflector_centre,
         )
-        for name, value in values.items():
-            arr = np.asarray(value, dtype=float)
-            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-                raise ValueError(f"Geometry.{name} must be 3 finite numbers (m), got {value!r}.")
-            setattr(self, name, _f(arr))
+        _set_checked(self, "Geometry", values, lambda name: (3,), positive=False, unit="m")
 
 
 class Inertias(eqx.Module):
@@ -312,14 +320,14 @@ class Inertias(eqx.Module):
             reflector_mass=reflector_mass,
             reflector_inertia=reflector_inertia,
         )
-        for name, value in values.items():
-            arr = np.asarray(value, dtype=float)
-            shape = () if name.endswith("mass") else (3,)
-            if arr.shape != shape or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-                raise ValueError(
-                    f"Inertias.{name} must be positive finite, shape {shape}, got {value!r}."
-                )
-            setattr(self, name, _f(arr))
+        _set_checked(
+            self,
+            "Inertias",
+            values,
+            lambda name: () if name.endswith("mass") else (3,),
+            positive=True,
+            unit="kg, kg m²",
+        )
 
 
 # Fixed orientations (structure, not parameters): pitch housing axis z -> link 1's x axis.
@@ -343,6 +351,18 @@ def _quat_matrix(quat):
             [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
         ]
     )
+
+
+def _vee(w):
+    """Vector of the skew part of `w` (..., 3, 3)."""
+    return 0.5 * jnp.stack(
+        [w[..., 2, 1] - w[..., 1, 2], w[..., 0, 2] - w[..., 2, 0], w[..., 1, 0] - w[..., 0, 1]], -1
+    )
+
+
+def _world_inertia(rot, principal):
+    """$R\\,\\mathrm{diag}(I)R^T$ per body (nb, 3, 3)."""
+    return jnp.einsum("bij,bj,bkj->bik", rot, principal, rot)
 
 
 def _planar_to_world(p_h, r_h, centres, angles):
@@ -465,16 +485,14 @@ class Mechanism(eqx.Module):
     def twists(self, q, u, t):
         """Body velocities (nb, 3) and angular velocities (nb, 3), world frame."""
         (p, r), (pd, rd) = jax.jvp(lambda q_, t_: self.poses(q_, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t)))
-        w = jnp.einsum("bij,bkj->bik", rd, r)  # skew(omega) = R' R^T
-        omega = 0.5 * jnp.stack([w[:, 2, 1] - w[:, 1, 2], w[:, 0, 2] - w[:, 2, 0], w[:, 1, 0] - w[:, 0, 1]], -1)
-        return pd, omega
+        return pd, _vee(jnp.einsum("bij,bkj->bik", rd, r))  # skew(omega) = R' R^T
 
     def dynamics(self, q, u, t):
         """Mass matrix $M(q)$ and the velocity-product and inertial terms $b(q,u)$ with
         $M\\dot u = Q - b$."""
         masses, principal = self.body_inertia()
         _, rot = self.poses(q, t)
-        inertia = jnp.einsum("bij,bj,bkj->bik", rot, principal, rot)
+        inertia = _world_inertia(rot, principal)
         jac_v, jac_w = jax.jacfwd(lambda u_: self.twists(q, u_, t))(u)
         (v, w), (a0, alpha0) = jax.jvp(
             lambda q_, t_: self.twists(q_, u, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t))
@@ -492,7 +510,7 @@ class Mechanism(eqx.Module):
         masses, principal = self.body_inertia()
         pos, rot = self.poses(q, t)
         v, w = self.twists(q, u, t)
-        inertia = jnp.einsum("bij,bj,bkj->bik", rot, principal, rot)
+        inertia = _world_inertia(rot, principal)
         lin = masses[:, None] * v
         ang = jnp.cross(pos, lin) + jnp.einsum("bij,bj->bi", inertia, w)
         return jnp.sum(lin, 0), jnp.sum(ang, 0)
@@ -736,8 +754,6 @@ def _reflector_in_base(mech: Mechanism, q, t):
     return pos[-1], rot[-1]
 
 
-def _vee(w):
-    return 0.5 * jnp.stack([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1]])
 
 
 class Observation(eqx.Module):
@@ -764,12 +780,11 @@ def _observe(mech: Mechanism, t, q, u, contacts):
     angles = _reference_angles(mech, q, t)
     rates = jax.jvp(lambda t_: _reference_angles(mech, q, t_), (t,), (jnp.ones_like(t),))[1]
     # For a torque drive the reference follows the measured angle: its rate is the measured rate.
-    actual = jnp.stack([_output_angle(mech.azimuth, q[lay.azimuth_q], t), _output_angle(mech.pitch, q[lay.pitch_q], t)])
-    actual_rate = jax.jvp(
+    actual, actual_rate = jax.jvp(
         lambda q_, t_: jnp.stack([_output_angle(mech.azimuth, q_[lay.azimuth_q], t_), _output_angle(mech.pitch, q_[lay.pitch_q], t_)]),
         (q, t),
         (qd, jnp.ones_like(t)),
-    )[1]
+    )
     for k, joint in enumerate((mech.azimuth, mech.pitch)):
         if commanded_angle(joint, t) is None:
             rates = rates.at[k].set(actual_rate[k])
