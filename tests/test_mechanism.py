@@ -3,6 +3,7 @@ against closed forms, and the lumped joint against the stage it is derived from.
 
 import math
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -46,9 +47,10 @@ def test_free_base_conserves_momentum(fidelity, duration):
     assert np.abs(ang - ang[0]).max() / ang_scale < 1e-9
 
 
-def _conservative_stage(clearance):
+def _conservative_stage(clearance, planet_support="clearance"):
     return P.default_stage(
         mesh="linear",
+        planet_support=planet_support,
         mesh_damping_ratio=0.0,
         contact_law=C.Flores(1.0),  # restitution 1: no contact damping; Hertz potential
         sun_clearance=clearance,
@@ -61,8 +63,10 @@ def _conservative_stage(clearance):
 def test_energy_conserved_without_damping(fidelity, duration):
     # Damping off (meshes, contacts: restitution 1), drives and drag off, free base. The joints
     # are kicked so that the 2 um clearances close within the run; the drift of kinetic plus
-    # elastic energy must follow the integrator tolerance (rtol 1e-10).
-    stage = _conservative_stage(2e-6)
+    # elastic energy must follow the integrator tolerance (rtol 1e-10). The lumped joint gets
+    # rigid planet pins: its pin play is a smoothed dead zone, whose softplus ramp has no
+    # closed-form potential (the planetary stage's pin contacts do, through the contact law).
+    stage = _conservative_stage(2e-6, "clearance" if fidelity == "planetary" else "rigid")
     joint = lambda: M.Joint(stage, fidelity, M.TorqueDrive(0.0), drag_torque=0.0)  # noqa: E731
     mech = M.Mechanism(joint(), joint(), base="free")
     lay = mech.layout
@@ -146,9 +150,48 @@ def test_lumped_mesh_is_the_stage_condensed():
     np.testing.assert_allclose(float(lm.stiffness * lm.lever**2), k_delta, rtol=1e-10)
     # The rigid (null) mode of the condensed stage is the ratio i.
     assert abs(kc[0, 0] * i + kc[0, 1]) < 1e-8 * abs(kc[0, 0])
-    # Backlash: the carrier's lost motion with the sun held is (b_s + b_r) / r.
-    nl = M.lumped_mesh(P.default_stage(backlash=60e-6), 2e-4)
-    assert float(nl.backlash) == pytest.approx(120e-6)
+    # Backlash and pin play: the carrier's lost motion with the sun held, from the stage's own
+    # deflection functions. Planet 0 pressed against its pin at the tangential offset eta = +-c_p;
+    # the carrier angle where both of its drive (back) deflections vanish together (the planet
+    # spin solved out) is the drive (back) flank onset; deflections are affine in q.
+    b, c_p = 60e-6, 30e-6
+    stage = P.default_stage(backlash=b, planet_clearance=c_p)
+    lay = stage.layout
+
+    def onset(eta, flank):
+        def residual(x):  # x = (theta_c, theta_p0)
+            q = jnp.zeros(lay.size).at[lay.carrier_theta].set(x[0]).at[lay.planet_theta.start].set(x[1])
+            q = q.at[lay.planet_xy.start + 1].set(eta)
+            d = P.deflections(stage, q)
+            return jnp.stack([d[f"sun_{flank}"][0], d[f"ring_{flank}"][0]])
+
+        a = np.asarray(jax.jacfwd(residual)(jnp.zeros(2)))
+        return np.linalg.solve(a, -np.asarray(residual(jnp.zeros(2))))[0]
+
+    # The pin lets the planet float tangentially: the drive flank engages (carrier lagging, at
+    # theta_c < 0) with the planet at eta = +c_p, the back flank (theta_c > 0) at eta = -c_p.
+    lost = onset(-c_p, "back") - onset(c_p, "drive")
+    nl = M.lumped_mesh(stage, 2e-4)
+    assert lost > 0
+    np.testing.assert_allclose(float(nl.lost_motion), lost, rtol=1e-10)
+    # ...and the lumped joint's tooth torque switches on exactly there (exact dead zone, eps = 0).
+    sharp = eqx.tree_at(lambda s_: s_.smoothing_width, stage, jnp.asarray(0.0))
+    mech = M.Mechanism(M.Joint(sharp, "lumped", M.TorqueDrive(0.0), drag_torque=0.0), base="fixed")
+    jl, sq = mech.azimuth.layout, mech.layout.azimuth_q
+
+    def carrier_torque(theta_c):
+        q = mech.initial_state()[0].at[sq.start + jl.carrier].set(theta_c)
+        (qa, _), _ = mech.joint_forces(q, jnp.zeros(mech.layout.size_u), jnp.zeros(mech.layout.size_v), 0.0)
+        return float(qa[jl.carrier])
+
+    drive, back = onset(c_p, "drive"), onset(-c_p, "back")
+    nudge = 1e-3 * lost
+    assert carrier_torque(drive + nudge) == 0.0 and carrier_torque(back - nudge) == 0.0
+    assert carrier_torque(drive - nudge) > 0.0 > carrier_torque(back + nudge)
+    # Without pin play, the lost motion is the backlash alone, (b_s + b_r) / r.
+    rigid = M.lumped_mesh(P.default_stage(backlash=b, planet_support="rigid"), 2e-4)
+    np.testing.assert_allclose(float(rigid.lost_motion * rigid.lever), 2 * b, rtol=1e-12)
+    assert float(rigid.drive_gap) == 0.0
 
 
 def test_lumped_joint_servo_lag_matches_closed_form():

@@ -47,7 +47,8 @@ the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 
   (prescribed motion, no coordinate); driven by a torque it has one coordinate, the output
   angle, with the gear train rigid (sun at $i\\theta_c$, planets rolling).
 - `"lumped"`: the sun angle $\\theta_s$ and output angle $\\theta_c$ coupled by one equivalent
-  mesh derived from the stage (`lumped_mesh`): torsional stiffness, backlash and damping; plus
+  mesh derived from the stage (`lumped_mesh`): torsional stiffness, backlash plus planet-pin
+  play, and damping; plus
   the output bearing's in-plane translation $(x_c, y_c)$ in its radial clearance (or spring,
   or rigid, per `stage.carrier_support`). Planets roll rigidly on the ring.
 - `"planetary"`: the full stage of `_planetary` (every support and mesh it models).
@@ -173,23 +174,37 @@ class JointLayout:
 
 
 class LumpedMesh(eqx.Module):
-    """The stage's two mesh families condensed into one mesh between sun and carrier.
+    """The stage's two mesh families and planet pins condensed into one mesh between sun and carrier.
 
     Deflection $g = r(\\theta_s/i - \\theta_c)$ on the lever $r = i\\,r_{bs}$ (m), with stiffness
     `stiffness` $= \\sum_n k_{s}k_{r}/(k_{s}+k_{r})$ (N/m; each planet's sun and ring meshes in
     series, the planet free to turn: the static condensation of the stage with rigid supports),
-    total backlash `backlash` $= \\min_n(b_{s,n} + b_{r,n})$ (m; the output's lost motion with the
-    sun held is $(b_s+b_r)/r$), and damping $D = 2\\xi\\sqrt{\\bar m K}$ with
-    $\\bar m = (I_s + I_{motor})/r_{bs}^2$ (the sun-side mode, output held).
+    and damping $D = 2\\xi\\sqrt{\\bar m K}$ with $\\bar m = (I_s + I_{motor})/r_{bs}^2$ (the
+    sun-side mode, output held).
+
+    Dead zone (nonlinear lumped mesh): the drive flank is loaded while $g > $ `drive_gap`, the
+    back flank while $g < -$`back_gap` (m). A planet's tangential pin offset $\\eta$ enters the
+    sum of its two mesh deflections as $-\\eta(\\cos\\alpha_s + \\cos\\alpha_r)$, so a pin
+    clearance $c_p$ lets the carrier float by $p = c_p(\\cos\\alpha_s + \\cos\\alpha_r)$ on
+    either side: `drive_gap` $= \\min_n p_n$ and `back_gap` $= \\min_n(b_{s,n} + b_{r,n} + p_n)$
+    (the first planet to take up its play carries the load). The output's lost motion with the
+    sun held is (`drive_gap` + `back_gap`)$/r$. $p = 0$ for rigid or spring-mounted pins (a
+    spring pin's compliance is not put in series).
     Mean stiffnesses: no TVMS, profile error or dynamic backlash (mesh-frequency effects that the
     lumped fidelity leaves out by design).
     """
 
     lever: Float[Array, ""]
     stiffness: Float[Array, ""]
-    backlash: Float[Array, ""]
+    drive_gap: Float[Array, ""]
+    back_gap: Float[Array, ""]
     damping: Float[Array, ""]
     nonlinear: bool = eqx.field(static=True)
+
+    @property
+    def lost_motion(self) -> Array:
+        """Output rotation (rad) from drive-flank to back-flank contact with the sun held."""
+        return (self.drive_gap + self.back_gap) / self.lever
 
 
 def lumped_mesh(stage: PlanetaryStage, motor_inertia) -> LumpedMesh:
@@ -197,13 +212,27 @@ def lumped_mesh(stage: PlanetaryStage, motor_inertia) -> LumpedMesh:
     k_s, k_r = stage.sun_mesh.stiffness, stage.ring_mesh.stiffness
     n = stage.n_planets
     stiffness = n * k_s * k_r / (k_s + k_r)
-    nonlinear = stage.sun_mesh.kind == "nonlinear"
-    if nonlinear != (stage.ring_mesh.kind == "nonlinear"):
+    meshes_nonlinear = stage.sun_mesh.kind == "nonlinear"
+    if meshes_nonlinear != (stage.ring_mesh.kind == "nonlinear"):
         raise ValueError("A lumped joint needs both mesh families linear or both nonlinear.")
-    backlash = jnp.min(stage.sun_mesh.backlash + stage.ring_mesh.backlash) if nonlinear else _f(0.0)
+    pins = stage.planet_support.kind == "clearance"
+    play = jnp.zeros(n)
+    if pins:
+        kappa = jnp.cos(stage.sun_pressure_angle) + jnp.cos(stage.ring_pressure_angle)
+        play = jnp.broadcast_to(stage.planet_support.bearing.clearance * kappa, (n,))
+    backlash = jnp.zeros(n)
+    if meshes_nonlinear:
+        backlash = jnp.broadcast_to(stage.sun_mesh.backlash + stage.ring_mesh.backlash, (n,))
     m_eq = (stage.sun_inertia + motor_inertia) / stage.sun_base_radius**2
     damping = 2.0 * stage.sun_mesh.damping_ratio * jnp.sqrt(m_eq * stiffness)
-    return LumpedMesh(stage.ratio * stage.sun_base_radius, stiffness, backlash, damping, nonlinear)
+    return LumpedMesh(
+        stage.ratio * stage.sun_base_radius,
+        stiffness,
+        jnp.min(play),
+        jnp.min(backlash + play),
+        damping,
+        meshes_nonlinear or pins,
+    )
 
 
 def _planet_spin_ratio(stage):
@@ -534,7 +563,9 @@ class Mechanism(eqx.Module):
             elif joint.fidelity == "lumped":
                 lm = lumped_mesh(joint.stage, joint.motor_inertia)
                 if lm.nonlinear:
-                    raise ValueError("potential_energy needs linear meshes (the smoothed dead zone has none).")
+                    raise ValueError(
+                        "potential_energy needs linear meshes and no pin clearance (the smoothed dead zone has none)."
+                    )
                 energy += 0.5 * lm.stiffness * _lumped_deflection(joint, lm, qj) ** 2
                 energy += _lumped_support_energy(joint, qj)
         return energy
@@ -666,7 +697,7 @@ def _joint_forces(joint: Joint, qj, uj, vj, t):
     g = _lumped_deflection(joint, lm, qj)
     gd = _lumped_deflection(joint, lm, uj)
     if lm.nonlinear:
-        f_drive, f_back = _mesh.flank_forces(g, gd, g + lm.backlash, gd, lm.stiffness, lm.damping, width)
+        f_drive, f_back = _mesh.flank_forces(g - lm.drive_gap, gd, g + lm.back_gap, gd, lm.stiffness, lm.damping, width)
         tooth = f_drive + f_back
     else:
         tooth = lm.stiffness * g + lm.damping * gd
