@@ -50,6 +50,27 @@ def test_failure_is_reported_not_hidden():
         _bench.simulate_bench(bench, 0.05, n_save=11, max_steps=50)
 
 
+def test_fixed_step_beyond_stability_is_a_failure_not_nan():
+    # The paper's fixed 1e-4 s step is ~3x beyond Tsit5's stability limit for the ~18 kHz
+    # sun/mesh mode (benchmarks/results/bench_profile.md): the states blow up to NaN while
+    # diffrax, taking constant steps, has no error estimate to refuse them. That must come back
+    # as a failure, not as numbers.
+    bench = _bench.TestBench()
+    res = _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=1e-4, throw=False)
+    assert not res.success
+    assert res.result == diffrax.RESULTS.nonfinite
+    with pytest.raises(_bench.SimulationError, match="smaller step"):
+        _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=1e-4)
+    # Inside the limit the fixed step agrees with the adaptive solution (no contact yet in the
+    # first 20 ms from rest, so both are smooth; 5th-order steps of 20 us: error far below 1e-9).
+    fixed = _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=2e-5)
+    adaptive = _bench.simulate_bench(bench, 0.02, n_save=11, rtol=1e-10, atol=1e-13)
+    assert fixed.success and int(fixed.num_steps) == 1000
+    np.testing.assert_allclose(np.asarray(fixed.output_angle), np.asarray(adaptive.output_angle), rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="fixed_step"):
+        _bench.simulate_bench(bench, 0.02, fixed_step=-1e-4)
+
+
 def test_bad_duration_rejected():
     with pytest.raises(ValueError, match="duration"):
         _bench.simulate_bench(_bench.TestBench(), float("nan"))

@@ -175,6 +175,7 @@ def simulate_bench(
     throw: bool = True,
     y0: tuple | None = None,
     progress: bool = False,
+    fixed_step: float | None = None,
 ) -> BenchResult:
     """Run the bench from `bench.initial_state()` (at rest or in steady rolling, per `start`).
 
@@ -193,12 +194,14 @@ def simulate_bench(
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set.
     - `y0`: initial `(q, qd, impact_rates)` (default `bench.initial_state()`).
     - `progress`: print diffrax's text progress meter (static: compiles a separate program).
+    - `fixed_step`: constant step (s) instead of the adaptive controller (the paper's multibody
+      setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
     """
     bench = TestBench() if bench is None else bench
     solver = diffrax.Tsit5() if solver is None else solver
     y0 = bench.initial_state() if y0 is None else y0
     sol, forces = solve(
-        bench, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress
+        bench, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step
     )
     q, qd, v = sol.ys
     lay = bench.stage.layout

@@ -912,6 +912,7 @@ def simulate(
     y0: tuple | None = None,
     steady: bool = False,
     progress: bool = False,
+    fixed_step: float | None = None,
 ) -> MechanismResult:
     """Run the mechanism from rest (or `y0`) for `duration` seconds.
 
@@ -919,7 +920,8 @@ def simulate(
     m, rad, m/s, rad/s), `dt0`, `dtmax` (s), `max_steps`, `throw` (raise `SimulationError` on
     failure, else return with `result` set), `y0 = (q, u, impact_rates)` (default
     `mechanism.initial_state(steady)`: from rest, or already turning at the commanded rates),
-    `progress` (diffrax's text meter). Only structure recompiles (fidelities, supports, solver, `n_save`).
+    `progress` (diffrax's text meter), `fixed_step` (s: constant steps instead of adaptive ones,
+    see `_solve.solve`). Only structure recompiles (fidelities, supports, solver, `n_save`).
     """
     mech = Mechanism() if mechanism is None else mechanism
     if mech.layout.size_u == 0:
@@ -931,7 +933,7 @@ def simulate(
     solver = diffrax.Tsit5() if solver is None else solver
     if y0 is None:
         y0 = mech.initial_state(steady)
-    sol, obs = solve(mech, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress)
+    sol, obs = solve(mech, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step)
     result = MechanismResult(
         ts=sol.ts,
         **{f.name: getattr(obs, f.name) for f in dataclasses.fields(Observation)},
