@@ -405,3 +405,24 @@ def test_bai_zhao_elastic_gradient_at_zero():
             assert float(slope) == pytest.approx(
                 LENGTH * np.pi * _E_STAR / (2.0 * np.sqrt(2.0)), rel=1e-12
             )
+
+
+@pytest.mark.parametrize("kind", ["HertzLN", "Flores", "BaiZhao", "Adams"])
+def test_force_gradients_finite_through_contact_onset(kind):
+    # Reverse-mode gradients of the force with respect to the state and to the bearing (the
+    # design parameters) must be finite everywhere, in particular a fraction of a micrometre
+    # before contact, where the smoothing tail makes F_el ~ 1e-283 N and a clip width
+    # proportional to F_el once made the ramp's width derivative x / w^2 overflow (NaN gradients
+    # of a whole simulation, found by benchmarks/gradient_cost.py).
+    law = tolerax.AdamsImpact() if kind == "Adams" else LAW_CLASSES[kind](0.5)
+
+    def force(bearing, x, v, rate):
+        state = tolerax.contact_kinematics(bearing, jnp.stack([x, 0.0 * x]), jnp.stack([v, 0.0 * v]), WIDTH)
+        return tolerax.normal_force(law, bearing, state, rate, WIDTH)
+
+    grad = jax.jit(jax.grad(force, argnums=(0, 1, 2, 3)))
+    for gap_in_widths in (1000.0, 500.0, 300.0, 100.0, 30.0, 10.0, 1.0, 0.0, -1.0, -10.0, -1000.0):
+        for speed in (-0.1, 0.0, 0.1):
+            x = jnp.asarray(CLEARANCE - gap_in_widths * WIDTH)
+            leaves = jax.tree_util.tree_leaves(grad(BEARING, x, jnp.asarray(speed), jnp.asarray(0.05)))
+            assert all(np.all(np.isfinite(np.asarray(g))) for g in leaves), (gap_in_widths, speed)

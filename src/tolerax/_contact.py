@@ -225,6 +225,10 @@ CLIP_WIDTH = 1e-3
 """Dimensionless width of the smooth clip $F \\ge 0$, relative to $F_{el}$ (for $\\varepsilon > 0$)."""
 
 
+FORCE_FLOOR = 1e-100
+"""Elastic forces below this (N) are treated as exactly zero contact (see `normal_force`)."""
+
+
 def effective_impact_rate(impact_rate: ArrayLike, floor: ArrayLike) -> Array:
     """$\\max(\\dot\\delta^-, v_{min})$ with a softplus of width $v_{min}/10$ (m/s).
 
@@ -274,8 +278,14 @@ def normal_force(
     # = ramp(F, w F_el). It vanishes with F_el, so a separated contact carries exactly no force
     # (a fixed force width would leave a constant ln2 * width push), and the bracket
     # [1 + chi rate / rate0] is smoothed over a dimensionless width of CLIP_WIDTH.
-    clip = jnp.where(jnp.asarray(width) > 0, CLIP_WIDTH, 0.0) * law.elastic(bearing, state.penetration)
-    return _smooth.ramp(total, clip)
+    # Below FORCE_FLOOR the elastic force is an exponentially small smoothing tail (the contact is
+    # open): the force is set to exactly 0 there. Without this, the clip width CLIP_WIDTH * F_el
+    # reaches 1e-286 N a fraction of a micrometre before contact, and the ramp's derivative with
+    # respect to its width (x / w^2, w^2 underflowing to 0) turns reverse-mode gradients into NaN.
+    f_el = law.elastic(bearing, state.penetration)
+    live = f_el > FORCE_FLOOR
+    clip = jnp.where(jnp.asarray(width) > 0, CLIP_WIDTH, 0.0) * jnp.where(live, f_el, 1.0)
+    return jnp.where(live, _smooth.ramp(jnp.where(live, total, 0.0), clip), 0.0)
 
 
 def rate_derivative(
