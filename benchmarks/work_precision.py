@@ -128,6 +128,8 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
     jax.block_until_ready(sol.ys)
     first = time.perf_counter() - start
     best, repeats = math.inf, 0
+    if first > 120.0:  # a slow configuration: one run, compile included (flagged in the table)
+        best, repeats = first, 3
     while repeats < 3 and (repeats == 0 or best < 2.0):
         start = time.perf_counter()
         sol, obs = _solve.solve(*args)
@@ -137,7 +139,7 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
     ok = bool(sol.result == diffrax.RESULTS.successful)
     record = dict(
         wall_s=best,
-        compile_s=max(first - best, 0.0),
+        compile_s=max(first - best, 0.0) if best < first else float("nan"),
         steps=int(sol.stats["num_accepted_steps"]),
         rejected=int(sol.stats["num_rejected_steps"]),
         ok=ok,
@@ -239,14 +241,18 @@ def main():
     tolerances = [1e-4, 1e-6, 1e-8] if args.quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
     explicit = [("Tsit5", diffrax.Tsit5()), ("Dopri5", diffrax.Dopri5()), ("Dopri8", diffrax.Dopri8()), ("Bosh3", diffrax.Bosh3())]
     implicit = [] if args.no_implicit else [("Kvaerno3", diffrax.Kvaerno3()), ("Kvaerno5", diffrax.Kvaerno5())]
-    implicit_tols = [1e-4, 1e-6] if args.quick else [1e-3, 1e-4, 1e-5, 1e-6]
+    implicit_tols = [1e-4] if args.quick else [1e-3, 1e-5]
     for name, solver in explicit + implicit:
         for rtol in tolerances if (name, solver) in explicit else implicit_tols:
-            rec, qs = run_diffrax(case, scene, solver, rtol)
+            # Implicit solvers get a 20k-step budget: on this problem their chord iterations fail
+            # at every contact onset and the step is rejected again and again (measured on the
+            # bench: 778 accepted against 19222 rejected steps in 0.3 s, 7.5 ms per step).
+            budget = 20_000 if (name, solver) in implicit else 4_000_000
+            rec, qs = run_diffrax(case, scene, solver, rtol, max_steps=budget)
             log(dict(family="diffrax", method=name, rtol=rtol, eps=default_width, **rec, errors=errors(qs, reference) if qs else None))
     # The paper's multibody setting: a fixed 1e-4 s step.
     for name, solver in [("Tsit5", diffrax.Tsit5())] + implicit:
-        rec, qs = run_diffrax(case, scene, solver, 1e-8, fixed_step=1e-4)
+        rec, qs = run_diffrax(case, scene, solver, 1e-8, fixed_step=1e-4, max_steps=max(4_000_000, int(case.duration / 1e-4) + 1))
         log(dict(family="fixed 1e-4", method=name, rtol=float("nan"), eps=default_width, **rec, errors=errors(qs, reference) if qs else None))
     # Smoothing width: how far a wider (cheaper) smoothing moves the answer.
     for width in (1e-8, 1e-7, 1e-6):
@@ -284,7 +290,8 @@ def write(case, rows, ref_rec, agreement, call):
         "",
         f"One call of the compiled right-hand side from Python: {call * 1e6:.0f} us.",
         "",
-        "Errors are relative (see the script's docstring); wall time after compilation, best of up to 3.",
+        "Errors are relative (see the script's docstring); wall time after compilation, best of up to 3; "
+        "compile 'nan': a configuration whose first call took over 120 s, timed once with its compilation included.",
         "",
         "| family | method | rtol | eps (m) | wall (s) | compile (s) | steps | " + " | ".join(keys) + " |",
         "|---|---|---|---|---|---|---|" + "---|" * len(keys),
