@@ -164,10 +164,14 @@ def run_scipy(case, scene, method, rtol):
     if implicit:
         jac_np(0.0, np.asarray(flat0))
     start = time.perf_counter()
-    sol = scipy.integrate.solve_ivp(
-        f_np, (0.0, case.duration), np.asarray(flat0), method=method, t_eval=ts,
-        rtol=rtol, atol=1e-3 * rtol, jac=jac_np if implicit else None,
-    )
+    try:
+        sol = scipy.integrate.solve_ivp(
+            f_np, (0.0, case.duration), np.asarray(flat0), method=method, t_eval=ts,
+            rtol=rtol, atol=1e-3 * rtol, jac=jac_np if implicit else None,
+        )
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as error:  # e.g. inf/NaN in a trial Jacobian
+        wall = time.perf_counter() - start
+        return dict(wall_s=wall, compile_s=0.0, steps=0, nfev=0, njev=0, ok=False, result=f"raised {error}"), None
     wall = time.perf_counter() - start
     record = dict(wall_s=wall, compile_s=0.0, steps=int(sol.t.size), nfev=int(sol.nfev), njev=int(sol.njev), ok=bool(sol.success), result=sol.message if not sol.success else "")
     if not sol.success or sol.y.shape[1] != ts.size:
