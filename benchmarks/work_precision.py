@@ -297,7 +297,7 @@ def write(case, rows, ref_rec, agreement, call):
         "Errors are relative (see the script's docstring); wall time after compilation, best of up to 3; "
         "compile 'nan': a configuration whose first call took over 120 s, timed once with its compilation included.",
         "",
-        "| family | method | rtol | eps (m) | wall (s) | compile (s) | steps | " + " | ".join(keys) + " |",
+        "| family | method | rtol | eps (m) | wall (s) | compile (s) | accepted steps (rejected) / SciPy evaluations | " + " | ".join(keys) + " |",
         "|---|---|---|---|---|---|---|" + "---|" * len(keys),
     ]
     for r in rows:
@@ -305,7 +305,7 @@ def write(case, rows, ref_rec, agreement, call):
             errs = " | ".join(f"{r['errors'][k]:.1e}" for k in keys)
         else:
             errs = " | ".join(["failed: " + (r["result"] or "no result")[:60]] + [""] * (len(keys) - 1))
-        steps = r["steps"] if r["family"] != "scipy" else f"{r['steps']} saved, {r.get('nfev', 0)} f-evals"
+        steps = f"{r['steps']} ({r['rejected']} rejected)" if r["family"] != "scipy" else f"{r.get('nfev', 0)} f-evals, {r.get('njev', 0)} Jacobians"
         lines.append(f"| {r['family']} | {r['method']} | {r['rtol']:g} | {r['eps']:g} | {r['wall_s']:.3f} | {r['compile_s']:.1f} | {steps} | {errs} |")
     stem.with_suffix(".md").write_text("\n".join(lines) + "\n")
     plot(case, rows, keys, stem.with_suffix(".png"))
