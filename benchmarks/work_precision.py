@@ -216,8 +216,14 @@ def main():
     parser.add_argument("--no-implicit", action="store_true", help="skip diffrax's implicit solvers")
     parser.add_argument("--no-scipy", action="store_true", help="skip the SciPy baseline")
     parser.add_argument("--duration", type=float, help="override the scene's simulated time (s)")
+    parser.add_argument("--render", action="store_true", help="rewrite the .md and .png from the scene's saved .json (no runs)")
     args = parser.parse_args()
     case = CASES[args.scene]
+    if args.render:
+        saved = json.loads((RESULTS / f"work_precision_{case.name}.json").read_text())
+        case = dataclasses.replace(case, duration=saved["duration"], description=saved["scene"])
+        write(case, saved["rows"], saved["reference"], saved["reference_check"], saved["rhs_call_s"])
+        return
     if args.duration:
         case = dataclasses.replace(case, duration=args.duration, description=case.description.rsplit(",", 1)[0] + f", {args.duration:g} s")
     default_width = 1e-9
