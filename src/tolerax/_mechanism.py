@@ -48,9 +48,8 @@ the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 
   angle, with the gear train rigid (sun at $i\\theta_c$, planets rolling).
 - `"lumped"`: the sun angle $\\theta_s$ and output angle $\\theta_c$ coupled by one equivalent
   mesh derived from the stage (`lumped_mesh`): torsional stiffness, backlash plus planet-pin
-  play, and damping; plus
-  the output bearing's in-plane translation $(x_c, y_c)$ in its radial clearance (or spring,
-  or rigid, per `stage.carrier_support`). Planets roll rigidly on the ring.
+  play, and damping; plus the output bearing's in-plane translation $(x_c, y_c)$ in its radial
+  clearance (or spring, or rigid, per `stage.carrier_support`). Planets roll rigidly on the ring.
 - `"planetary"`: the full stage of `_planetary` (every support and mesh it models).
 """
 
