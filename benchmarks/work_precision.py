@@ -301,7 +301,8 @@ def write(case, rows, ref_rec, agreement, call):
         f"One call of the compiled right-hand side from Python: {call * 1e6:.0f} us.",
         "",
         "Errors are relative (see the script's docstring); wall time after compilation, best of up to 3; "
-        "compile 'nan': a configuration whose first call took over 120 s, timed once with its compilation included.",
+        "compile 'nan': the first call was not slower than the timed ones (timing noise, or a configuration "
+        "whose first call took over 120 s and was timed once, compilation included).",
         "",
         "| family | method | rtol | eps (m) | wall (s) | compile (s) | accepted steps (rejected) / SciPy evaluations | " + " | ".join(keys) + " |",
         "|---|---|---|---|---|---|---|" + "---|" * len(keys),
