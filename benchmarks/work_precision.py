@@ -254,9 +254,9 @@ def main():
     implicit_tols = [1e-4] if args.quick else [1e-3, 1e-5]
     for name, solver in explicit + implicit:
         for rtol in tolerances if (name, solver) in explicit else implicit_tols:
-            # Implicit solvers get a 20k-step budget: on this problem their chord iterations fail
-            # at every contact onset and the step is rejected again and again (measured on the
-            # bench: 778 accepted against 19222 rejected steps in 0.3 s, 7.5 ms per step).
+            # Implicit solvers get a 20k-step budget: on this problem their chord iterations often
+            # fail across contact switches and steps are rejected again and again (bench: more
+            # rejected than accepted steps, ~4 ms per step; see work_precision_bench.md).
             budget = 20_000 if (name, solver) in implicit else 4_000_000
             rec, qs = run_diffrax(case, scene, solver, rtol, max_steps=budget)
             log(dict(family="diffrax", method=name, rtol=rtol, eps=default_width, **rec, errors=errors(qs, reference) if qs else None))
