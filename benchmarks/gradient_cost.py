@@ -15,35 +15,22 @@ relative difference.
 """
 
 import argparse
-import math
 import pathlib
 import time
 
-import diffrax
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import tolerax
-from tolerax import _bench, _solve
+from tolerax import _bench
 
-from _design import NAMES, with_design
+from _design import NAMES, rms_output_error
 
-ARCSEC = 180 / math.pi * 3600
 
 
 def objective_factory(bench, duration, rtol):
-    lay = bench.stage.layout
-    rate = bench.servo.output_rate
-
-    def objective(p):
-        scene = with_design(bench, p)
-        sol, _ = _solve.solve(scene, scene.initial_state(), duration, 101, diffrax.Tsit5(), rtol, 1e-3 * rtol, 1e-6, 1e-3, 400_000, False)
-        err = (sol.ys[0][:, lay.carrier_theta] - rate * sol.ts) * ARCSEC
-        return jnp.sqrt(jnp.mean(err**2))
-
-    return objective
+    return lambda p: rms_output_error(bench, p, duration, rtol)[0]
 
 
 def best_of(fn, *args, repeats=3):

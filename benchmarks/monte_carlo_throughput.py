@@ -13,21 +13,18 @@ hardest member. Wall time after compilation, best of 2. Writes
 """
 
 import argparse
-import math
 import pathlib
 import time
 
-import diffrax
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 import tolerax
-from tolerax import _bench, _solve
+from tolerax import _bench
 
-from _design import with_design
+from _design import rms_output_error
 
-ARCSEC = 180 / math.pi * 3600
 
 
 def main():
@@ -36,15 +33,9 @@ def main():
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 2, 4, 8, 16])
     args = parser.parse_args()
     bench = _bench.TestBench()
-    lay = bench.stage.layout
-    rate = bench.servo.output_rate
 
     def sample(p):
-        scene = with_design(bench, p)
-        sol, _ = _solve.solve(scene, scene.initial_state(), args.duration, 101, diffrax.Tsit5(), 1e-6, 1e-9, 1e-6, 1e-3, 400_000, False)
-        err = (sol.ys[0][:, lay.carrier_theta] - rate * sol.ts) * ARCSEC
-        ok = sol.result == diffrax.RESULTS.successful
-        return jnp.sqrt(jnp.mean(err**2)), ok, sol.stats["num_steps"]
+        return rms_output_error(bench, p, args.duration, 1e-6)
 
     batched = jax.jit(jax.vmap(sample))
     single = jax.jit(sample)

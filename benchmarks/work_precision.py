@@ -33,7 +33,6 @@ import pathlib
 import time
 
 import diffrax
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -148,10 +147,15 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
     return record, (case.quantities(scene, sol.ts, sol.ys, obs) if ok else None)
 
 
-def run_scipy(case, scene, method, rtol):
-    y0 = _initial_state(scene)
-    flat0, unravel = ravel_pytree(y0)
+def flat_rhs(scene):
+    """The scene's compiled right-hand side on the flattened state: (f(t, y), y0, unravel)."""
+    flat0, unravel = ravel_pytree(_initial_state(scene))
     f = jax.jit(lambda t, y: ravel_pytree(scene.vector_field(t, unravel(y), None))[0])
+    return f, flat0, unravel
+
+
+def run_scipy(case, scene, method, rtol):
+    f, flat0, unravel = flat_rhs(scene)
     jac = jax.jit(jax.jacfwd(f, argnums=1))
     observe = jax.jit(jax.vmap(scene.observe))
     ts = np.linspace(0.0, case.duration, case.n_save)
@@ -184,9 +188,7 @@ def run_scipy(case, scene, method, rtol):
 
 def rhs_call_cost(scene, repeats=2000):
     """Seconds per call of the compiled right-hand side from Python (dispatch included)."""
-    y0 = _initial_state(scene)
-    flat0, unravel = ravel_pytree(y0)
-    f = jax.jit(lambda t, y: ravel_pytree(scene.vector_field(t, unravel(y), None))[0])
+    f, flat0, _ = flat_rhs(scene)
     y, t = np.asarray(flat0), np.float64(0.0)
     np.asarray(f(t, y))
     start = time.perf_counter()
