@@ -4,39 +4,12 @@ benchmarks."""
 import math
 
 import diffrax
-import equinox as eqx
 import jax.numpy as jnp
 
 from tolerax import _solve
+from tolerax._design import NAMES, with_design  # noqa: F401 (NAMES: re-exported for gradient_cost)
 
 ARCSEC = 180 / math.pi * 3600
-
-NAMES = ("sun clearance", "carrier clearance", "planet clearance", "sun backlash", "ring backlash")
-
-
-def with_design(bench, p):
-    """`bench` with its stage's clearances and backlash set from `p` (m), in `NAMES` order
-    (all planets alike). Traceable: `p` may be a tracer (grad, vmap)."""
-    stage = bench.stage
-    n = stage.n_planets
-    stage = eqx.tree_at(
-        lambda s: (
-            s.sun_support.bearing.clearance,
-            s.carrier_support.bearing.clearance,
-            s.planet_support.bearing.clearance,
-            s.sun_mesh.backlash,
-            s.ring_mesh.backlash,
-        ),
-        stage,
-        (
-            p[0],
-            p[1],
-            jnp.broadcast_to(p[2], jnp.shape(stage.planet_support.bearing.clearance)),
-            p[3] * jnp.ones(n),
-            p[4] * jnp.ones(n),
-        ),
-    )
-    return eqx.tree_at(lambda b: b.stage, bench, stage)
 
 
 def rms_output_error(bench, p, duration, rtol):

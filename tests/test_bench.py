@@ -46,7 +46,15 @@ def test_failure_is_reported_not_hidden():
     res = _bench.simulate_bench(bench, 0.05, n_save=11, max_steps=50, throw=False)
     assert not res.success
     assert res.result == diffrax.RESULTS.max_steps_reached
-    with pytest.raises(_bench.SimulationError, match="last saved time reached"):
+    # t_reached is where the solver stopped: the same 50-step budget reaches it (the step
+    # sequence is the same up to there), and does not reach 20 % further.
+    t = float(res.t_reached)
+    assert 0 < t < 0.05
+    assert _bench.simulate_bench(bench, t, n_save=11, max_steps=50, throw=False).success
+    assert not _bench.simulate_bench(bench, 1.2 * t, n_save=11, max_steps=50, throw=False).success
+    (line,) = res.failures()
+    assert "max_steps_reached" in line and f"t = {t:.6g} s of 0.05 s" in line and "max_steps" in line
+    with pytest.raises(_bench.SimulationError, match=r"failed \(max_steps_reached\) at t = "):
         _bench.simulate_bench(bench, 0.05, n_save=11, max_steps=50)
 
 

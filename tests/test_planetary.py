@@ -27,9 +27,12 @@ def lin_parker_stage(n_planets=3):
     alpha = math.radians(24.6)
     return P.PlanetaryStage(
         n_planets=n_planets,
-        sun_teeth=1,  # teeth only set mesh phases, unused by linear meshes
-        planet_teeth=1,
-        ring_teeth=3,
+        # The paper gives no tooth counts (linear meshes use them only for phases); these match
+        # its radii, 25 : 32 : 89 (module 3.4 mm), so the planets' tip circles are realistic for
+        # the construction check that the planets fit on the carrier.
+        sun_teeth=25,
+        planet_teeth=32,
+        ring_teeth=89,
         sun_mass=f(m["s"]),
         carrier_mass=f(m["c"]),
         planet_mass=f(m["p"]),
@@ -225,7 +228,7 @@ def test_no_retrace_and_finite_gradient_of_clearance():
 
 
 def test_unknown_support_kind_is_rejected():
-    with pytest.raises(ValueError, match="Support kind 'loose'"):
+    with pytest.raises(ValueError, match=r"sun_support='loose'\) is unknown"):
         P.default_stage(sun_support="loose")
     with pytest.raises(ValueError, match="do not assemble"):
         P.default_stage(ring_teeth=81)

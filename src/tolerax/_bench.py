@@ -10,9 +10,9 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from . import _planetary
+from . import _planetary, _validate as V
 from ._planetary import AddedInertia, PlanetaryStage
-from ._solve import SimulationError, raise_on_failure, solve  # noqa: F401 (SimulationError: re-exported)
+from ._solve import DTMIN, SimulationError, SolverReport, raise_on_failure, solve  # noqa: F401 (SimulationError: re-exported)
 
 
 class SpeedServo(eqx.Module):
@@ -30,9 +30,17 @@ class SpeedServo(eqx.Module):
     integral: Float[Array, ""]
 
     def __init__(self, output_rate=math.radians(0.98), proportional=0.2, integral=2.0):
-        self.output_rate = jnp.asarray(output_rate, dtype=float)
-        self.proportional = jnp.asarray(proportional, dtype=float)
-        self.integral = jnp.asarray(integral, dtype=float)
+        self.output_rate = V.real("SpeedServo", "output_rate", output_rate, "rad/s")
+        self.proportional = V.real("SpeedServo", "proportional", proportional, "N m s/rad")
+        self.integral = V.real("SpeedServo", "integral", integral, "N m/rad")
+
+    def __check_init__(self):
+        V.check(
+            self,
+            output_rate=V.FINITE("rad/s"),
+            proportional=V.NONNEGATIVE("N m s/rad"),
+            integral=V.NONNEGATIVE("N m/rad"),
+        )
 
     def torque(self, ratio: float, t, theta_s, omega_s):
         return self.proportional * (ratio * self.output_rate - omega_s) + self.integral * (
@@ -77,12 +85,25 @@ class TestBench(eqx.Module):
         if start not in ("rest", "steady"):
             raise ValueError(f"start={start!r} is unknown; use 'rest' or 'steady'.")
         self.start = start
-        self.load_torque = jnp.asarray(load_torque, dtype=float)
+        self.load_torque = V.real("TestBench", "load_torque", load_torque, "N m")
         self.stage = _planetary.default_stage() if stage is None else stage
         self.servo = SpeedServo() if servo is None else servo
-        self.motor_inertia = jnp.asarray(motor_inertia, dtype=float)
-        self.load_inertia = jnp.asarray(load_inertia, dtype=float)
-        self.load_mass = jnp.asarray(load_mass, dtype=float)
+        self.motor_inertia = V.real("TestBench", "motor_inertia", motor_inertia, "kg m^2")
+        self.load_inertia = V.real("TestBench", "load_inertia", load_inertia, "kg m^2")
+        self.load_mass = V.real("TestBench", "load_mass", load_mass, "kg")
+
+    def __check_init__(self):
+        if not isinstance(self.stage, PlanetaryStage):
+            raise TypeError(f"TestBench.stage must be a PlanetaryStage, got {type(self.stage).__name__}.")
+        if not isinstance(self.servo, SpeedServo):
+            raise TypeError(f"TestBench.servo must be a SpeedServo, got {type(self.servo).__name__}.")
+        V.check(
+            self,
+            load_torque=V.NONNEGATIVE("N m"),
+            motor_inertia=V.NONNEGATIVE("kg m^2"),
+            load_inertia=V.NONNEGATIVE("kg m^2"),
+            load_mass=V.NONNEGATIVE("kg"),
+        )
 
     @property
     def added(self) -> AddedInertia:
@@ -132,7 +153,7 @@ class TestBench(eqx.Module):
         return qd, qdd, vd
 
 
-class BenchResult(eqx.Module):
+class BenchResult(SolverReport):
     """Time series of a bench run (SI units; angles in rad).
 
     - `ts`: save times (s).
@@ -140,8 +161,11 @@ class BenchResult(eqx.Module):
     - `transmission_error`: $\\theta_c - \\theta_s/i$ (rad), $i = 1 + z_r/z_s$.
     - `contact_force`: normal force of each clearance contact (N), columns `contact_names`.
     - `sun_mesh_force`, `ring_mesh_force`: tooth force per planet (N), + drive flank, − back flank.
-    - `result`: the diffrax result code; `num_steps`, `num_rejected`: step statistics.
+    - solver report (`SolverReport`): `result`, `t_reached`, `num_steps`, `num_rejected`,
+      `duration`; `success`, `failures()`, `report()` (per sample for a batch).
     """
+
+    _what = "bench"
 
     ts: Array
     output_angle: Array
@@ -151,14 +175,7 @@ class BenchResult(eqx.Module):
     sun_mesh_force: Array
     ring_mesh_force: Array
     states: tuple
-    result: diffrax.RESULTS
-    num_steps: Array
-    num_rejected: Array
     contact_names: tuple[str, ...] = eqx.field(static=True)
-
-    @property
-    def success(self) -> bool:
-        return bool(self.result == diffrax.RESULTS.successful)
 
 
 def simulate_bench(
@@ -176,6 +193,7 @@ def simulate_bench(
     y0: tuple | None = None,
     progress: bool = False,
     fixed_step: float | None = None,
+    dtmin: float = DTMIN,
 ) -> BenchResult:
     """Run the bench from `bench.initial_state()` (at rest or in steady rolling, per `start`).
 
@@ -189,7 +207,8 @@ def simulate_bench(
       `benchmarks/bench_profile.py`; implicit solvers are not yet compared).
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
-    - `dt0`, `dtmax`: first and largest step (s).
+    - `dt0`, `dtmax`: first and largest step (s); `dtmin` (s): a step the error control wants
+      below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
     - `max_steps`: step budget.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set.
     - `y0`: initial `(q, qd, impact_rates)` (default `bench.initial_state()`).
@@ -199,9 +218,14 @@ def simulate_bench(
     """
     bench = TestBench() if bench is None else bench
     solver = diffrax.Tsit5() if solver is None else solver
-    y0 = bench.initial_state() if y0 is None else y0
+    if not isinstance(bench, TestBench):
+        raise TypeError(f"bench must be a TestBench, got {type(bench).__name__}.")
+    if y0 is None:
+        y0 = bench.initial_state()
+    else:
+        V.state_like(y0, bench.initial_state())
     sol, forces = solve(
-        bench, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step
+        bench, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step, dtmin
     )
     q, qd, v = sol.ys
     lay = bench.stage.layout
@@ -217,8 +241,10 @@ def simulate_bench(
         ring_mesh_force=forces.ring_mesh,
         states=(q, qd, v),
         result=sol.result,
+        t_reached=sol.stats["t_reached"],
         num_steps=sol.stats["num_accepted_steps"],
         num_rejected=sol.stats["num_rejected_steps"],
+        duration=float(duration),
         contact_names=bench.stage.contact_names,
     )
     if throw:

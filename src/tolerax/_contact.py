@@ -21,9 +21,10 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from . import _smooth
+from . import _smooth, _validate as V
 
 
 def composite_modulus(
@@ -52,10 +53,35 @@ class JournalBearing(eqx.Module):
     def __init__(self, journal_radius, clearance, length=8e-3, modulus=None):
         if modulus is None:
             modulus = composite_modulus(206e9, 0.3, 206e9, 0.3)
-        self.journal_radius = jnp.asarray(journal_radius, dtype=float)
-        self.clearance = jnp.asarray(clearance, dtype=float)
-        self.length = jnp.asarray(length, dtype=float)
-        self.modulus = jnp.asarray(modulus, dtype=float)
+        # Any shape (one bearing, or one per planet pin), as long as they broadcast together.
+        self.journal_radius = V.real("JournalBearing", "journal_radius", journal_radius, "m", shape=None)
+        self.clearance = V.real("JournalBearing", "clearance", clearance, "m", shape=None)
+        self.length = V.real("JournalBearing", "length", length, "m", shape=None)
+        self.modulus = V.real("JournalBearing", "modulus", modulus, "Pa", shape=None)
+
+    def __check_init__(self):
+        V.check(
+            self,
+            journal_radius=V.POSITIVE("m"),
+            clearance=V.NONNEGATIVE("m"),
+            length=V.POSITIVE("m"),
+            modulus=V.POSITIVE("Pa"),
+        )
+        shapes = [jnp.shape(x) for x in (self.journal_radius, self.clearance, self.length, self.modulus)]
+        try:
+            np.broadcast_shapes(*shapes)
+        except ValueError:
+            raise ValueError(
+                f"JournalBearing fields must broadcast together (one value, or one per planet), got "
+                f"shapes journal_radius {shapes[0]}, clearance {shapes[1]}, length {shapes[2]}, modulus {shapes[3]}."
+            ) from None
+        if V.concrete(self.clearance, self.journal_radius):
+            V.require(
+                np.all(np.asarray(self.clearance) < np.asarray(self.journal_radius)),
+                f"JournalBearing.clearance must be smaller than journal_radius (m): a clearance of "
+                f"{np.asarray(self.clearance)} m around a {np.asarray(self.journal_radius)} m journal "
+                f"is not a bearing (clearances are µm, journals mm).",
+            )
 
     def hertz_stiffness(self) -> Float[Array, ""]:
         """$K = \\tfrac43 E^* \\sqrt{R_a R_b/(R_b - R_a)}$ (N/m^1.5). Diverges as $c \\to 0$
@@ -94,7 +120,12 @@ class _RestitutionLaw(AbstractContactLaw):
     restitution: Float[Array, ""]
 
     def __init__(self, restitution=0.9):
-        self.restitution = jnp.asarray(restitution, dtype=float)
+        self.restitution = V.real(type(self).__name__, "restitution", restitution, "-", shape=None)
+
+    def __check_init__(self):
+        # c_e = 0 (perfectly plastic) is outside every law's range: Flores' chi = 8(1-c_e)/(5 c_e)
+        # diverges, and the others are fitted for c_e well above 0.
+        V.check(self, restitution=V.Rule("coefficient of restitution", low=0.0, high=1.0, low_open=True))
 
     @abc.abstractmethod
     def chi(self) -> Array:
@@ -170,10 +201,21 @@ class AdamsImpact(AbstractContactLaw):
     damping_depth: Float[Array, ""]
 
     def __init__(self, stiffness=1e7, exponent=1.5, damping=100.0, damping_depth=1e-5):
-        self.stiffness = jnp.asarray(stiffness, dtype=float)
-        self.exponent = float(exponent)
-        self.damping = jnp.asarray(damping, dtype=float)
-        self.damping_depth = jnp.asarray(damping_depth, dtype=float)
+        self.stiffness = V.real("AdamsImpact", "stiffness", stiffness, "N/m^exponent")
+        self.exponent = float(V.real("AdamsImpact", "exponent", exponent, "-"))
+        self.damping = V.real("AdamsImpact", "damping", damping, "N s/m")
+        self.damping_depth = V.real("AdamsImpact", "damping_depth", damping_depth, "m")
+
+    def __check_init__(self):
+        V.check(
+            self,
+            stiffness=V.POSITIVE("N/m^exponent"),
+            # exponent >= 1: a force growing slower than linearly has an infinite stiffness at
+            # contact onset (Adams itself requires e >= 1).
+            exponent=V.Rule("-", low=1.0),
+            damping=V.NONNEGATIVE("N s/m"),
+            damping_depth=V.POSITIVE("m"),
+        )
 
     def elastic(self, bearing, penetration):
         return self.stiffness * _smooth.power(penetration, self.exponent)

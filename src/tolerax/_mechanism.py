@@ -63,29 +63,20 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from . import _contact, _mesh, _planetary, _smooth
+from . import _contact, _mesh, _planetary, _smooth, _validate as V
 from ._bench import SpeedServo
 from ._planetary import AddedInertia, PlanetaryStage
-from ._solve import raise_on_failure, solve
+from ._solve import DTMIN, SolverReport, raise_on_failure, solve
 
 FIDELITIES = ("ideal", "lumped", "planetary")
 DRAG_SPEED = 1e-3  # rad/s: drag torque T tanh(omega / DRAG_SPEED), smooth through zero speed
 
 
-def _f(x):
-    return jnp.asarray(x, dtype=float)
-
-
-def _set_checked(module, owner: str, values: dict, shape_of, positive: bool, unit: str):
-    """Validate finite numbers of the expected shape (and sign) and set them as float arrays."""
+def _set_checked(module, values: dict, shape_of, unit_of):
+    """Set real numbers of the expected shape as float arrays (ranges: `__check_init__`)."""
+    owner = type(module).__name__
     for name, value in values.items():
-        arr = np.asarray(value, dtype=float)
-        shape = shape_of(name)
-        bad = arr.shape != shape or not np.all(np.isfinite(arr)) or (positive and np.any(arr <= 0))
-        if bad:
-            sign = "positive " if positive else ""
-            raise ValueError(f"{owner}.{name} must be {sign}finite, shape {shape} ({unit}), got {value!r}.")
-        setattr(module, name, _f(arr))
+        setattr(module, name, V.real(owner, name, value, unit_of(name), shape_of(name)))
 
 
 class TorqueDrive(eqx.Module):
@@ -100,7 +91,12 @@ class TorqueDrive(eqx.Module):
     phase: Float[Array, ""]
 
     def __init__(self, amplitude, frequency=1.0, phase=0.0):
-        self.amplitude, self.frequency, self.phase = _f(amplitude), _f(frequency), _f(phase)
+        self.amplitude = V.real("TorqueDrive", "amplitude", amplitude, "N m")
+        self.frequency = V.real("TorqueDrive", "frequency", frequency, "Hz")
+        self.phase = V.real("TorqueDrive", "phase", phase, "rad")
+
+    def __check_init__(self):
+        V.check(self, amplitude=V.FINITE("N m"), frequency=V.NONNEGATIVE("Hz"), phase=V.FINITE("rad"))
 
     def torque(self, t):
         return self.amplitude * jnp.cos(2.0 * jnp.pi * self.frequency * t + self.phase)
@@ -132,8 +128,13 @@ class Joint(eqx.Module):
         self.drive = SpeedServo() if drive is None else drive
         if not isinstance(self.drive, (SpeedServo, TorqueDrive)):
             raise TypeError(f"drive must be a SpeedServo or a TorqueDrive, got {type(self.drive).__name__}.")
-        self.motor_inertia = _f(motor_inertia)
-        self.drag_torque = _f(drag_torque)
+        self.motor_inertia = V.real("Joint", "motor_inertia", motor_inertia, "kg m^2")
+        self.drag_torque = V.real("Joint", "drag_torque", drag_torque, "N m")
+
+    def __check_init__(self):
+        if not isinstance(self.stage, PlanetaryStage):
+            raise TypeError(f"Joint.stage must be a PlanetaryStage, got {type(self.stage).__name__}.")
+        V.check(self, motor_inertia=V.POSITIVE("kg m^2"), drag_torque=V.NONNEGATIVE("N m"))
 
     @property
     def layout(self) -> "JointLayout":
@@ -311,7 +312,10 @@ class Geometry(eqx.Module):
             link2_centre=link2_centre,
             reflector_centre=reflector_centre,
         )
-        _set_checked(self, "Geometry", values, lambda name: (3,), positive=False, unit="m")
+        _set_checked(self, values, lambda name: (3,), lambda name: "m")
+
+    def __check_init__(self):
+        V.check(self, **{f.name: V.FINITE("m") for f in dataclasses.fields(self)})
 
 
 class Inertias(eqx.Module):
@@ -348,14 +352,11 @@ class Inertias(eqx.Module):
             reflector_mass=reflector_mass,
             reflector_inertia=reflector_inertia,
         )
-        _set_checked(
-            self,
-            "Inertias",
-            values,
-            lambda name: () if name.endswith("mass") else (3,),
-            positive=True,
-            unit="kg, kg m²",
-        )
+        is_mass = lambda name: name.endswith("mass")  # noqa: E731
+        _set_checked(self, values, lambda n: () if is_mass(n) else (3,), lambda n: "kg" if is_mass(n) else "kg m^2")
+
+    def __check_init__(self):
+        V.check(self, **{f.name: V.POSITIVE("kg" if f.name.endswith("mass") else "kg m^2") for f in dataclasses.fields(self)})
 
 
 # Fixed orientations (structure, not parameters): pitch housing axis z -> link 1's x axis.
@@ -433,6 +434,9 @@ class Mechanism(eqx.Module):
         self.geometry = Geometry() if geometry is None else geometry
         self.inertias = Inertias() if inertias is None else inertias
         self.base = base
+        for name, cls in (("azimuth", Joint), ("pitch", Joint), ("geometry", Geometry), ("inertias", Inertias)):
+            if not isinstance(getattr(self, name), cls):
+                raise TypeError(f"Mechanism.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}.")
 
     @property
     def layout(self) -> MechanismLayout:
@@ -845,7 +849,7 @@ def _observe(mech: Mechanism, t, q, u, contacts):
     )
 
 
-class MechanismResult(eqx.Module):
+class MechanismResult(SolverReport):
     """Time series of a mechanism run. SI units, angles in rad, vectors in the base frame.
 
     - `ts` (s). `joint_angle`, `commanded_angle`: (n, 2) azimuth and pitch output angles; the
@@ -861,8 +865,12 @@ class MechanismResult(eqx.Module):
       `azimuth_contact_names` / `pitch_contact_names`; `output_force` (property) is the output
       bearing's (carrier's) radial contact force per joint.
     - `momentum`, `angular_momentum` (about the world origin), `kinetic_energy`: invariants.
-    - `states`: `(q, u, impact_rates)`; `result`, `num_steps`, `num_rejected`: solver report.
+    - `states`: `(q, u, impact_rates)`.
+    - solver report (`SolverReport`): `result`, `t_reached`, `num_steps`, `num_rejected`,
+      `duration`; `success`, `failures()`, `report()` (per sample for a batch).
     """
+
+    _what = "mechanism"
 
     ts: Array
     joint_angle: Array
@@ -877,15 +885,8 @@ class MechanismResult(eqx.Module):
     angular_momentum: Array
     kinetic_energy: Array
     states: tuple
-    result: diffrax.RESULTS
-    num_steps: Array
-    num_rejected: Array
     azimuth_contact_names: tuple[str, ...] = eqx.field(static=True)
     pitch_contact_names: tuple[str, ...] = eqx.field(static=True)
-
-    @property
-    def success(self) -> bool:
-        return bool(self.result == diffrax.RESULTS.successful)
 
     @property
     def output_force(self) -> Array:
@@ -912,6 +913,7 @@ def simulate(
     steady: bool = False,
     progress: bool = False,
     fixed_step: float | None = None,
+    dtmin: float = DTMIN,
 ) -> MechanismResult:
     """Run the mechanism from rest (or `y0`) for `duration` seconds.
 
@@ -919,10 +921,13 @@ def simulate(
     m, rad, m/s, rad/s), `dt0`, `dtmax` (s), `max_steps`, `throw` (raise `SimulationError` on
     failure, else return with `result` set), `y0 = (q, u, impact_rates)` (default
     `mechanism.initial_state(steady)`: from rest, or already turning at the commanded rates),
+    `dtmin` (s: a step-size collapse below it ends the run with `RESULTS.dt_min_reached`),
     `progress` (diffrax's text meter), `fixed_step` (s: constant steps instead of adaptive ones,
     see `_solve.solve`). Only structure recompiles (fidelities, supports, solver, `n_save`).
     """
     mech = Mechanism() if mechanism is None else mechanism
+    if not isinstance(mech, Mechanism):
+        raise TypeError(f"mechanism must be a Mechanism (see `antenna`), got {type(mech).__name__}.")
     if mech.layout.size_u == 0:
         raise ValueError(
             "This mechanism has nothing to integrate: a fixed base with both joints ideal and "
@@ -932,14 +937,18 @@ def simulate(
     solver = diffrax.Tsit5() if solver is None else solver
     if y0 is None:
         y0 = mech.initial_state(steady)
-    sol, obs = solve(mech, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step)
+    else:
+        V.state_like(y0, mech.initial_state(steady))
+    sol, obs = solve(mech, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step, dtmin)
     result = MechanismResult(
         ts=sol.ts,
         **{f.name: getattr(obs, f.name) for f in dataclasses.fields(Observation)},
         states=sol.ys,
         result=sol.result,
+        t_reached=sol.stats["t_reached"],
         num_steps=sol.stats["num_accepted_steps"],
         num_rejected=sol.stats["num_rejected_steps"],
+        duration=float(duration),
         azimuth_contact_names=mech.azimuth.contact_names,
         pitch_contact_names=mech.pitch.contact_names,
     )
@@ -989,6 +998,9 @@ def antenna(
     fids = (fidelity, fidelity) if isinstance(fidelity, str) else tuple(fidelity)
     if len(fids) != 2:
         raise ValueError(f"fidelity must be one name or an (azimuth, pitch) pair, got {fidelity!r}.")
+    for name, pair in (("torques", torques), ("servo_gains", servo_gains)):
+        if np.shape(pair) != (2,):
+            raise ValueError(f"antenna({name}=...) must be a pair of numbers, got {pair!r}.")
     driven = (mode in ("azimuth", "dual"), mode in ("pitch", "dual"))
     joints = []
     for k, (stage, fid, on) in enumerate(zip((azimuth_stage, pitch_stage), fids, driven)):

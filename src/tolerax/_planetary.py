@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from . import _contact, _mesh, _smooth
+from . import _contact, _mesh, _smooth, _validate as V
 
 SUPPORT_KINDS = ("rigid", "spring", "clearance")
 MESH_KINDS = ("linear", "nonlinear")
@@ -73,8 +73,8 @@ class Support(eqx.Module):
 
     def __init__(self, kind="rigid", stiffness=0.0, damping=0.0, bearing=None):
         self.kind = kind
-        self.stiffness = _as_float(stiffness)
-        self.damping = _as_float(damping)
+        self.stiffness = V.real("Support", "stiffness", stiffness, "N/m")
+        self.damping = V.real("Support", "damping", damping, "N s/m")
         self.bearing = bearing
 
     def __check_init__(self):
@@ -82,6 +82,9 @@ class Support(eqx.Module):
             raise ValueError(f"Support kind {self.kind!r} is unknown; use one of {SUPPORT_KINDS}.")
         if self.kind == "clearance" and self.bearing is None:
             raise ValueError("A 'clearance' support needs a JournalBearing (`bearing=`).")
+        if self.bearing is not None and not isinstance(self.bearing, _contact.JournalBearing):
+            raise TypeError(f"Support.bearing must be a JournalBearing, got {type(self.bearing).__name__}.")
+        V.check(self, stiffness=V.NONNEGATIVE("N/m"), damping=V.NONNEGATIVE("N s/m"))
 
     @property
     def translates(self) -> bool:
@@ -125,19 +128,34 @@ class Mesh(eqx.Module):
         dynamic_backlash=True,
         n_planets=3,
     ):
+        if isinstance(n_planets, bool) or not isinstance(n_planets, (int, np.integer)) or n_planets < 1:
+            raise ValueError(f"Mesh.n_planets must be a positive integer, got {n_planets!r}.")
         self.kind = kind
         self.dynamic_backlash = bool(dynamic_backlash)
-        self.stiffness = _as_float(stiffness)
-        self.contact_ratio = _as_float(contact_ratio)
-        self.damping_ratio = _as_float(damping_ratio)
-        self.backlash = jnp.broadcast_to(_as_float(backlash), (n_planets,))
-        self.profile_error = _as_float(profile_error)
-        self.profile_phase = _as_float(profile_phase)
-        self.stiffness_phase = jnp.broadcast_to(_as_float(stiffness_phase), (n_planets,))
+        self.stiffness = V.real("Mesh", "stiffness", stiffness, "N/m")
+        self.contact_ratio = V.real("Mesh", "contact_ratio", contact_ratio, "-")
+        self.damping_ratio = V.real("Mesh", "damping_ratio", damping_ratio, "-")
+        per_planet = (int(n_planets),)
+        self.backlash = jnp.broadcast_to(V.real("Mesh", "backlash", backlash, "m", per_planet, True), per_planet)
+        self.profile_error = V.real("Mesh", "profile_error", profile_error, "m")
+        self.profile_phase = V.real("Mesh", "profile_phase", profile_phase, "rad")
+        phase = V.real("Mesh", "stiffness_phase", stiffness_phase, "rad", per_planet, True)
+        self.stiffness_phase = jnp.broadcast_to(phase, per_planet)
 
     def __check_init__(self):
         if self.kind not in MESH_KINDS:
             raise ValueError(f"Mesh kind {self.kind!r} is unknown; use one of {MESH_KINDS}.")
+        V.check(
+            self,
+            stiffness=V.POSITIVE("N/m"),
+            # K_t = k_m [1 + (eps_c - 1) cos phi] stays positive only for eps_c < 2.
+            contact_ratio=V.Rule("contact ratio", low=1.0, high=2.0, high_open=True),
+            damping_ratio=V.NONNEGATIVE("-"),
+            backlash=V.NONNEGATIVE("m"),
+            profile_error=V.FINITE("m"),
+            profile_phase=V.FINITE("rad"),
+            stiffness_phase=V.FINITE("rad"),
+        )
 
 
 class PlanetaryStage(eqx.Module):
@@ -185,6 +203,7 @@ class PlanetaryStage(eqx.Module):
     impact_memory_time: Float[Array, ""]
 
     def __check_init__(self):
+        _check_stage(self)
         if self.ring_support.kind == "clearance":
             raise ValueError("The ring support must be 'rigid' or 'spring' (no ring clearance).")
         if self.contact_names and self.contact_law is None:
@@ -215,6 +234,79 @@ class PlanetaryStage(eqx.Module):
         if self.planet_support.kind == "clearance":
             names += [f"planet{n}" for n in range(self.n_planets)]
         return tuple(names)
+
+
+def _check_stage(stage: PlanetaryStage) -> None:
+    """Types, ranges and geometry of a stage (concrete values; traced ones are skipped)."""
+    for name in ("n_planets", "sun_teeth", "planet_teeth", "ring_teeth"):
+        value = getattr(stage, name)
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"PlanetaryStage.{name} must be a positive integer, got {value!r}.")
+    if stage.ring_teeth != stage.sun_teeth + 2 * stage.planet_teeth:
+        raise ValueError(
+            f"Tooth counts do not assemble coaxially: ring_teeth={stage.ring_teeth} must equal "
+            f"sun_teeth + 2*planet_teeth = {stage.sun_teeth + 2 * stage.planet_teeth}."
+        )
+    for name, cls in (
+        ("sun_support", Support), ("carrier_support", Support), ("planet_support", Support),
+        ("ring_support", Support), ("sun_mesh", Mesh), ("ring_mesh", Mesh),
+    ):
+        if not isinstance(getattr(stage, name), cls):
+            raise TypeError(f"PlanetaryStage.{name} must be a {cls.__name__}, got {type(getattr(stage, name)).__name__}.")
+    law = stage.contact_law
+    if law is not None and not isinstance(law, _contact.AbstractContactLaw):
+        raise TypeError(f"PlanetaryStage.contact_law must be a contact law (e.g. BaiZhao), got {type(law).__name__}.")
+    n = stage.n_planets
+    for name in ("sun_mesh", "ring_mesh"):
+        for field in ("backlash", "stiffness_phase"):
+            shape = jnp.shape(getattr(getattr(stage, name), field))
+            if shape != (n,):
+                raise ValueError(f"PlanetaryStage.{name}.{field} must have shape ({n},) (one per planet), got {shape}.")
+    if jnp.shape(stage.planet_angles) != (n,):
+        raise ValueError(f"PlanetaryStage.planet_angles must have shape ({n},) (rad), got {jnp.shape(stage.planet_angles)}.")
+    bearing = stage.planet_support.bearing
+    if bearing is not None:
+        for field in ("journal_radius", "clearance", "length", "modulus"):
+            shape = jnp.shape(getattr(bearing, field))
+            if shape not in ((), (n,)):
+                raise ValueError(
+                    f"The planet pins' JournalBearing.{field} must be a scalar or shape ({n},), got {shape}."
+                )
+    for name in ("sun", "carrier", "ring"):
+        if getattr(stage, f"{name}_support").bearing is not None:
+            shape = jnp.shape(getattr(stage, f"{name}_support").bearing.clearance)
+            if shape != ():
+                raise ValueError(f"The {name} bearing's clearance must be a scalar (m), got shape {shape}.")
+    mass, inertia, length = V.POSITIVE("kg"), V.POSITIVE("kg m^2"), V.POSITIVE("m")
+    angle = V.Rule("rad", low=0.0, high=V.PI / 2, low_open=True, high_open=True)
+    V.check(
+        stage,
+        sun_mass=mass, carrier_mass=mass, planet_mass=mass, ring_mass=mass,
+        sun_inertia=inertia, carrier_inertia=inertia, planet_inertia=inertia, ring_inertia=inertia,
+        sun_base_radius=length, planet_base_radius=length, ring_base_radius=length, carrier_radius=length,
+        sun_pressure_angle=angle, ring_pressure_angle=angle,
+        planet_angles=V.FINITE("rad"),
+        sun_torsion=V.Rule("N/m", low=0.0, low_open=True, optional=True),
+        carrier_torsion=V.Rule("N/m", low=0.0, low_open=True, optional=True),
+        ring_torsion=V.Rule("N/m", low=0.0, low_open=True, optional=True),
+        smoothing_width=V.NONNEGATIVE("m"),
+        impact_rate_floor=V.POSITIVE("m/s"),
+        impact_memory_time=V.POSITIVE("s"),
+    )
+    if V.concrete(stage.planet_base_radius, stage.sun_pressure_angle, stage.carrier_radius, stage.planet_angles):
+        # Neighbouring planets must not overlap: centre distance 2 r_c sin(dpsi/2) > tip diameter,
+        # tip radius r_p (1 + 2/z_p) (addendum one module, m = 2 r_p / z_p).
+        r_p = float(stage.planet_base_radius) / math.cos(float(stage.sun_pressure_angle))
+        tip = r_p * (1.0 + 2.0 / stage.planet_teeth)
+        psi = np.sort(np.mod(np.asarray(stage.planet_angles, dtype=float), 2 * math.pi))
+        gaps = np.diff(np.append(psi, psi[0] + 2 * math.pi)) if n > 1 else np.array([2 * math.pi])
+        distance = 2.0 * float(stage.carrier_radius) * math.sin(min(float(gaps.min()), 2 * math.pi) / 2.0)
+        if n > 1 and not distance > 2.0 * tip:
+            raise ValueError(
+                f"The {n} planets do not fit: neighbouring planet centres are {distance * 1e3:.3g} mm apart "
+                f"on the {float(stage.carrier_radius) * 1e3:.3g} mm carrier radius, less than a planet's tip "
+                f"diameter {2 * tip * 1e3:.3g} mm. Use fewer or smaller planets, or spread planet_angles."
+            )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -709,6 +801,63 @@ def natural_frequencies(
 STEEL = dict(young=206e9, poisson=0.3, density=7850.0)
 
 
+_GEAR_RULES = dict(
+    module=V.POSITIVE("m"),
+    pressure_angle=V.Rule("rad", low=0.0, high=V.PI / 2, low_open=True, high_open=True),
+    face_width=V.POSITIVE("m"),
+    carrier_radius=V.Rule("m", low=0.0, low_open=True, optional=True),
+    density=V.POSITIVE("kg/m^3"),
+    young=V.POSITIVE("Pa"),
+    poisson=V.Rule("-", low=-1.0, high=0.5, low_open=True, high_open=True),
+    mesh_stiffness=V.POSITIVE("N/m"),
+    contact_ratio=V.Rule("contact ratio", low=1.0, high=2.0, high_open=True),
+    mesh_damping_ratio=V.NONNEGATIVE("-"),
+    backlash=V.NONNEGATIVE("m"),
+    profile_error=V.FINITE("m"),
+    sun_clearance=V.NONNEGATIVE("m"),
+    carrier_clearance=V.NONNEGATIVE("m"),
+    planet_clearance=V.NONNEGATIVE("m"),
+    sun_journal_radius=V.POSITIVE("m"),
+    carrier_journal_radius=V.POSITIVE("m"),
+    planet_journal_radius=V.POSITIVE("m"),
+    bearing_length=V.POSITIVE("m"),
+    bearing_stiffness=V.NONNEGATIVE("N/m"),
+    bearing_damping=V.NONNEGATIVE("N s/m"),
+    restitution=V.Rule("-", low=0.0, high=1.0, low_open=True),
+    smoothing_width=V.NONNEGATIVE("m"),
+    impact_rate_floor=V.POSITIVE("m/s"),
+    impact_memory_time=V.POSITIVE("s"),
+)
+
+
+def _check_gear_data(args: dict) -> None:
+    """`default_stage`'s arguments, named as the caller wrote them."""
+    for name in ("sun_teeth", "planet_teeth", "ring_teeth", "n_planets"):
+        value = args[name]
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise ValueError(f"default_stage({name}=...) must be a positive integer, got {value!r}.")
+    if args["planet_spacing"] not in ("equal", "assembled"):
+        raise ValueError(f"planet_spacing={args['planet_spacing']!r} is unknown; use 'equal' or 'assembled'.")
+    for name in ("mesh", "sun_support", "carrier_support", "planet_support"):
+        allowed = MESH_KINDS if name == "mesh" else SUPPORT_KINDS
+        if args[name] not in allowed:
+            raise ValueError(f"default_stage({name}={args[name]!r}) is unknown; use one of {allowed}.")
+    holder = type("default_stage", (), {})()
+    for name, rule in _GEAR_RULES.items():
+        value = args[name]
+        if value is not None:
+            value = V.real("default_stage", name, value, rule.unit, shape=None)
+        setattr(holder, name, value)
+    V.check(holder, **_GEAR_RULES)
+    for part in ("sun", "carrier", "planet"):
+        c, r = np.asarray(args[f"{part}_clearance"]), np.asarray(args[f"{part}_journal_radius"])
+        if not np.all(c < r):
+            raise ValueError(
+                f"default_stage({part}_clearance={args[part + '_clearance']!r}) must be smaller than "
+                f"{part}_journal_radius={args[part + '_journal_radius']!r} (m): clearances are µm, journals mm."
+            )
+
+
 def default_stage(
     *,
     module: float = 1e-3,
@@ -746,6 +895,7 @@ def default_stage(
     smoothing_width: float = 1e-9,
     impact_rate_floor: float = 1e-3,
     impact_memory_time: float = 1e-4,
+    planet_spacing: str = "equal",
 ) -> PlanetaryStage:
     """The default joint of MODEL.md §4 (all values overridable; SI units).
 
@@ -761,11 +911,22 @@ def default_stage(
     against a flight across a 10–100 µm clearance at the mm/s speeds of these joints. Its
     eigenvalue $-1/\\tau$ bounds an explicit solver's step (3.5e-4 s for Tsit5); 10 µs made it the
     step limit of the lumped joint (9x more steps, measured). The restitution tests pass with both.
+
+    `planet_spacing`: `"equal"` puts the planets at $\\psi_n = 2\\pi n/N$ (MODEL.md and the paper),
+    whatever the tooth counts; `"assembled"` also requires that real gears can be assembled that
+    way, $(z_s + z_r)/N$ an integer, and raises otherwise. The paper's 20/30/80 with three planets
+    is *not* assemblable equally spaced ((20 + 80)/3 is not an integer): the default keeps the
+    paper's idealisation, in which each planet's mesh phases are $z_s\\psi_n$ and $-z_r\\psi_n$.
+
+    Every argument is checked before anything is built (`ValueError`/`TypeError` naming it).
     """
-    if ring_teeth != sun_teeth + 2 * planet_teeth:
+    _check_gear_data(locals())
+    if planet_spacing == "assembled" and (sun_teeth + ring_teeth) % n_planets:
         raise ValueError(
-            f"Tooth counts do not assemble coaxially: ring_teeth={ring_teeth} must equal "
-            f"sun_teeth + 2*planet_teeth = {sun_teeth + 2 * planet_teeth}."
+            f"{n_planets} planets cannot be equally spaced with sun_teeth={sun_teeth}, "
+            f"ring_teeth={ring_teeth}: (sun_teeth + ring_teeth) / n_planets = "
+            f"{(sun_teeth + ring_teeth) / n_planets:.4g} must be an integer. Change the tooth counts "
+            f"or use planet_spacing='equal' (the idealisation of MODEL.md)."
         )
     r_s, r_p, r_r = (module * z / 2 for z in (sun_teeth, planet_teeth, ring_teeth))
     if carrier_radius is None:

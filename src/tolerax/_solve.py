@@ -10,18 +10,30 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array
+
+from . import _validate
+
+DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 
 
 class SimulationError(RuntimeError):
     """The integrator did not reach the final time."""
 
 
+def _all_finite(tree):
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
+
+
 @eqx.filter_jit
-def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed=False):
+def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed=False):
     if fixed:
         controller = diffrax.ConstantStepSize()
     else:
-        controller = diffrax.PIDController(rtol=rtol, atol=atol, dtmax=dtmax)
+        # force_dtmin=False: a step the error control wants below dtmin ends the solve with
+        # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
+        controller = diffrax.PIDController(rtol=rtol, atol=atol, dtmin=dtmin, dtmax=dtmax, force_dtmin=False)
+    saveat = diffrax.SaveAt(subs=(diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)))
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(scene.vector_field),
         solver,
@@ -29,39 +41,61 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmax, max_steps, progres
         t1=t1,
         dt0=dt0,
         y0=y0,
-        saveat=diffrax.SaveAt(ts=ts),
+        saveat=saveat,
         stepsize_controller=controller,
         max_steps=max_steps,
         throw=False,
         progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
     )
+    (ts_saved, t_last), (ys, y_last) = sol.ts, sol.ys
     # A fixed step beyond the stability limit, or an unstable model, can run to t1 "successfully"
     # with NaN or inf states: report that as a failure, never as numbers.
-    finite = jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(sol.ys)]))
+    finite = _all_finite(ys) & _all_finite(y_last)
     silent = (sol.result == diffrax.RESULTS.successful) & ~finite
-    sol = eqx.tree_at(lambda s: s.result, sol, diffrax.RESULTS.where(silent, diffrax.RESULTS.nonfinite, sol.result))
+    result = diffrax.RESULTS.where(silent, diffrax.RESULTS.nonfinite, sol.result)
+    # The time reached: where the solver stopped, or, if the state went non-finite, the last save
+    # time at which it was still finite.
+    rows = jnp.stack([jnp.all(jnp.isfinite(x.reshape(x.shape[0], -1)), axis=1) for x in jax.tree.leaves(ys)])
+    good = jnp.all(rows, axis=0) & jnp.isfinite(ts_saved)
+    last_good = jnp.max(jnp.where(good, ts_saved, 0.0))
+    t_reached = jnp.where(_all_finite(y_last), t_last[0], last_good)
+    stats = dict(sol.stats, t_reached=t_reached)
+    sol = eqx.tree_at(lambda s: (s.ts, s.ys, s.result, s.stats), sol, (ts_saved, ys, result, stats))
     observed = jax.vmap(scene.observe)(sol.ts, sol.ys)
     return sol, observed
 
 
-def solve(scene, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step=None):
+def solve(
+    scene, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step=None, dtmin=DTMIN
+):
     """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times.
 
     Adaptive steps (`diffrax.PIDController` with `rtol`, `atol`, first step `dt0`, largest
-    `dtmax`), or, with `fixed_step` (s), constant steps of that size (the paper's multibody setting
-    is 1e-4 s); an implicit solver whose root finder takes its tolerances from the step-size
-    controller then gets `diffrax.VeryChord(rtol, atol)` instead.
+    `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13, a million times below
+    the 0.1–1 µs steps of the hardest contacts measured) stops the solve with
+    `RESULTS.dt_min_reached`), or, with `fixed_step` (s), constant steps of that size (the paper's
+    multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
+    the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
 
-    Returns the diffrax `Solution` (with `throw=False`: check `sol.result`) and `observe` at
-    the saved states. Numbers become float64 arrays so that changing them does not recompile.
+    The scene's values and `y0` are checked first (`_validate.check_tree`: values set with
+    `eqx.tree_at` bypass the constructors' checks).
+
+    Returns the diffrax `Solution` (with `throw=False`: check `sol.result`; `sol.stats["t_reached"]`
+    is the time the solver reached) and `observe` at the saved states. Numbers become float64
+    arrays so that changing them does not recompile.
     """
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive finite time in seconds, got {duration!r}.")
     if int(n_save) < 2:
         raise ValueError(f"n_save must be at least 2 (the start and the end), got {n_save!r}.")
-    for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax)):
+    for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+    if not dtmin < dt0 <= dtmax:
+        raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")
+    if not isinstance(solver, diffrax.AbstractSolver):
+        raise TypeError(f"solver must be a diffrax solver (e.g. diffrax.Tsit5()), got {type(solver).__name__}.")
+    _validate.check_tree(scene)
     fixed = fixed_step is not None
     if fixed:
         if not (np.isfinite(fixed_step) and 0 < fixed_step <= duration):
@@ -80,22 +114,92 @@ def solve(scene, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps
     f64 = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
     ts = jnp.linspace(0.0, duration, int(n_save))
     return _solve(
-        scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmax),
+        scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed,
     )
 
 
+_ADVICE = {
+    "max_steps_reached": "the step budget ran out: raise `max_steps`, loosen `rtol`/`atol`, or widen "
+    "`smoothing_width` (a rattling joint takes many small steps)",
+    "dt_min_reached": "the step size collapsed below `dtmin`: the right-hand side is (nearly) "
+    "discontinuous or unstable there (an exact contact law with `smoothing_width=0`, an extreme "
+    "stiffness); widen `smoothing_width` or check the inputs",
+    "nonfinite": "the state became NaN or inf: with a fixed step, the step is beyond the stability "
+    "limit (take a smaller step, or adaptive steps); otherwise the model is unstable for these inputs",
+    "nonlinear_divergence": "the implicit solver's Newton iteration diverged: take smaller steps or an "
+    "explicit solver (Tsit5)",
+    "nonlinear_max_steps_reached": "the implicit solver's Newton iteration did not converge: take smaller "
+    "steps or an explicit solver (Tsit5)",
+}
+_NAMES = {int(item._value): name for name, item in diffrax.RESULTS._name_to_item.items()}
+
+
+def _codes(result) -> np.ndarray:
+    return np.atleast_1d(np.asarray(result._value))
+
+
+def failure_lines(result, t_reached, num_steps, duration: float, what: str) -> list[str]:
+    """One readable line per failed sample (none for successes): the result code, the time reached,
+    the steps taken and what to try. Works for one run or a batch (`vmap`) of runs."""
+    codes = _codes(result)
+    t = np.broadcast_to(np.asarray(t_reached, dtype=float), codes.shape)
+    n = np.broadcast_to(np.asarray(num_steps), codes.shape)
+    lines = []
+    for k, code in enumerate(codes):
+        if code == 0:
+            continue
+        name = _NAMES.get(int(code), "unknown")
+        advice = _ADVICE.get(name, diffrax.RESULTS._index_to_message[int(code)].split("\n")[0])
+        sample = f"sample {k}: " if np.ndim(np.asarray(result._value)) > 0 else ""
+        lines.append(
+            f"{sample}the {what} simulation failed ({name}) at t = {t[k]:.6g} s of {duration:.6g} s, "
+            f"after {int(n[k])} accepted steps: {advice}."
+        )
+    return lines
+
+
 def raise_on_failure(sol, duration: float, what: str) -> None:
     """Raise `SimulationError` with the result code, the time reached and what to try."""
-    if sol.result == diffrax.RESULTS.successful:
-        return
-    ys0 = jax.tree.leaves(sol.ys)[0]
-    finite = np.all(np.isfinite(np.asarray(ys0).reshape(ys0.shape[0], -1)), axis=1)
-    reached = float(np.asarray(sol.ts)[finite][-1]) if finite.any() else 0.0
-    steps = int(sol.stats["num_accepted_steps"])
-    raise SimulationError(
-        f"The {what} simulation failed ({sol.result}) after {steps} steps; the last saved time "
-        f"reached is {reached:.6g} s of {duration:.6g} s. Try a larger `max_steps`, looser "
-        f"`rtol`/`atol`, or a larger `smoothing_width`; with a fixed step, a smaller step or "
-        f"adaptive steps; pass `throw=False` to inspect the result."
-    )
+    if _validate.is_traced(sol.result._value):
+        raise ValueError(
+            f"throw=True cannot check a {what} simulation inside jit/vmap/grad; pass throw=False and "
+            f"read the result's `success`, `t_reached` and `failures()` per sample."
+        )
+    lines = failure_lines(sol.result, sol.stats["t_reached"], sol.stats["num_accepted_steps"], duration, what)
+    if lines:
+        raise SimulationError("\n".join(lines) + " (Pass `throw=False` to inspect the result.)")
+
+
+class SolverReport(eqx.Module):
+    """What the solver did, for one run or per sample of a batch.
+
+    - `result`: the diffrax result code (array of codes for a batch).
+    - `t_reached`: time the solver reached (s); the duration if it succeeded; for a non-finite
+      state, the last save time at which the state was still finite.
+    - `num_steps`, `num_rejected`: accepted and rejected steps.
+    - `duration`: the requested simulated time (s).
+    """
+
+    result: diffrax.RESULTS
+    t_reached: Array
+    num_steps: Array
+    num_rejected: Array
+    duration: float = eqx.field(static=True)
+    _what = "simulation"  # what the failure lines call the run (class attribute, not a field)
+
+    @property
+    def success(self):
+        """`True` if the run reached `duration`; for a batch, a boolean array per sample."""
+        ok = _codes(self.result) == 0
+        return bool(ok[0]) if np.ndim(np.asarray(self.result._value)) == 0 else ok
+
+    def failures(self) -> list[str]:
+        """A readable line per failed run (sample index, result code, time reached, what to try)."""
+        return failure_lines(self.result, self.t_reached, self.num_steps, self.duration, self._what)
+
+    def report(self) -> str:
+        """A one-paragraph summary: successes, and every failure with its time reached."""
+        ok = np.atleast_1d(self.success)
+        head = f"{int(ok.sum())} of {ok.size} runs reached {self.duration:.6g} s."
+        return "\n".join([head, *self.failures()])
