@@ -47,7 +47,9 @@ def dynamic_backlash(
     - `profile_error`: $e(t)$ (m), added as in the paper's eq. 2.
     """
     cos0 = nominal_distance * jnp.cos(pressure_angle)
-    safe_distance = jnp.where(centre_distance > 0, centre_distance, nominal_distance)
+    # Below A' = A0 cos a0 the argument is clipped anyway: evaluating there at A0 cos a0 keeps
+    # b_t continuous and its gradient 0 down to A' = 0 (no overflow of cos0 / A'**2).
+    safe_distance = jnp.maximum(centre_distance, cos0)
     argument = jnp.clip(cos0 / safe_distance, -1.0, 1.0 - 1e-12)
     change = 2.0 * cos0 * (involute(jnp.arccos(argument)) - involute(pressure_angle))
     sign = -1.0 if internal else 1.0

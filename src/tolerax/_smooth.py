@@ -27,11 +27,18 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
 
+# Widths at or below this count as 0 (the exact function): below ~1e-154 the width derivative's
+# x / w**2 overflows to inf (and 0 * inf = NaN in reverse mode). 1e-150 m is 140 decades below
+# any physical width, so the exact function is the same number to every printed digit.
+WIDTH_FLOOR = 1e-150
+
+
 def _split_width(width):
-    """Return (is_smooth, safe_width): safe_width is 1 where width == 0 so that the unused
-    branch of a `jnp.where` never produces inf/NaN (which would poison reverse-mode)."""
+    """Return (is_smooth, safe_width): safe_width is 1 where the width is 0 (at most
+    `WIDTH_FLOOR`) so that the unused branch of a `jnp.where` never produces inf/NaN (which
+    would poison reverse-mode)."""
     width = jnp.asarray(width)
-    is_smooth = width > 0
+    is_smooth = width > WIDTH_FLOOR
     return is_smooth, jnp.where(is_smooth, width, 1.0)
 
 
