@@ -25,6 +25,21 @@ def _all_finite(tree):
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
 
 
+class _NanSafePID(diffrax.PIDController):
+    """`diffrax.PIDController` that treats a non-finite error estimate (the right-hand side
+    returned NaN or inf) as an infinitely large error: the step is rejected and shrunk 5x, so a
+    run that can only produce NaN ends with `dt_min_reached` after ~30 rejections. (diffrax's own
+    controller turns a NaN error into a NaN step size, which neither shrinks below `dtmin` nor
+    stops: the run spins until `max_steps`, and under `vmap` holds the whole batch there.)
+    Finite errors are handled exactly as by `PIDController`."""
+
+    def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
+        bad = ~(_all_finite(y_error) & _all_finite(y0))
+        y_error = jax.tree.map(lambda e: jnp.where(bad, jnp.inf, e), y_error)
+        y0 = jax.tree.map(lambda y: jnp.where(jnp.isfinite(y), y, 0.0), y0)
+        return super().adapt_step_size(t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state)
+
+
 @eqx.filter_jit
 def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed=False):
     if fixed:
@@ -32,7 +47,7 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, 
     else:
         # force_dtmin=False: a step the error control wants below dtmin ends the solve with
         # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
-        controller = diffrax.PIDController(rtol=rtol, atol=atol, dtmin=dtmin, dtmax=dtmax, force_dtmin=False)
+        controller = _NanSafePID(rtol=rtol, atol=atol, dtmin=dtmin, dtmax=dtmax, force_dtmin=False)
     saveat = diffrax.SaveAt(subs=(diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)))
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(scene.vector_field),

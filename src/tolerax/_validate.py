@@ -185,6 +185,8 @@ def state_like(y0, reference, what: str = "y0") -> None:
         kind = np.dtype(a.dtype if hasattr(a, "dtype") else np.asarray(a).dtype).kind
         if kind not in "iuf":
             raise TypeError(f"{what}[{k}] must be real, got dtype {np.dtype(a.dtype).name}.")
+        if not is_traced(a) and not np.all(np.isfinite(np.asarray(a))):
+            raise ValueError(f"{what}[{k}] contains NaN or inf: {np.asarray(a)}.")
 
 
-PI = math.pi
+PI = math.pi  # for range texts (pressure angles)
