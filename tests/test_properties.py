@@ -28,6 +28,9 @@ import tolerax
 from tolerax import _mesh, smooth
 from tolerax._contact import CLIP_WIDTH, FORCE_FLOOR
 
+# MODEL.md §2's hysteresis factors, transcribed independently of tolerax (one copy, in test_contact).
+from test_contact import _chi
+
 
 EPS = float(np.finfo(float).eps)
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True)
@@ -298,17 +301,6 @@ def _law(kind, restitution):
     return {"HertzLN": tolerax.HertzLN, "Flores": tolerax.Flores, "BaiZhao": tolerax.BaiZhao}[kind](
         restitution
     )
-
-
-def _chi(kind, ce):
-    """Hysteresis factors of MODEL.md §2's table, written independently of tolerax."""
-    if kind == "HertzLN":
-        return 0.75 * (1.0 - ce**2)
-    if kind == "Flores":
-        return 8.0 * (1.0 - ce) / (5.0 * ce)
-    if kind == "BaiZhao":
-        return 0.75 * (1.0 - ce**2) * np.exp(2.0 * (1.0 - ce))
-    raise ValueError(kind)
 
 
 def _force_impl(kind, e, e_dot, impact_rate, restitution, width, clearance, rate_floor):

@@ -75,12 +75,13 @@ class JournalBearing(eqx.Module):
                 f"JournalBearing fields must broadcast together (one value, or one per planet), got "
                 f"shapes journal_radius {shapes[0]}, clearance {shapes[1]}, length {shapes[2]}, modulus {shapes[3]}."
             ) from None
-        if V.concrete(self.clearance, self.journal_radius):
-            V.require(
-                np.all(np.asarray(self.clearance) < np.asarray(self.journal_radius)),
+        if V.concrete(self.clearance, self.journal_radius) and not np.all(
+            np.asarray(self.clearance) < np.asarray(self.journal_radius)
+        ):
+            raise ValueError(
                 f"JournalBearing.clearance must be smaller than journal_radius (m): a clearance of "
                 f"{np.asarray(self.clearance)} m around a {np.asarray(self.journal_radius)} m journal "
-                f"is not a bearing (clearances are µm, journals mm).",
+                f"is not a bearing (clearances are µm, journals mm)."
             )
 
     def hertz_stiffness(self) -> Float[Array, ""]:
@@ -123,9 +124,7 @@ class _RestitutionLaw(AbstractContactLaw):
         self.restitution = V.real(type(self).__name__, "restitution", restitution, "-", shape=None)
 
     def __check_init__(self):
-        # c_e = 0 (perfectly plastic) is outside every law's range: Flores' chi = 8(1-c_e)/(5 c_e)
-        # diverges, and the others are fitted for c_e well above 0.
-        V.check(self, restitution=V.Rule("coefficient of restitution", low=0.0, high=1.0, low_open=True))
+        V.check(self, restitution=V.RESTITUTION)
 
     @abc.abstractmethod
     def chi(self) -> Array:

@@ -128,8 +128,7 @@ class Mesh(eqx.Module):
         dynamic_backlash=True,
         n_planets=3,
     ):
-        if isinstance(n_planets, bool) or not isinstance(n_planets, (int, np.integer)) or n_planets < 1:
-            raise ValueError(f"Mesh.n_planets must be a positive integer, got {n_planets!r}.")
+        V.positive_integer("Mesh.n_planets", n_planets)
         self.kind = kind
         self.dynamic_backlash = bool(dynamic_backlash)
         self.stiffness = V.real("Mesh", "stiffness", stiffness, "N/m")
@@ -148,8 +147,7 @@ class Mesh(eqx.Module):
         V.check(
             self,
             stiffness=V.POSITIVE("N/m"),
-            # K_t = k_m [1 + (eps_c - 1) cos phi] stays positive only for eps_c < 2.
-            contact_ratio=V.Rule("contact ratio", low=1.0, high=2.0, high_open=True),
+            contact_ratio=V.CONTACT_RATIO,
             damping_ratio=V.NONNEGATIVE("-"),
             backlash=V.NONNEGATIVE("m"),
             profile_error=V.FINITE("m"),
@@ -239,9 +237,7 @@ class PlanetaryStage(eqx.Module):
 def _check_stage(stage: PlanetaryStage) -> None:
     """Types, ranges and geometry of a stage (concrete values; traced ones are skipped)."""
     for name in ("n_planets", "sun_teeth", "planet_teeth", "ring_teeth"):
-        value = getattr(stage, name)
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"PlanetaryStage.{name} must be a positive integer, got {value!r}.")
+        V.positive_integer(f"PlanetaryStage.{name}", getattr(stage, name))
     if stage.ring_teeth != stage.sun_teeth + 2 * stage.planet_teeth:
         raise ValueError(
             f"Tooth counts do not assemble coaxially: ring_teeth={stage.ring_teeth} must equal "
@@ -278,7 +274,7 @@ def _check_stage(stage: PlanetaryStage) -> None:
             if shape != ():
                 raise ValueError(f"The {name} bearing's clearance must be a scalar (m), got shape {shape}.")
     mass, inertia, length = V.POSITIVE("kg"), V.POSITIVE("kg m^2"), V.POSITIVE("m")
-    angle = V.Rule("rad", low=0.0, high=V.PI / 2, low_open=True, high_open=True)
+    angle = V.PRESSURE_ANGLE
     V.check(
         stage,
         sun_mass=mass, carrier_mass=mass, planet_mass=mass, ring_mass=mass,
@@ -803,14 +799,14 @@ STEEL = dict(young=206e9, poisson=0.3, density=7850.0)
 
 _GEAR_RULES = dict(
     module=V.POSITIVE("m"),
-    pressure_angle=V.Rule("rad", low=0.0, high=V.PI / 2, low_open=True, high_open=True),
+    pressure_angle=V.PRESSURE_ANGLE,
     face_width=V.POSITIVE("m"),
     carrier_radius=V.Rule("m", low=0.0, low_open=True, optional=True),
     density=V.POSITIVE("kg/m^3"),
     young=V.POSITIVE("Pa"),
     poisson=V.Rule("-", low=-1.0, high=0.5, low_open=True, high_open=True),
     mesh_stiffness=V.POSITIVE("N/m"),
-    contact_ratio=V.Rule("contact ratio", low=1.0, high=2.0, high_open=True),
+    contact_ratio=V.CONTACT_RATIO,
     mesh_damping_ratio=V.NONNEGATIVE("-"),
     backlash=V.NONNEGATIVE("m"),
     profile_error=V.FINITE("m"),
@@ -823,7 +819,7 @@ _GEAR_RULES = dict(
     bearing_length=V.POSITIVE("m"),
     bearing_stiffness=V.NONNEGATIVE("N/m"),
     bearing_damping=V.NONNEGATIVE("N s/m"),
-    restitution=V.Rule("-", low=0.0, high=1.0, low_open=True),
+    restitution=V.RESTITUTION,
     smoothing_width=V.NONNEGATIVE("m"),
     impact_rate_floor=V.POSITIVE("m/s"),
     impact_memory_time=V.POSITIVE("s"),
@@ -833,9 +829,7 @@ _GEAR_RULES = dict(
 def _check_gear_data(args: dict) -> None:
     """`default_stage`'s arguments, named as the caller wrote them."""
     for name in ("sun_teeth", "planet_teeth", "ring_teeth", "n_planets"):
-        value = args[name]
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"default_stage({name}=...) must be a positive integer, got {value!r}.")
+        V.positive_integer(f"default_stage({name}=...)", args[name])
     if args["planet_spacing"] not in ("equal", "assembled"):
         raise ValueError(f"planet_spacing={args['planet_spacing']!r} is unknown; use 'equal' or 'assembled'.")
     for name in ("mesh", "sun_support", "carrier_support", "planet_support"):

@@ -99,6 +99,20 @@ class Rule:
 FINITE = lambda unit: Rule(unit)  # noqa: E731
 POSITIVE = lambda unit: Rule(unit, low=0.0, low_open=True)  # noqa: E731
 NONNEGATIVE = lambda unit: Rule(unit, low=0.0)  # noqa: E731
+# Ranges that more than one constructor checks (default_stage and the module it builds):
+PRESSURE_ANGLE = Rule("rad", low=0.0, high=math.pi / 2, low_open=True, high_open=True)
+# K_t = k_m [1 + (eps_c - 1) cos phi] stays positive only for eps_c < 2.
+CONTACT_RATIO = Rule("contact ratio", low=1.0, high=2.0, high_open=True)
+# c_e = 0 (perfectly plastic) is outside every law's range: Flores' chi = 8(1-c_e)/(5 c_e)
+# diverges, and the others are fitted for c_e well above 0.
+RESTITUTION = Rule("coefficient of restitution", low=0.0, high=1.0, low_open=True)
+
+
+def positive_integer(what: str, value) -> None:
+    """`value` must be a positive Python or NumPy integer (not a bool or a float): tooth and
+    planet counts, which set the structure."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{what} must be a positive integer, got {value!r}.")
 
 
 def check(obj, /, **rules: Rule) -> None:
@@ -115,14 +129,6 @@ def check(obj, /, **rules: Rule) -> None:
             continue
         if rule.violated(value):
             raise ValueError(f"{owner}.{name} must be {rule.text()} ({rule.unit}), got {_show(value)}.")
-
-
-def require(condition: bool, message: str) -> None:
-    """A cross-field check (skipped when it cannot be decided because a value is traced)."""
-    if condition is None:
-        return
-    if not bool(condition):
-        raise ValueError(message)
 
 
 def concrete(*values) -> bool:
@@ -188,5 +194,3 @@ def state_like(y0, reference, what: str = "y0") -> None:
         if not is_traced(a) and not np.all(np.isfinite(np.asarray(a))):
             raise ValueError(f"{what}[{k}] contains NaN or inf: {np.asarray(a)}.")
 
-
-PI = math.pi  # for range texts (pressure angles)
