@@ -1,4 +1,8 @@
-"""Command line: `tolerax demo` runs the default joint on its test bench."""
+"""Command line of tolerax.
+
+- `tolerax demo`: the default joint on its test bench (plot and summary).
+- `tolerax studies`: the reference paper's studies (a JSON table per study).
+"""
 
 import argparse
 import json
@@ -15,22 +19,22 @@ def _demo(args) -> int:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from . import _bench, _planetary
+    from . import _bench, _drives, _gears, _scene
 
-    stage = _planetary.default_stage(
+    stage = _gears.default_stage(
         sun_clearance=args.clearance * 1e-6,
         carrier_clearance=args.clearance * 1e-6,
         planet_clearance=args.clearance * 1e-6,
         backlash=args.backlash * 1e-6,
     )
-    bench = _bench.TestBench(stage, servo=_bench.SpeedServo(math.radians(args.rate)))
+    bench = _bench.TestBench(stage, servo=_drives.SpeedServo(math.radians(args.rate)))
     print(
         f"tolerax demo: default joint (ratio {stage.ratio:g}, {stage.n_planets} planets) on its bench, "
         f"{args.rate} deg/s output, clearances {args.clearance} um, backlash {args.backlash} um, "
         f"{args.duration} s simulated."
     )
     start = time.perf_counter()
-    result = _bench.simulate_bench(bench, args.duration, progress=args.progress)
+    result = _scene.simulate(bench, args.duration, n_save=int(round(1000 * args.duration)) + 1, progress=args.progress)
     wall = time.perf_counter() - start
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -87,7 +91,7 @@ def _studies(parser, args) -> int:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="tolerax", description=__doc__)
+    parser = argparse.ArgumentParser(prog="tolerax", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the default joint on its test bench, write a plot and a summary")
     demo.add_argument("--duration", type=float, default=2.0, help="simulated time, s (default 2)")

@@ -1,33 +1,79 @@
-"""The tolerance design vector of a stage: its clearances and backlash as one array."""
+"""The tolerance design of a scene: its clearances and backlash as one vector, by name.
+
+A *feature* is a clearance or backlash that a scene models: each stage contributes its
+clearance supports (`sun_clearance`, `carrier_clearance`, `planet_clearance`, m) and the
+backlash of its nonlinear mesh families (`sun_backlash`, `ring_backlash`, m), all planets alike.
+A joint lists the features its fidelity reads (`AbstractJoint.design_features`): an ideal joint
+none, a lumped joint its output bearing, pin play and the two backlashes, a planetary joint all.
+Features a scene does not model are absent, never present with zero effect. In a mechanism the
+names are prefixed by the joint: `azimuth.planet_clearance`.
+
+`design_of(scene)` reads the vector, `with_design(scene, values)` writes it back (traceable:
+`values` may be a tracer under `grad`/`vmap`), and `design_names(scene)` names its entries.
+"""
 
 import equinox as eqx
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
-NAMES = ("sun clearance", "carrier clearance", "planet clearance", "sun backlash", "ring backlash")
+from ._bench import TestBench
+from ._mechanism import Mechanism
+
+# feature -> (does the stage model it?, where its value lives in the stage)
+STAGE_FEATURES = {
+    "sun_clearance": (lambda s: s.sun_support.kind == "clearance", lambda s: s.sun_support.bearing.clearance),
+    "carrier_clearance": (lambda s: s.carrier_support.kind == "clearance", lambda s: s.carrier_support.bearing.clearance),
+    "planet_clearance": (lambda s: s.planet_support.kind == "clearance", lambda s: s.planet_support.bearing.clearance),
+    "sun_backlash": (lambda s: s.sun_mesh.kind == "nonlinear", lambda s: s.sun_mesh.backlash),
+    "ring_backlash": (lambda s: s.ring_mesh.kind == "nonlinear", lambda s: s.ring_mesh.backlash),
+}
 
 
-def with_design(bench, p):
-    """`bench` (anything with a `.stage`) with its stage's clearances and backlash set from `p`
-    (m), in `NAMES` order (all planets alike). Traceable: `p` may be a tracer (grad, vmap).
-    Values set this way bypass the constructors' checks; `simulate`/`simulate_bench` check
-    concrete values again before running."""
-    stage = bench.stage
-    n = stage.n_planets
-    stage = eqx.tree_at(
-        lambda s: (
-            s.sun_support.bearing.clearance,
-            s.carrier_support.bearing.clearance,
-            s.planet_support.bearing.clearance,
-            s.sun_mesh.backlash,
-            s.ring_mesh.backlash,
-        ),
-        stage,
-        (
-            p[0],
-            p[1],
-            jnp.broadcast_to(p[2], jnp.shape(stage.planet_support.bearing.clearance)),
-            p[3] * jnp.ones(n),
-            p[4] * jnp.ones(n),
-        ),
-    )
-    return eqx.tree_at(lambda b: b.stage, bench, stage)
+def _stages(scene):
+    """`(prefix, path to the stage, features the holder reads)` for each stage of the scene."""
+    if isinstance(scene, TestBench):
+        return [("", lambda x: x.stage, tuple(STAGE_FEATURES))]
+    if isinstance(scene, Mechanism):
+        return [
+            (f"{name}.", lambda x, name=name: getattr(x, name).stage, getattr(scene, name).design_features)
+            for name in ("azimuth", "pitch")
+        ]
+    raise TypeError(f"A design needs a TestBench or a Mechanism, got {type(scene).__name__}.")
+
+
+def _entries(scene):
+    out = []
+    for prefix, stage_of, reads in _stages(scene):
+        stage = stage_of(scene)
+        for feature in reads:
+            present, where = STAGE_FEATURES[feature]
+            if present(stage):
+                out.append((prefix + feature, lambda x, s=stage_of, w=where: w(s(x))))
+    return out
+
+
+def design_names(scene) -> tuple[str, ...]:
+    """Names of the scene's design features, in the order of `design_of`."""
+    return tuple(name for name, _ in _entries(scene))
+
+
+def design_of(scene) -> Float[Array, " n_features"]:
+    """The scene's clearances and backlash (m), in `design_names` order (the first planet's value
+    for per-planet fields; `with_design` sets all planets alike)."""
+    return jnp.stack([jnp.ravel(get(scene))[0] for _, get in _entries(scene)])
+
+
+def with_design(scene, values: Float[Array, " n_features"]):
+    """`scene` with its clearances and backlash set from `values` (m, `design_names` order; all
+    planets alike). Traceable. Values set this way bypass the constructors' checks; `simulate`
+    checks concrete values again before running."""
+    entries = _entries(scene)
+    if jnp.shape(values) != (len(entries),):
+        raise ValueError(
+            f"with_design: values must have shape ({len(entries)},) for the features "
+            f"{[n for n, _ in entries]}, got shape {jnp.shape(values)}."
+        )
+    getters = [get for _, get in entries]
+    old = [get(scene) for get in getters]
+    new = tuple(jnp.broadcast_to(values[k], jnp.shape(o)).astype(float) for k, o in enumerate(old))
+    return eqx.tree_at(lambda x: tuple(get(x) for get in getters), scene, new)

@@ -1,8 +1,9 @@
-"""One diffrax call shared by every scene (bench, mechanism), and its failure report.
+"""The one diffrax call shared by every scene (bench, mechanism), and its failure report.
 
 A scene provides `vector_field(t, y, args)` and `observe(t, y)` (the forces and other
 instantaneous quantities at a saved state); `solve` integrates it and evaluates `observe` at the
-save times, in one compiled program per scene *structure* (values are passed as arrays).
+save times, in one compiled program per scene *structure* (values are passed as arrays). Users
+call `tolerax.simulate`, which builds the scene's result with `SolverReport.from_solution`.
 """
 
 import diffrax
@@ -41,7 +42,7 @@ class _NanSafePID(diffrax.PIDController):
 
 
 @eqx.filter_jit
-def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed=False):
+def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint):
     if fixed:
         controller = diffrax.ConstantStepSize()
     else:
@@ -59,6 +60,7 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, 
         saveat=saveat,
         stepsize_controller=controller,
         max_steps=max_steps,
+        adjoint=adjoint,
         throw=False,
         progress_meter=diffrax.TextProgressMeter() if progress else diffrax.NoProgressMeter(),
     )
@@ -81,7 +83,21 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, 
 
 
 def solve(
-    scene, y0, duration, n_save, solver, rtol, atol, dt0, dtmax, max_steps, progress, fixed_step=None, dtmin=DTMIN
+    scene,
+    y0,
+    duration,
+    *,
+    n_save: int,
+    solver: diffrax.AbstractSolver,
+    rtol: float,
+    atol: float,
+    dt0: float,
+    dtmax: float,
+    max_steps: int,
+    dtmin: float = DTMIN,
+    fixed_step: float | None = None,
+    progress: bool = False,
+    adjoint: diffrax.AbstractAdjoint | None = None,
 ):
     """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times.
 
@@ -91,6 +107,9 @@ def solve(
     order 5 ns, 5e4 times the default), or, with `fixed_step` (s), constant steps of that size (the paper's
     multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
     the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
+
+    `adjoint` (default `diffrax.RecursiveCheckpointAdjoint()`): how derivatives pass through the
+    solve; `diffrax.ForwardMode()` for forward-mode (`jax.jvp`, `jax.jacfwd`) derivatives.
 
     The scene's values and `y0` are checked first (`_validate.check_tree`: values set with
     `eqx.tree_at` bypass the constructors' checks).
@@ -130,7 +149,7 @@ def solve(
     ts = jnp.linspace(0.0, duration, int(n_save))
     return _solve(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
-        int(max_steps), bool(progress), fixed,
+        int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
     )
 
 
@@ -202,6 +221,19 @@ class SolverReport(eqx.Module):
     num_rejected: Array
     duration: float = eqx.field(static=True)
     _what = "simulation"  # what the failure lines call the run (class attribute, not a field)
+
+    @classmethod
+    def from_solution(cls, sol: diffrax.Solution, duration: float, **fields):
+        """Build `cls` (this report or a scene's result type, whose series are `fields`) from
+        the diffrax `Solution` of `solve`: result code, time reached, accepted and rejected steps."""
+        return cls(
+            **fields,
+            result=sol.result,
+            t_reached=sol.stats["t_reached"],
+            num_steps=sol.stats["num_accepted_steps"],
+            num_rejected=sol.stats["num_rejected_steps"],
+            duration=float(duration),
+        )
 
     @property
     def success(self):

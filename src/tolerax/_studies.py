@@ -21,11 +21,13 @@ import time
 
 import numpy as np
 
-from . import _mechanism as M
-from ._planetary import default_stage
+from ._gears import default_stage
+from ._mechanism import Mechanism
+from ._outputs import ARCSEC, MechanismResult, vibration_amplitude
+from ._scene import simulate
+from ._scenes import antenna
 
 UM = 1e-6
-ARCSEC = math.pi / (180 * 3600)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +60,7 @@ def _single(mode, driving_stage, rate_deg=0.98, other=None, fidelity=None):
         stages, fids = (driving_stage, other), ("planetary", "lumped")
     else:
         stages, fids = (other, driving_stage), ("lumped", "planetary")
-    return M.antenna(
+    return antenna(
         mode,
         fidelity=fids if fidelity is None else fidelity,
         rate=math.radians(rate_deg),
@@ -67,7 +69,7 @@ def _single(mode, driving_stage, rate_deg=0.98, other=None, fidelity=None):
     )
 
 
-def scenes(study: str, size: str = "small") -> list[tuple[dict, M.Mechanism]]:
+def scenes(study: str, size: str = "small") -> list[tuple[dict, Mechanism]]:
     """The scenes of one study: `[(labels, mechanism), ...]` (labels in µm and °/s)."""
     if study not in STUDIES:
         raise ValueError(f"study={study!r} is unknown; use one of {STUDIES}.")
@@ -81,14 +83,14 @@ def scenes(study: str, size: str = "small") -> list[tuple[dict, M.Mechanism]]:
         for mode in ("azimuth", "pitch", "dual") if full else ("azimuth", "dual"):
             for r in rates:
                 if mode == "dual":
-                    mech = M.antenna("dual", fidelity="planetary", rate=math.radians(r))
+                    mech = antenna("dual", fidelity="planetary", rate=math.radians(r))
                 else:
                     mech = _single(mode, _stage(), r)
                 out.append((dict(mode=mode, rate=r), mech))
     elif study == "fidelity":  # the 0.98 deg/s scenes at both fidelities
         for mode in ("azimuth", "pitch", "dual") if full else ("azimuth",):
             for fid in ("lumped", "planetary"):
-                out.append((dict(mode=mode, fidelity=fid), M.antenna(mode, fidelity=fid)))
+                out.append((dict(mode=mode, fidelity=fid), antenna(mode, fidelity=fid)))
     elif study == "radial_clearance":  # Table 3, Figs. 7-8: driving-joint backlash 10 um
         cases = {"a": (100, 100), "b": (100, 10), "c": (10, 100)}
         for mode in modes if full else ("azimuth",):
@@ -124,7 +126,7 @@ def scenes(study: str, size: str = "small") -> list[tuple[dict, M.Mechanism]]:
     return out
 
 
-def metrics(mech: M.Mechanism, res: M.MechanismResult, settle: float, min_frequency: float = 2.0) -> dict:
+def metrics(mech: Mechanism, res: MechanismResult, settle: float, min_frequency: float = 2.0) -> dict:
     """Summary numbers of one run over `t >= settle` (units in the key names).
 
     - `force_*_N`: output-bearing radial contact force of the driving joint (azimuth for dual)
@@ -152,8 +154,8 @@ def metrics(mech: M.Mechanism, res: M.MechanismResult, settle: float, min_freque
         force_other_peak_N=float(force[:, 1 - drive].max()),
         pointing_rms_arcsec=float(np.sqrt(np.mean(pointing**2)) / ARCSEC),
         pointing_peak_arcsec=float(pointing.max() / ARCSEC),
-        radial_vibration_um=float(M.vibration_amplitude(np.linalg.norm(pos, axis=1), ts[w], min_frequency)) / UM,
-        torsional_vibration_urad=float(M.vibration_amplitude(angle_err, ts[w], min_frequency)) / UM,
+        radial_vibration_um=float(vibration_amplitude(np.linalg.norm(pos, axis=1), ts[w], min_frequency)) / UM,
+        torsional_vibration_urad=float(vibration_amplitude(angle_err, ts[w], min_frequency)) / UM,
         steps=int(res.num_steps),
         rejected=int(res.num_rejected),
     )
@@ -169,7 +171,7 @@ def run(study: str, size: str = "small", progress: bool = True) -> list[dict]:
     rows = []
     for labels, mech in scenes(study, size):
         start = time.perf_counter()
-        res = M.simulate(mech, spec.duration, n_save=spec.n_save, steady=True)
+        res = simulate(mech, spec.duration, n_save=spec.n_save, start="steady")
         wall = time.perf_counter() - start
         row = dict(study=study, **labels, **metrics(mech, res, spec.settle), wall_s=wall)
         rows.append(row)

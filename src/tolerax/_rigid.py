@@ -1,0 +1,65 @@
+"""Rigid-body helpers: rotation matrices, the vee map, world inertia, planar-to-world poses."""
+
+import jax.numpy as jnp
+import numpy as np
+
+# Fixed orientation of the pitch joint's housing in link 1 (structure, not a parameter): the
+# housing's z axis (the joint axis) along link 1's x axis.
+PITCH_HOUSING = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def rot2(angle):
+    """Planar rotation matrix (2, 2) of `angle` (rad)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    return jnp.array([[c, -s], [s, c]])
+
+
+def rz(angle):
+    """Rotation about $z$ by `angle` (rad), (..., 3, 3) for an angle of shape (...)."""
+    c, s = jnp.cos(angle), jnp.sin(angle)
+    zero, one = jnp.zeros_like(c), jnp.ones_like(c)
+    return jnp.stack(
+        [jnp.stack([c, -s, zero], -1), jnp.stack([s, c, zero], -1), jnp.stack([zero, zero, one], -1)], -2
+    )
+
+
+def quat_matrix(quat):
+    """Rotation matrix of a quaternion $(w, x, y, z)$ (normalised here, so drift in its norm
+    never distorts a pose)."""
+    w, x, y, z = quat / jnp.sqrt(jnp.sum(quat**2))
+    return jnp.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def quat_rate(quat, omega_body):
+    """$\\dot q = \\tfrac12 q\\otimes(0, \\omega_B)$ for body-frame angular velocity (rad/s)."""
+    w, x, y, z = quat
+    wx, wy, wz = omega_body
+    return 0.5 * jnp.stack(
+        [-x * wx - y * wy - z * wz, w * wx + y * wz - z * wy, w * wy + z * wx - x * wz, w * wz + x * wy - y * wx]
+    )
+
+
+def vee(w):
+    """Vector of the skew part of `w` (..., 3, 3)."""
+    return 0.5 * jnp.stack(
+        [w[..., 2, 1] - w[..., 1, 2], w[..., 0, 2] - w[..., 2, 0], w[..., 1, 0] - w[..., 0, 1]], -1
+    )
+
+
+def world_inertia(rot, principal):
+    """$R\\,\\mathrm{diag}(I)R^T$ per body (nb, 3, 3) from rotations (nb, 3, 3) and principal
+    inertias (nb, 3), kg m²."""
+    return jnp.einsum("bij,bj,bkj->bik", rot, principal, rot)
+
+
+def planar_to_world(p_h, r_h, centres, angles):
+    """World positions (nb, 3) and rotations (nb, 3, 3) of bodies given in a housing's plane
+    (centres (nb, 2), m; angles (nb,), rad) whose frame is at `p_h` with rotation `r_h`."""
+    pos = p_h + jnp.concatenate([centres, jnp.zeros((centres.shape[0], 1))], axis=1) @ r_h.T
+    return pos, r_h @ rz(angles)

@@ -1,0 +1,111 @@
+"""A scene is anything `simulate` can run: the joint on its test bench, the antenna mechanism.
+
+A scene provides its initial state (`start="rest"` or `"steady"`: already turning at the
+commanded rate in rigid kinematics), its equations of motion (`vector_field`), what is observed
+at a saved state (`observe`), and how the saved series become its result type. `simulate` is the
+one entry point; `_solve.solve` the one diffrax call.
+"""
+
+import abc
+
+import diffrax
+import equinox as eqx
+
+from . import _validate as V
+from ._solve import DTMIN, SolverReport, raise_on_failure, solve
+
+STARTS = ("rest", "steady")
+
+
+class AbstractScene(eqx.Module):
+    """What `simulate` needs of a scene. `_what` names it in failure messages."""
+
+    _what = "simulation"
+
+    @abc.abstractmethod
+    def initial_state(self, start: str = "rest") -> tuple:
+        """The state at t = 0 for `start` (`"rest"` or `"steady"`)."""
+
+    @abc.abstractmethod
+    def vector_field(self, t, y, args):
+        """$\\dot y = f(t, y)$."""
+
+    @abc.abstractmethod
+    def observe(self, t, y):
+        """Instantaneous outputs at a saved state (a pytree of arrays)."""
+
+    @abc.abstractmethod
+    def result(self, sol: diffrax.Solution, observed, duration: float) -> SolverReport:
+        """The scene's result (built with `SolverReport.from_solution`) from the solution of
+        `_solve.solve` and the observations at its save times."""
+
+    def check_runnable(self) -> None:
+        """Raise a `ValueError` saying what to change if this scene has nothing to integrate."""
+
+
+def simulate(
+    scene: AbstractScene,
+    duration: float,
+    *,
+    start: str = "rest",
+    y0: tuple | None = None,
+    n_save: int = 1001,
+    solver: diffrax.AbstractSolver | None = None,
+    rtol: float = 1e-6,
+    atol: float = 1e-9,
+    dt0: float = 1e-6,
+    dtmax: float = 1e-3,
+    dtmin: float = DTMIN,
+    max_steps: int = 4_000_000,
+    fixed_step: float | None = None,
+    throw: bool = True,
+    progress: bool = False,
+    adjoint: diffrax.AbstractAdjoint | None = None,
+):
+    """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
+
+    **Arguments:**
+
+    - `scene`: what to run. Only its structure compiles (fidelities, supports, solver,
+      `n_save`); changing values (clearances, stiffnesses, rates) reuses the compiled program.
+    - `duration`: simulated time (s).
+    - `start`: `"rest"` (everything at rest: a servo start-up closes the backlash, so the run
+      has impacts) or `"steady"` (each servo-driven joint already turning at its commanded rate
+      in rigid kinematics, meshes at zero deflection). Ignored when `y0` is given.
+    - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
+    - `n_save`: number of equally spaced save times.
+    - `solver`: a diffrax solver (default `Tsit5`, explicit; implicit solvers are compared in
+      `benchmarks/work_precision.py`).
+    - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
+      m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
+    - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
+      below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
+    - `max_steps`: step budget.
+    - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
+      setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
+    - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
+      under `jit`/`vmap`/`grad`).
+    - `progress`: print diffrax's text progress meter (compiles a separate program).
+    - `adjoint`: how derivatives pass through the solve (default: reverse mode with recursive
+      checkpointing; `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`).
+
+    **Returns:** the scene's result (`BenchResult`, `MechanismResult`), a `SolverReport`.
+    """
+    if not isinstance(scene, AbstractScene):
+        raise TypeError(f"scene must be a TestBench or a Mechanism (see `antenna`), got {type(scene).__name__}.")
+    if start not in STARTS:
+        raise ValueError(f"start={start!r} is unknown; use one of {STARTS}.")
+    scene.check_runnable()
+    if y0 is None:
+        y0 = scene.initial_state(start)
+    else:
+        V.state_like(y0, scene.initial_state(start))
+    solver = diffrax.Tsit5() if solver is None else solver
+    sol, observed = solve(
+        scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
+        dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step, progress=progress, adjoint=adjoint,
+    )
+    result = scene.result(sol, observed, duration)
+    if throw:
+        raise_on_failure(sol, duration, scene._what)
+    return result
