@@ -8,13 +8,14 @@ import diffrax
 import numpy as np
 import pytest
 
-from tolerax import _bench, _cli, _planetary as P
+import tolerax as tx
+from tolerax import _cli
 
 
 @pytest.fixture(scope="module")
 def bench_run():
-    bench = _bench.TestBench()  # default joint: 100 um clearances and backlash, 0.98 deg/s
-    return bench, _bench.simulate_bench(bench, 0.6, n_save=301)
+    bench = tx.TestBench()  # default joint: 100 um clearances and backlash, 0.98 deg/s
+    return bench, tx.simulate(bench, 0.6, n_save=301)
 
 
 def test_bench_runs_at_paper_speed(bench_run):
@@ -24,7 +25,10 @@ def test_bench_runs_at_paper_speed(bench_run):
     for series in (res.contact_force, res.sun_mesh_force, res.ring_mesh_force, res.output_angle):
         assert np.all(np.isfinite(np.asarray(series)))
     force = np.asarray(res.contact_force)
-    assert force.min() >= 0.0  # contact never pulls
+    # Contact never pulls. True by construction of `normal_force`'s clip (a ramp of the force:
+    # softplus, or max(0, F) at width 0, so >= 0): this guards that clip through a whole
+    # simulation, a regression test of the contact kernel as the bench uses it.
+    assert force.min() >= 0.0
     # Start-up closes the backlash: the planets are driven onto their pins (they carry the
     # sun and ring tooth forces), and the carrier lags the motor by the lost motion.
     assert force[:, 2:].max() > 0.1
@@ -42,20 +46,20 @@ def test_bench_runs_at_paper_speed(bench_run):
 
 
 def test_failure_is_reported_not_hidden():
-    bench = _bench.TestBench()
-    res = _bench.simulate_bench(bench, 0.05, n_save=11, max_steps=50, throw=False)
+    bench = tx.TestBench()
+    res = tx.simulate(bench, 0.05, n_save=11, max_steps=50, throw=False)
     assert not res.success
     assert res.result == diffrax.RESULTS.max_steps_reached
     # t_reached is where the solver stopped: the same 50-step budget reaches it (the step
     # sequence is the same up to there), and does not reach 20 % further.
     t = float(res.t_reached)
     assert 0 < t < 0.05
-    assert _bench.simulate_bench(bench, t, n_save=11, max_steps=50, throw=False).success
-    assert not _bench.simulate_bench(bench, 1.2 * t, n_save=11, max_steps=50, throw=False).success
+    assert tx.simulate(bench, t, n_save=11, max_steps=50, throw=False).success
+    assert not tx.simulate(bench, 1.2 * t, n_save=11, max_steps=50, throw=False).success
     (line,) = res.failures()
     assert "max_steps_reached" in line and f"t = {t:.6g} s of 0.05 s" in line and "max_steps" in line
-    with pytest.raises(_bench.SimulationError, match=r"failed \(max_steps_reached\) at t = "):
-        _bench.simulate_bench(bench, 0.05, n_save=11, max_steps=50)
+    with pytest.raises(tx.SimulationError, match=r"failed \(max_steps_reached\) at t = "):
+        tx.simulate(bench, 0.05, n_save=11, max_steps=50)
 
 
 def test_fixed_step_beyond_stability_is_a_failure_not_nan():
@@ -63,27 +67,27 @@ def test_fixed_step_beyond_stability_is_a_failure_not_nan():
     # sun/mesh mode (benchmarks/results/bench_profile.md): the states blow up to NaN while
     # diffrax, taking constant steps, has no error estimate to refuse them. That must come back
     # as a failure, not as numbers.
-    bench = _bench.TestBench()
-    res = _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=1e-4, throw=False)
+    bench = tx.TestBench()
+    res = tx.simulate(bench, 0.02, n_save=11, fixed_step=1e-4, throw=False)
     assert not res.success
     assert res.result == diffrax.RESULTS.nonfinite
-    with pytest.raises(_bench.SimulationError, match="smaller step"):
-        _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=1e-4)
+    with pytest.raises(tx.SimulationError, match="smaller step"):
+        tx.simulate(bench, 0.02, n_save=11, fixed_step=1e-4)
     # Inside the limit the fixed step agrees with the adaptive solution (no contact yet in the
     # first 20 ms from rest, so both are smooth; 5th-order steps of 20 us: error far below 1e-9).
-    fixed = _bench.simulate_bench(bench, 0.02, n_save=11, fixed_step=2e-5)
-    adaptive = _bench.simulate_bench(bench, 0.02, n_save=11, rtol=1e-10, atol=1e-13)
+    fixed = tx.simulate(bench, 0.02, n_save=11, fixed_step=2e-5)
+    adaptive = tx.simulate(bench, 0.02, n_save=11, rtol=1e-10, atol=1e-13)
     assert fixed.success and int(fixed.num_steps) == 1000
     np.testing.assert_allclose(np.asarray(fixed.output_angle), np.asarray(adaptive.output_angle), rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="fixed_step"):
-        _bench.simulate_bench(bench, 0.02, fixed_step=-1e-4)
+        tx.simulate(bench, 0.02, fixed_step=-1e-4)
 
 
 def test_bad_duration_rejected():
     with pytest.raises(ValueError, match="duration"):
-        _bench.simulate_bench(_bench.TestBench(), float("nan"))
+        tx.simulate(tx.TestBench(), float("nan"))
     with pytest.raises(ValueError, match="start"):
-        _bench.TestBench(start="moving")
+        tx.simulate(tx.TestBench(), 0.01, start="moving")
 
 
 def test_cli_demo(tmp_path, capsys):

@@ -9,7 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tolerax import _mechanism as M, _planetary as P, _contact as C
+import tolerax as tx
+from tolerax import _contact as C, _modes, planetary as P
+from tolerax._rigid import world_inertia
 
 
 def _momentum_scale(mech, res):
@@ -22,7 +24,7 @@ def _momentum_scale(mech, res):
         pos, rot = mech.poses(q_, t_)
         v, w = mech.twists(q_, u_, t_)
         lin = masses[:, None] * v
-        inertia = M._world_inertia(rot, principal)
+        inertia = world_inertia(rot, principal)
         ang = jnp.cross(pos, lin) + jnp.einsum("bij,bj->bi", inertia, w)
         return jnp.sum(jnp.linalg.norm(lin, axis=1)), jnp.sum(jnp.linalg.norm(ang, axis=1))
 
@@ -37,8 +39,8 @@ def _momentum_scale(mech, res):
 def test_free_base_conserves_momentum(fidelity, duration):
     # Dual-axis servo drive at 30 deg/s from rest (planetary: 100 um clearances rattle): every
     # force is internal, so linear and angular momentum must stay at their initial value.
-    mech = M.antenna("dual", fidelity=fidelity, rate=math.radians(30.0))
-    res = M.simulate(mech, duration, n_save=21, rtol=1e-10, atol=1e-12)
+    mech = tx.antenna("dual", fidelity=fidelity, rate=math.radians(30.0))
+    res = tx.simulate(mech, duration, n_save=21, rtol=1e-10, atol=1e-12)
     lin_scale, ang_scale = _momentum_scale(mech, res)
     assert lin_scale > 1e-3 and ang_scale > 1e-3  # the bodies really move
     lin = np.asarray(res.momentum)
@@ -48,7 +50,7 @@ def test_free_base_conserves_momentum(fidelity, duration):
 
 
 def _conservative_stage(clearance, planet_support="clearance"):
-    return P.default_stage(
+    return tx.default_stage(
         mesh="linear",
         planet_support=planet_support,
         mesh_damping_ratio=0.0,
@@ -67,8 +69,8 @@ def test_energy_conserved_without_damping(fidelity, duration):
     # rigid planet pins: its pin play is a smoothed dead zone, whose softplus ramp has no
     # closed-form potential (the planetary stage's pin contacts do, through the contact law).
     stage = _conservative_stage(2e-6, "clearance" if fidelity == "planetary" else "rigid")
-    joint = lambda: M.Joint(stage, fidelity, M.TorqueDrive(0.0), drag_torque=0.0)  # noqa: E731
-    mech = M.Mechanism(joint(), joint(), base="free")
+    joint = lambda: tx.FIDELITIES[fidelity](stage, tx.TorqueDrive(0.0), drag_torque=0.0)  # noqa: E731
+    mech = tx.Mechanism(joint(), joint(), base="free")
     lay = mech.layout
     q, u, _ = mech.initial_state()
     kick = np.zeros(lay.size_u)
@@ -80,8 +82,8 @@ def test_energy_conserved_without_damping(fidelity, duration):
         part[jl.carrier_xy] = rng.normal(size=2) * 2e-3  # m/s on the output bearing
         kick[sl] = part
     u = jnp.asarray(kick)
-    y0 = (q, u, M.initial_impact_rates(mech, q, u))
-    res = M.simulate(mech, duration, n_save=41, rtol=1e-10, atol=1e-13, y0=y0)
+    y0 = (q, u, mech.initial_impact_rates(q, u))
+    res = tx.simulate(mech, duration, n_save=41, rtol=1e-10, atol=1e-13, y0=y0)
     pot = jax.vmap(mech.potential_energy)(res.states[0])
     total = np.asarray(res.kinetic_energy + pot)
     kick_energy = float(res.kinetic_energy[0])
@@ -90,8 +92,8 @@ def test_energy_conserved_without_damping(fidelity, duration):
 
 
 def test_ideal_joints_reproduce_commanded_kinematics():
-    mech = M.antenna("dual", fidelity="ideal", base="free")
-    res = M.simulate(mech, 2.0, n_save=41)
+    mech = tx.antenna("dual", fidelity="ideal", base="free")
+    res = tx.simulate(mech, 2.0, n_save=41)
     assert float(np.max(res.pointing_error)) <= 1e-9
     assert float(np.abs(res.position_error).max()) <= 1e-12
     assert float(np.abs(res.tracking_speed_error).max()) <= 1e-12
@@ -127,8 +129,8 @@ def _azimuth_inertia(mech):
 def test_ideal_torque_drive_matches_closed_form():
     # Fixed base, pitch locked, azimuth driven by the paper's T = 1.5 cos(2 pi t) N m through a
     # rigid gear train, no drag: theta = T0 / (J w^2) (1 - cos w t) with J summed by hand.
-    mech = M.antenna("azimuth", fidelity="ideal", drive="torque", base="fixed", drag_torque=0.0)
-    res = M.simulate(mech, 1.0, n_save=11, rtol=1e-11, atol=1e-13)
+    mech = tx.antenna("azimuth", fidelity="ideal", drive="torque", base="fixed", drag_torque=0.0)
+    res = tx.simulate(mech, 1.0, n_save=11, rtol=1e-11, atol=1e-13)
     j = _azimuth_inertia(mech)
     w = 2 * math.pi
     ts = np.asarray(res.ts)
@@ -139,14 +141,14 @@ def test_ideal_torque_drive_matches_closed_form():
 def test_lumped_mesh_is_the_stage_condensed():
     # Independent: the stage's own tangent stiffness (autodiff of its mesh forces), rigid
     # supports and linear meshes, planets condensed out; torsion on delta = theta_s/i - theta_c.
-    stage = P.default_stage(mesh="linear", sun_support="rigid", carrier_support="rigid", planet_support="rigid")
-    k = np.asarray(P.stiffness_matrix(stage, jnp.zeros(stage.layout.size)))
+    stage = tx.default_stage(mesh="linear", sun_support="rigid", carrier_support="rigid", planet_support="rigid")
+    k = np.asarray(_modes.stiffness_matrix(stage, jnp.zeros(stage.layout.size)))
     k = 0.5 * (k + k.T)
     keep, drop = [0, 1], list(range(2, 2 + stage.n_planets))
     kc = k[np.ix_(keep, keep)] - k[np.ix_(keep, drop)] @ np.linalg.solve(k[np.ix_(drop, drop)], k[np.ix_(drop, keep)])
     i = stage.ratio
     k_delta = np.array([i, 0.0]) @ kc @ np.array([i, 0.0])  # theta_s = i delta, theta_c = 0
-    lm = M.lumped_mesh(stage, 2e-4)
+    lm = tx.lumped_mesh(stage, 2e-4)
     np.testing.assert_allclose(float(lm.stiffness * lm.lever**2), k_delta, rtol=1e-10)
     # The rigid (null) mode of the condensed stage is the ratio i.
     assert abs(kc[0, 0] * i + kc[0, 1]) < 1e-8 * abs(kc[0, 0])
@@ -155,7 +157,7 @@ def test_lumped_mesh_is_the_stage_condensed():
     # the carrier angle where both of its drive (back) deflections vanish together (the planet
     # spin solved out) is the drive (back) flank onset; deflections are affine in q.
     b, c_p = 60e-6, 30e-6
-    stage = P.default_stage(backlash=b, planet_clearance=c_p)
+    stage = tx.default_stage(backlash=b, planet_clearance=c_p)
     lay = stage.layout
 
     def onset(eta, flank):
@@ -171,12 +173,12 @@ def test_lumped_mesh_is_the_stage_condensed():
     # The pin lets the planet float tangentially: the drive flank engages (carrier lagging, at
     # theta_c < 0) with the planet at eta = +c_p, the back flank (theta_c > 0) at eta = -c_p.
     lost = onset(-c_p, "back") - onset(c_p, "drive")
-    nl = M.lumped_mesh(stage, 2e-4)
+    nl = tx.lumped_mesh(stage, 2e-4)
     assert lost > 0
     np.testing.assert_allclose(float(nl.lost_motion), lost, rtol=1e-10)
     # ...and the lumped joint's tooth torque switches on exactly there (exact dead zone, eps = 0).
     sharp = eqx.tree_at(lambda s_: s_.smoothing_width, stage, jnp.asarray(0.0))
-    mech = M.Mechanism(M.Joint(sharp, "lumped", M.TorqueDrive(0.0), drag_torque=0.0), base="fixed")
+    mech = tx.Mechanism(tx.LumpedJoint(sharp, tx.TorqueDrive(0.0), drag_torque=0.0), base="fixed")
     jl, sq = mech.azimuth.layout, mech.layout.azimuth_q
 
     def carrier_torque(theta_c):
@@ -189,7 +191,7 @@ def test_lumped_mesh_is_the_stage_condensed():
     assert carrier_torque(drive + nudge) == 0.0 and carrier_torque(back - nudge) == 0.0
     assert carrier_torque(drive - nudge) > 0.0 > carrier_torque(back + nudge)
     # Without pin play, the lost motion is the backlash alone, (b_s + b_r) / r.
-    rigid = M.lumped_mesh(P.default_stage(backlash=b, planet_support="rigid"), 2e-4)
+    rigid = tx.lumped_mesh(tx.default_stage(backlash=b, planet_support="rigid"), 2e-4)
     np.testing.assert_allclose(float(rigid.lost_motion * rigid.lever), 2 * b, rtol=1e-12)
     assert float(rigid.drive_gap) == 0.0
 
@@ -202,10 +204,10 @@ def test_lumped_joint_servo_lag_matches_closed_form():
     # loop (w_n = 5.3 rad/s, zeta = 0.27) settles in ~2 s; the output bearing keeps rattling in
     # its clearance and stirs the lag by about +-6 % of the servo part, so the lag is averaged
     # over 2-4 s (3 %).
-    mech = M.antenna("azimuth", fidelity="lumped", base="fixed")
-    res = M.simulate(mech, 4.0, n_save=401)
+    mech = tx.antenna("azimuth", fidelity="lumped", base="fixed")
+    res = tx.simulate(mech, 4.0, n_save=401)
     joint = mech.azimuth
-    lm = M.lumped_mesh(joint.stage, joint.motor_inertia)
+    lm = tx.lumped_mesh(joint.stage, joint.motor_inertia)
     servo = float(joint.drag_torque / (joint.stage.ratio**2 * joint.drive.integral))
     expected = servo + float(lm.drive_gap / lm.lever)
     lag = np.asarray(res.commanded_angle[200:, 0] - res.joint_angle[200:, 0])
@@ -217,21 +219,21 @@ def test_lumped_joint_servo_lag_matches_closed_form():
 
 def test_bad_options_are_rejected():
     with pytest.raises(ValueError, match="fidelity"):
-        M.antenna("azimuth", fidelity="exact")
+        tx.antenna("azimuth", fidelity="exact")
     with pytest.raises(ValueError, match="mode"):
-        M.antenna("roll")
+        tx.antenna("roll")
     with pytest.raises(ValueError, match="drive"):
-        M.antenna("dual", drive="position")
+        tx.antenna("dual", drive="position")
     with pytest.raises(ValueError, match="base"):
-        M.Mechanism(base="floating")
+        tx.Mechanism(base="floating")
     with pytest.raises(ValueError, match="reflector_centre"):
-        M.Geometry(reflector_centre=(0.0, float("nan"), 0.0))
+        tx.Geometry(reflector_centre=(0.0, float("nan"), 0.0))
     with pytest.raises(ValueError, match="reflector_mass"):
-        M.Inertias(reflector_mass=-8.0)
+        tx.Inertias(reflector_mass=-8.0)
     with pytest.raises(TypeError, match="drive"):
-        M.Joint(drive=1.5)
+        tx.PlanetaryJoint(drive=1.5)
     with pytest.raises(ValueError, match="nothing to integrate"):
-        M.simulate(M.antenna("dual", fidelity="ideal", base="fixed"), 0.1)
+        tx.simulate(tx.antenna("dual", fidelity="ideal", base="fixed"), 0.1)
 
 
 def test_vibration_amplitude_recovers_a_sinusoid():
@@ -240,4 +242,4 @@ def test_vibration_amplitude_recovers_a_sinusoid():
     # rel 1e-3: the least-squares detrend also removes the sinusoid's small projection on a
     # straight line over the 2 s window (2.4e-4 of its amplitude here); the drift, 50x larger
     # than the sinusoid, is removed entirely.
-    assert float(M.vibration_amplitude(signal, ts)) == pytest.approx(3e-6, rel=1e-3)
+    assert float(tx.vibration_amplitude(signal, ts)) == pytest.approx(3e-6, rel=1e-3)

@@ -1,14 +1,36 @@
-"""The smooth primitives of `tolerax.smooth` against the exact piecewise functions (numpy), their
-documented error bounds, and their gradients (finite at every kink; equal to finite differences
-where smooth)."""
+"""The smooth primitives of `tolerax.smooth` (MODEL.md §1) against the exact piecewise functions
+(numpy), their documented error bounds, and their gradients (finite at every kink; equal to finite
+differences where smooth).
+
+Beside each group of examples on fixed grids, property tests (hypothesis, strategies in
+`_strategies.py`) check the same functions for what must hold for *every* input of their domain:
+monotonicity, Lipschitz bounds, symmetry, exact limit at width 0, finite derivatives.
+"""
+
+import functools
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
-import tolerax
 from tolerax import smooth
+
+from _strategies import (
+    BACKLASH,
+    EPS,
+    SETTINGS,
+    WIDTH,
+    WIDTH_DIFFERENTIABLE,
+    X,
+    finite,
+    positive,
+    scalar,
+    signed,
+    widths,
+)
 
 
 WIDTHS = (1e-9, 1e-6, 1e-3, 1.0)
@@ -135,6 +157,145 @@ def test_norm_error_bounds(width):
 
 
 # ------------------------------------------------------------------------------------------
+# For every input (hypothesis): monotonicity, Lipschitz bounds, brackets. Each primitive is
+# jitted once (scalar float64 arguments, so values never retrace).
+
+_ramp = jax.jit(smooth.ramp)
+_step = jax.jit(smooth.step)
+_dead_zone = jax.jit(smooth.dead_zone)
+_norm = jax.jit(smooth.norm)
+_power = {p: jax.jit(functools.partial(smooth.power, exponent=p)) for p in (1.5, 2.5)}
+_sqrt = jax.jit(smooth.sqrt)
+
+
+@SETTINGS
+@given(x1=X, x2=X, width=WIDTH)
+def test_ramp_and_step_non_decreasing(x1, x2, width):
+    # ramp = softplus and step = logistic have slopes sigma(x/eps) >= 0 and sigma'(x/eps)/eps >= 0.
+    # A non-monotone ramp would make a penetration force pull back somewhere; a non-monotone
+    # switch would switch a contact off deeper in contact. Round-off: the float implementations
+    # are monotone only to within an ulp (softplus = max(0, a) + log1p(exp(-|a|)) adds an
+    # increasing and a decreasing term; dense scans of neighbouring floats show 1-ulp steps back,
+    # for the logistic too), so 2 ulp of the larger value are allowed.
+    lo, hi = min(x1, x2), max(x1, x2)
+    assert scalar(_ramp(lo, width)) <= scalar(_ramp(hi, width)) * (1 + 4 * EPS)
+    assert scalar(_step(lo, width)) <= scalar(_step(hi, width)) + 4 * EPS
+    # Exact bracket of the smoothed ramp: max(0, x) <= ramp <= max(0, x) + eps ln 2 (softplus
+    # error is largest at the kink). Round-off: fl(eps * fl(x / eps)) can sit an ulp below x.
+    r = scalar(_ramp(x1, width))
+    exact = max(x1, 0.0)
+    assert exact * (1 - 2 * EPS) <= r <= (exact + width * np.log(2.0)) * (1 + 2 * EPS)
+    assert 0.0 <= scalar(_step(x1, width)) <= 1.0
+
+
+@SETTINGS
+@given(x=X, h_rel=signed(1e-12, 1.0), width=WIDTH)
+def test_ramp_is_1_lipschitz(x, h_rel, width):
+    # |d ramp/dx| = sigma(x/eps) <= 1 (and 0 or 1 at eps = 0): a step h in the deflection never
+    # changes the ramp by more than |h|, whatever the width (continuity of every force built on it).
+    x2 = x + h_rel * max(abs(x), width, 1e-300)
+    r1, r2 = scalar(_ramp(x, width)), scalar(_ramp(x2, width))
+    # Round-off: a few ulp of each value (softplus), plus the ulp of x2 - x.
+    assert abs(r2 - r1) <= abs(x2 - x) * (1 + 2 * EPS) + 4 * EPS * (abs(r1) + abs(r2))
+
+
+@SETTINGS
+@given(x=X, h_rel=signed(1e-12, 1.0), width=positive(1e-149, 1e3))
+def test_step_lipschitz_in_units_of_its_width(x, h_rel, width):
+    # |d step/dx| = sigma'(x/eps)/eps <= 1/(4 eps): the switch turns on over a distance of order eps
+    # and no faster (the exact step, eps = 0 or eps <= smooth.WIDTH_FLOOR = 1e-150, is
+    # discontinuous and not tested here).
+    x2 = x + h_rel * max(abs(x), width)
+    s1, s2 = scalar(_step(x, width)), scalar(_step(x2, width))
+    # Round-off: the logistic is correct to an ulp of 1.
+    assert abs(s2 - s1) <= abs(x2 - x) / (4 * width) * (1 + 2 * EPS) + 4 * EPS
+
+
+@SETTINGS
+@given(g1=X, g2=X, backlash=BACKLASH, width=WIDTH)
+def test_dead_zone_non_decreasing_and_1_lipschitz(g1, g2, backlash, width):
+    # f_g(g) = ramp(g) - ramp(-g - b): slope sigma(g/eps) + sigma(-(g + b)/eps), which lies in
+    # [0, 1] for b >= 0 (sigma(a) + sigma(-a - b/eps) <= sigma(a) + sigma(-a) = 1). The mesh force
+    # K f_g therefore never decreases as the teeth are pushed together, and never stiffer than K.
+    lo, hi = min(g1, g2), max(g1, g2)
+    f_lo, f_hi = scalar(_dead_zone(lo, backlash, width)), scalar(_dead_zone(hi, backlash, width))
+    # Round-off: f_g is a difference of two ramps, each of magnitude <= |g| + b + eps ln 2, and
+    # -g - b is rounded; a few ulp of those magnitudes.
+    roundoff = 8 * EPS * (abs(lo) + abs(hi) + backlash + width)
+    assert f_lo <= f_hi + roundoff
+    assert f_hi - f_lo <= (hi - lo) * (1 + 2 * EPS) + roundoff
+
+
+@SETTINGS
+@given(g=X, b1=BACKLASH, b2=BACKLASH, width=WIDTH)
+def test_dead_zone_non_decreasing_in_backlash(g, b1, b2, width):
+    # d f_g / db = sigma(-(g + b)/eps) in [0, 1]: more backlash delays the back-flank contact, so
+    # the (negative) back-flank part only weakens, at most one-for-one, and the drive flank
+    # (g >= 0) is unaffected in the exact limit.
+    lo, hi = min(b1, b2), max(b1, b2)
+    f_lo, f_hi = scalar(_dead_zone(g, lo, width)), scalar(_dead_zone(g, hi, width))
+    roundoff = 8 * EPS * (abs(g) + hi + width)
+    assert f_lo <= f_hi + roundoff
+    assert f_hi - f_lo <= (hi - lo) * (1 + 2 * EPS) + roundoff
+    if width == 0.0 and g >= 0.0:
+        assert f_lo == f_hi == g
+
+
+
+# The plain sqrt(sum of squares) under- and overflows outside |v| in [1e-154, 1e154]; SI lengths
+# and speeds are far inside that range, so the norm is tested there.
+NORM_COMPONENT = signed(1e-150, 1e150)
+NORM_WIDTH = widths(1e-150, 1e3)
+
+
+@SETTINGS
+@given(
+    v1=st.tuples(NORM_COMPONENT, NORM_COMPONENT),
+    v2=st.tuples(NORM_COMPONENT, NORM_COMPONENT),
+    w1=NORM_WIDTH,
+    w2=NORM_WIDTH,
+)
+def test_norm_bounds_exact_limit_and_lipschitz(v1, v2, w1, w2):
+    v1, v2 = np.array(v1), np.array(v2)
+    exact1 = float(np.hypot(*v1))
+    n1 = scalar(_norm(v1, w1))
+    # sqrt(|v|^2 + eps^2) lies between max(|v|, eps) and |v| + eps (triangle inequality), so the
+    # smoothed eccentricity never understates a penetration, overstates it by at most eps, and
+    # stays >= eps > 0 at v = 0 (where the exact norm has no gradient). Round-off: the sum of
+    # squares and the sqrt, 2 ulp.
+    assert max(exact1, w1) * (1 - 4 * EPS) <= n1 <= (exact1 + w1) * (1 + 4 * EPS)
+    # Exact limit: width 0 is the Euclidean norm.
+    assert scalar(_norm(v1, 0.0)) == pytest.approx(exact1, rel=4 * EPS, abs=0.0)
+    # 1-Lipschitz in v (the gradient v / sqrt(|v|^2 + eps^2) has length <= 1) and in the width:
+    # contact normals and penetrations are continuous in the positions.
+    n2 = scalar(_norm(v2, w1))
+    assert abs(n1 - n2) <= float(np.hypot(*(v1 - v2))) * (1 + 4 * EPS) + 4 * EPS * (n1 + n2)
+    n3 = scalar(_norm(v1, w2))
+    assert abs(n1 - n3) <= abs(w1 - w2) * (1 + 4 * EPS) + 4 * EPS * (n1 + n3)
+
+
+@SETTINGS
+@given(x1=X, x2=X)
+def test_power_and_sqrt_monotone_and_continuous(x1, x2):
+    # x^p (p >= 1, the Hertz exponents 1.5 and 2.5) and sqrt: zero for x <= 0, non-decreasing,
+    # Lipschitz with constant p X^(p-1) on [0, X], and sqrt Hoelder-1/2: |sqrt a - sqrt b| <=
+    # sqrt|a - b| (no jump at contact onset).
+    lo, hi = min(x1, x2), max(x1, x2)
+    top = max(hi, 0.0)
+    for p, fn in _power.items():
+        a, b = scalar(fn(lo)), scalar(fn(hi))
+        assert 0.0 <= a <= b
+        # Round-off: pow is correct to an ulp or two.
+        assert b - a <= p * top ** (p - 1) * (max(hi, 0.0) - max(lo, 0.0)) * (1 + 4 * EPS) + 4 * EPS * b
+        if lo <= 0.0:
+            assert a == 0.0
+    a, b = scalar(_sqrt(lo)), scalar(_sqrt(hi))
+    assert 0.0 <= a <= b
+    assert b - a <= np.sqrt(max(hi, 0.0) - max(lo, 0.0)) * (1 + 4 * EPS) + 4 * EPS * b
+
+
+
+# ------------------------------------------------------------------------------------------
 # Symmetry of the dead zone.
 
 
@@ -152,12 +313,26 @@ def test_dead_zone_odd_about_gap_centre(width, backlash):
     assert abs(float(smooth.dead_zone(centre, backlash, width))) <= 4 * np.finfo(float).eps * backlash
 
 
+@SETTINGS
+@given(g=X, backlash=BACKLASH, width=WIDTH)
+def test_dead_zone_odd_about_gap_centre_for_any_input(g, backlash, width):
+    # MODEL.md §1: the dead zone is odd about the centre of the gap g = -b/2, i.e.
+    # f_g(g) = -f_g(-g - b) (ramp(g) - ramp(-g - b) swaps its two ramps), so a gear centred in
+    # its backlash feels no force and the two flanks are symmetric. Zero at mid-gap.
+    mirror = -g - backlash
+    total = scalar(_dead_zone(g, backlash, width)) + scalar(_dead_zone(mirror, backlash, width))
+    # Only asymmetry: -(-g - b) - b rounds back to g to within an ulp of max(|g|, b); the ramps
+    # are 1-Lipschitz, plus their own round-off.
+    assert abs(total) <= 8 * EPS * (abs(g) + backlash + width)
+    assert abs(scalar(_dead_zone(-0.5 * backlash, backlash, width))) <= 4 * EPS * backlash
+    # Exact limit: no force strictly inside the gap.
+    if width == 0.0 and -backlash < g < 0.0:
+        assert scalar(_dead_zone(g, backlash, 0.0)) == 0.0
+
+
+
 # ------------------------------------------------------------------------------------------
 # Gradients: finite exactly at the kinks and at zero norm; equal to finite differences.
-
-
-def _finite(tree):
-    return all(np.all(np.isfinite(np.asarray(leaf))) for leaf in jax.tree_util.tree_leaves(tree))
 
 
 @pytest.mark.parametrize("width", [0.0, 1e-9, 1e-3])
@@ -173,7 +348,7 @@ def test_gradients_finite_at_kinks(width):
     }
     for name, fn in cases.items():
         grads = jax.grad(fn, argnums=(0, 1))(jnp.asarray(0.0), w)
-        assert _finite(grads), name
+        assert finite(grads), name
     # Derivative values at the kink where the formula is known: softplus' = sigmoid(0) = 1/2 for
     # width > 0. At width 0 any subgradient in [0, 1] is acceptable.
     slope = float(jax.grad(smooth.ramp)(0.0, w))
@@ -183,7 +358,7 @@ def test_gradients_finite_at_kinks(width):
         assert 0.0 <= slope <= 1.0
     # Also the gradient with respect to the backlash at both kinks.
     for g in (0.0, -1e-5):
-        assert _finite(jax.grad(lambda bb: smooth.dead_zone(g, bb, w))(b))
+        assert finite(jax.grad(lambda bb: smooth.dead_zone(g, bb, w))(b))
 
 
 @pytest.mark.parametrize("width", [0.0, 1e-9])
@@ -223,19 +398,64 @@ def test_power_and_sqrt_gradients_at_zero():
         return jnp.where(denom > 0, smooth.power(d, 1.5) / smooth.sqrt(jnp.where(denom > 0, denom, 1.0)), 0.0)
 
     for c in (1e-4, 0.0):
-        assert _finite(jax.grad(bai_zhao_like, argnums=(0, 1))(jnp.asarray(0.0), jnp.asarray(c)))
-    # A Hertz force law through the contact pipeline at zero penetration: finite gradients of
-    # the force in all inputs, at the wall (|e| = c) and at the bearing centre (e = 0).
-    bearing = tolerax.JournalBearing(journal_radius=5e-3, clearance=1e-4, length=8e-3)
-    for e in (jnp.array([1e-4, 0.0]), jnp.zeros(2)):
-        for width in (0.0, 1e-9):
+        assert finite(jax.grad(bai_zhao_like, argnums=(0, 1))(jnp.asarray(0.0), jnp.asarray(c)))
+    # (The same primitives inside the contact pipeline: test_contact.py::
+    # test_force_gradients_finite_at_wall_and_centre.)
 
-            def force(e, e_dot, bearing):
-                state = tolerax.contact_kinematics(bearing, e, e_dot, width)
-                return tolerax.normal_force(tolerax.Flores(0.9), bearing, state, 0.1, width)
 
-            grads = jax.grad(force, argnums=(0, 1, 2))(e, jnp.array([0.1, 0.0]), bearing)
-            assert _finite(grads), (e, width)
+def _primitive_derivatives_impl(x, width, backlash):
+    v = jnp.stack([x, backlash])
+    fns = {
+        "ramp": (smooth.ramp, (x, width), (0, 1)),
+        "step": (smooth.step, (x, width), (0, 1)),
+        "dead_zone": (smooth.dead_zone, (x, backlash, width), (0, 1, 2)),
+        "norm": (smooth.norm, (v, width), (0, 1)),
+        "power1.5": (lambda x: smooth.power(x, 1.5), (x,), (0,)),
+        "power2.5": (lambda x: smooth.power(x, 2.5), (x,), (0,)),
+        "sqrt": (smooth.sqrt, (x,), (0,)),
+    }
+    return {
+        name: (fn(*args), jax.grad(fn, argnums)(*args), jax.jacfwd(fn, argnums)(*args))
+        for name, (fn, args, argnums) in fns.items()
+    }
+
+
+_primitive_derivatives = jax.jit(_primitive_derivatives_impl)
+
+
+@SETTINGS
+@given(
+    offset=X,
+    anchor=st.sampled_from(["zero", "-b", "-b/2"]),
+    width=WIDTH_DIFFERENTIABLE,
+    backlash=BACKLASH,
+)
+def test_primitive_derivatives_finite(offset, anchor, width, backlash):
+    # MODEL.md §1: gradients finite everywhere, in reverse and forward mode, including exactly at
+    # each kink (x = 0 and, for the dead zone, g = -b and mid-gap g = -b/2; offset = 0 is drawn
+    # often), at width 0, at zero backlash and at zero norm (v = (x, b) = 0), for arguments from
+    # 1e-300 to 1e3 and widths from 1e-150 to 1e3. The traps: sqrt at 0, x^1.5 written as
+    # sqrt(x) x, |v| at 0, and 0 * inf in the unused branch of a where.
+    x = {"zero": 0.0, "-b": -backlash, "-b/2": -0.5 * backlash}[anchor] + offset
+    out = _primitive_derivatives(x, width, backlash)
+    for name, (value, rev, fwd) in out.items():
+        assert finite(value), (name, "value")
+        assert finite(rev), (name, "reverse")
+        assert finite(fwd), (name, "forward")
+
+
+@SETTINGS
+@given(x=X, width=positive(1e-300, 1e-160))
+def test_width_derivative_finite_for_tiny_widths(x, width):
+    # The module promises finite gradients everywhere for any width >= 0. The width derivative of
+    # eps softplus(x/eps) is softplus(a) - a sigma(a), a = x/eps, which lies in [0, ln 2] for
+    # every x and eps; that of sigma(x/eps) is -a sigma'(a)/eps, at most 0.23/eps (finite for any
+    # normal eps) and exactly 0 at x = 0. Nothing needs to overflow. (Found by this test: the
+    # x / w**2 term overflowed below w ~ 1e-154; widths <= smooth.WIDTH_FLOOR = 1e-150 now count
+    # as exact.)
+    out = _primitive_derivatives(x, width, 0.0)
+    assert finite(out["ramp"][1]) and finite(out["step"][1])
+
 
 
 def _central_difference(fn, x, h):
