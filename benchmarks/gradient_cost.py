@@ -15,18 +15,15 @@ relative difference.
 """
 
 import argparse
-import pathlib
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 import tolerax
-from tolerax import _bench
 
-from _design import NAMES, rms_output_error
-
+import _results
+from _design import rms_output_error
 
 
 def objective_factory(bench, duration, rtol):
@@ -48,8 +45,8 @@ def main():
     parser.add_argument("--duration", type=float, default=0.3)
     parser.add_argument("--rtol", type=float, default=1e-8)
     args = parser.parse_args()
-    bench = _bench.TestBench()
-    p0 = jnp.array([100e-6, 100e-6, 100e-6, 100e-6, 100e-6])
+    bench = tolerax.TestBench()
+    p0 = tolerax.design_of(bench)  # 100 um each
     objective = objective_factory(bench, args.duration, args.rtol)
     forward = jax.jit(objective)
     gradient = jax.jit(jax.grad(objective))
@@ -67,7 +64,8 @@ def main():
     fd = []
     start = time.perf_counter()
     for k in range(p0.size):
-        e = jnp.zeros_like(p0).at[k].set(h[k])
+        e = np.zeros(p0.size)
+        e[k] = h[k]
         fd.append((float(forward(p0 + e)) - float(forward(p0 - e))) / (2 * h[k]))
     t_fd = time.perf_counter() - start
     fd = np.array(fd)
@@ -75,29 +73,31 @@ def main():
     scale = np.maximum(np.abs(fd), 1e-12 * max(np.abs(fd).max(), 1e-300))
     rel = np.where((grad == 0) & (fd == 0), 0.0, np.abs(grad - fd) / scale)
 
-    lines = [
-        "# Gradient cost and accuracy (bench, every clearance and backlash)",
-        "",
-        f"`python benchmarks/gradient_cost.py --duration {args.duration} --rtol {args.rtol}` (tolerax {tolerax.__version__}, "
-        f"{jax.devices()[0].platform}). Objective: RMS output angle error over {args.duration} s from rest = {float(value):.3f} arcsec; "
+    n = p0.size
+    _results.write_table(
+        "gradient_cost",
+        "Gradient cost and accuracy (bench, every clearance and backlash)",
+        _results.command(args),
+        ["", "wall (s)", "x forward"],
+        [
+            ("forward solve", f"{t_forward:.3f}", "1"),
+            (f"reverse-mode gradient ({n} parameters)", f"{t_gradient:.3f}", f"{t_gradient / t_forward:.1f}"),
+            (f"central differences ({2 * n} solves)", f"{t_fd:.3f}", f"{t_fd / t_forward:.1f}"),
+        ],
+        about=f"Objective: RMS output angle error over {args.duration} s from rest = {float(value):.3f} arcsec; "
         f"Tsit5, rtol {args.rtol:g}.",
-        "",
-        "| | wall (s) | x forward |",
-        "|---|---|---|",
-        f"| forward solve | {t_forward:.3f} | 1 |",
-        f"| reverse-mode gradient (5 parameters) | {t_gradient:.3f} | {t_gradient / t_forward:.1f} |",
-        f"| central differences (10 solves) | {t_fd:.3f} | {t_fd / t_forward:.1f} |",
-        "",
-        f"Compilation: forward {compile_forward:.1f} s, gradient {compile_gradient:.1f} s (first call, including one run).",
-        "",
-        "| parameter | d(RMS)/dp, reverse mode (arcsec/um) | central difference, h = 0.1 um | relative difference |",
-        "|---|---|---|---|",
-    ]
-    for name, g, f, r in zip(NAMES, grad, fd, rel):
-        lines.append(f"| {name} | {g * 1e-6:.6g} | {f * 1e-6:.6g} | {r:.1e} |")
-    out = pathlib.Path(__file__).parent / "results" / "gradient_cost.md"
-    out.write_text("\n".join(lines) + "\n")
-    print(out.read_text())
+        notes=[f"Compilation: forward {compile_forward:.1f} s, gradient {compile_gradient:.1f} s (first call, including one run)."],
+        sections=[
+            _results.Section(
+                None,
+                ["parameter", "d(RMS)/dp, reverse mode (arcsec/um)", "central difference, h = 0.1 um", "relative difference"],
+                [
+                    (name.replace("_", " "), f"{g * 1e-6:.6g}", f"{f * 1e-6:.6g}", f"{r:.1e}")
+                    for name, g, f, r in zip(tolerax.design_names(bench), grad, fd, rel)
+                ],
+            )
+        ],
+    )
 
 
 if __name__ == "__main__":

@@ -13,7 +13,6 @@ hardest member. Wall time after compilation, best of 2. Writes
 """
 
 import argparse
-import pathlib
 import time
 
 import jax
@@ -21,10 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import tolerax
-from tolerax import _bench
 
+import _results
 from _design import rms_output_error
-
 
 
 def main():
@@ -32,18 +30,19 @@ def main():
     parser.add_argument("--duration", type=float, default=0.3)
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 2, 4, 8, 16])
     args = parser.parse_args()
-    bench = _bench.TestBench()
+    bench = tolerax.TestBench()
+    n_features = len(tolerax.design_names(bench))
 
     def sample(p):
         return rms_output_error(bench, p, args.duration, 1e-6)
 
     batched = jax.jit(jax.vmap(sample))
     single = jax.jit(sample)
-    jax.block_until_ready(single(jnp.full(5, 50e-6)))
+    jax.block_until_ready(single(jnp.full(n_features, 50e-6)))
     rng = np.random.default_rng(0)
     rows = []
     for n in args.batches:
-        p = jnp.asarray(rng.uniform(10e-6, 100e-6, size=(n, 5)))
+        p = jnp.asarray(rng.uniform(10e-6, 100e-6, size=(n, n_features)))
         start = time.perf_counter()
         jax.block_until_ready(batched(p))
         first = time.perf_counter() - start
@@ -60,23 +59,23 @@ def main():
             serial = min(serial, time.perf_counter() - start)
         rows.append(dict(n=n, wall=best, serial=serial, compile=first - best, rate=n / best, ok=int(np.sum(ok)), steps=np.asarray(steps)))
         print(rows[-1], flush=True)
-    lines = [
-        "# Monte Carlo throughput (bench, vmap over clearance and backlash draws)",
-        "",
-        f"`python benchmarks/monte_carlo_throughput.py --duration {args.duration}` (tolerax {tolerax.__version__}, "
-        f"{jax.devices()[0].platform}, {jax.device_count()} device(s)). {args.duration} s from rest per sample.",
-        "",
-        "| batch | vmapped wall (s) | samples/s | same draws one at a time (s) | vmap speed-up | compile (s) | succeeded | steps per sample, min / max |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['n']} | {r['wall']:.2f} | {r['rate']:.2f} | {r['serial']:.2f} | {r['serial'] / r['wall']:.2f} | {r['compile']:.1f} | {r['ok']}/{r['n']} | "
-            f"{r['steps'].min()} / {r['steps'].max()} |"
-        )
-    out = pathlib.Path(__file__).parent / "results" / "monte_carlo_throughput.md"
-    out.write_text("\n".join(lines) + "\n")
-    print(out.read_text())
+    _results.write_table(
+        "monte_carlo_throughput",
+        "Monte Carlo throughput (bench, vmap over clearance and backlash draws)",
+        _results.command(args),
+        [
+            "batch", "vmapped wall (s)", "samples/s", "same draws one at a time (s)", "vmap speed-up", "compile (s)",
+            "succeeded", "steps per sample, min / max",
+        ],
+        [
+            (
+                str(r["n"]), f"{r['wall']:.2f}", f"{r['rate']:.2f}", f"{r['serial']:.2f}", f"{r['serial'] / r['wall']:.2f}",
+                f"{r['compile']:.1f}", f"{r['ok']}/{r['n']}", f"{r['steps'].min()} / {r['steps'].max()}",
+            )
+            for r in rows
+        ],
+        about=f"{args.duration} s from rest per sample.",
+    )
 
 
 if __name__ == "__main__":
