@@ -784,10 +784,16 @@ def test_contact_kinematics_bounds(case):
     assert pen >= gap - roundoff
     assert ecc - c - roundoff <= gap <= ecc + width - c + roundoff
     length = float(np.hypot(*normal))
-    assert length <= 1 + 4 * EPS
+    # XLA on the CPU flushes subnormals to zero: a component below ~1.5e-154 m has its square
+    # dropped from |e| but not from e, so n = e/|e| can be longer than 1 by half the dropped
+    # squares over |e|^2 (1 + 5e-11 for components 1e-149 and 1e-154 m; newer hypothesis
+    # versions draw that case).
+    tiny = [float(x) for x in e if abs(float(x)) < 1.5e-154]
+    flushed = 0.5 * sum(x * x for x in tiny) / ecc**2 if tiny and ecc > 1e-150 else 0.0
+    assert length <= 1 + 4 * EPS + flushed
     assert abs(rate) <= float(np.hypot(*e_dot)) * (1 + 8 * EPS)
     if width == 0.0:
         assert pen == max(gap, 0.0)
         if ecc > 1e-150:  # (not where |e|^2 underflows: there n = 0, harmlessly)
-            assert length == pytest.approx(1.0, abs=4 * EPS)
+            assert length == pytest.approx(1.0, abs=4 * EPS + flushed)
 
