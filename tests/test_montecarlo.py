@@ -1,0 +1,367 @@
+"""Monte Carlo engine: sampling, backends, checkpoints, statistics and Sobol indices, each against
+an independent reference (closed forms, scipy's distributions, another backend, an uninterrupted
+run). Monte Carlo estimates are checked within 4 standard errors (a false alarm about 1 in 16 000
+per check; the keys are fixed, so the tests are deterministic)."""
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+import textwrap
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import matplotlib
+import numpy as np
+import pytest
+import scipy.stats
+import xarray as xr
+
+from tolerax._montecarlo import MonteCarloResult, monte_carlo, wilson_interval
+from tolerax._sampling import Tolerances, apply_draws, sample, unit_draws
+from tolerax._sensitivity import sobol_indices
+
+import _mc_helpers as helpers
+
+
+matplotlib.use("Agg")
+
+KEY = jax.random.key(2024)
+TOLERANCES = Tolerances(("carrier_clearance", "backlash"), [50e-6, 30e-6], [20e-6, 40e-6])
+QUIET = dict(progress=False)
+
+
+def _within(estimate, exact, standard_error, k=4.0):
+    assert abs(estimate - exact) <= k * standard_error, (estimate, exact, standard_error)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sampling
+
+
+def test_sample_reproducible_offset_and_clipped():
+    values = np.asarray(sample(TOLERANCES, KEY, 100))
+    np.testing.assert_array_equal(values, np.asarray(sample(TOLERANCES, jax.random.key(2024), 100)))
+    # Sample i depends on (key, i) only.
+    np.testing.assert_array_equal(values[40:], np.asarray(sample(TOLERANCES, KEY, 60, first=40)))
+    # The raw uint32 key of the same seed gives the same draws.
+    np.testing.assert_array_equal(values, np.asarray(sample(TOLERANCES, jax.random.PRNGKey(2024), 100)))
+    assert not np.array_equal(values, np.asarray(sample(TOLERANCES, jax.random.key(1), 100)))
+    low, high = TOLERANCES.bounds().T
+    assert np.all(values >= low) and np.all(values <= high)
+    # jit equals eager, to the last bit or so: under jit XLA fuses nominal + band * u into one
+    # fused multiply-add, rounded once instead of twice.
+    jitted = eqx.filter_jit(lambda t, k: sample(t, k, 100))(TOLERANCES, KEY)
+    np.testing.assert_allclose(values, np.asarray(jitted), rtol=2e-15, atol=0)
+
+
+def test_clip_at_lower_is_a_point_mass():
+    # nominal 5 um, band 10 um: a quarter of the uniform draws (u < -1/2) fall below 0 and are
+    # clipped to exactly 0 (line-to-line parts).
+    tolerances = Tolerances(("clearance",), [5e-6], [10e-6])
+    values = np.asarray(sample(tolerances, KEY, 4000))[:, 0]
+    assert values.min() == 0.0
+    _within(np.mean(values == 0.0), 0.25, np.sqrt(0.25 * 0.75 / 4000))
+    unclipped = Tolerances(("clearance",), [5e-6], [10e-6], lower=None)
+    assert np.asarray(sample(unclipped, KEY, 4000)).min() < 0
+
+
+def test_apply_draws_gradients():
+    u = unit_draws(KEY, 64, 2, "normal")
+    tolerances = Tolerances(("a", "b"), [5e-6, 30e-6], [10e-6, 20e-6])
+    grads = eqx.filter_grad(lambda t: jnp.sum(apply_draws(t, u)))(tolerances)
+    # d/dnominal and d/dband of sum(nominal + band u) over the unclipped draws.
+    free = np.asarray(tolerances.nominal + tolerances.band * u) > 0
+    np.testing.assert_allclose(grads.nominal, free.sum(axis=0))
+    np.testing.assert_allclose(grads.band, np.where(free, np.asarray(u), 0.0).sum(axis=0))
+    assert 0 < free[:, 0].sum() < 64  # the clip is exercised on feature a, not on b
+    assert free[:, 1].all()
+
+
+# ---------------------------------------------------------------------------------------------
+# Known-answer statistics
+
+
+@pytest.mark.parametrize("distribution", ["uniform", "normal"])
+def test_linear_model_moments_and_yield(distribution):
+    n = 4000
+    a = np.array([2.0, -1.0])
+    tolerances = Tolerances(("x", "z"), [50e-6, 80e-6], [20e-6, 40e-6], distribution)
+    result = monte_carlo(helpers.Linear(jnp.asarray(a)), tolerances, n, KEY, chunk_size=1000, **QUIET)
+    # Standardised draw u: uniform on [-1, 1] (variance 1/3), or a standard normal truncated at
+    # +-3 divided by 3 (variance from scipy).
+    unit = scipy.stats.uniform(-1, 2) if distribution == "uniform" else scipy.stats.truncnorm(-3, 3, scale=1 / 3)
+    band = np.array([20e-6, 40e-6])
+    mean = a @ np.array([50e-6, 80e-6])
+    variance = np.sum(a**2 * band**2) * unit.var()
+    row = result.summary()["y"]
+    _within(row["mean"], mean, np.sqrt(variance / n))
+    y = result.dataset["y"].values
+    fourth = np.mean((y - y.mean()) ** 4)
+    _within(row["std"] ** 2, variance, np.sqrt((fourth - variance**2) / n))
+    # Yield of a one-feature model against the exact CDF: P(2 x <= t) = P(u <= (t/2 - nominal)/band).
+    one = Tolerances(("x",), [50e-6], [20e-6], distribution)
+    threshold = 2 * 56e-6
+    single = monte_carlo(helpers.Linear(jnp.array([2.0])), one, n, KEY, chunk_size=1000, requirement=threshold, **QUIET)
+    exact = unit.cdf((56e-6 - 50e-6) / 20e-6)
+    row = single.summary()["y"]
+    _within(row["yield"], exact, np.sqrt(exact * (1 - exact) / n))
+    assert row["yield_low"] <= row["yield"] <= row["yield_high"]
+    assert row["n_used"] == n and row["n_failed"] == 0
+
+
+def test_wilson_interval():
+    z = scipy.stats.norm.ppf(0.975)
+    # The Wilson interval is the set of p with |k/n - p| <= z sqrt(p (1 - p) / n): its ends are the
+    # roots of (k/n - p)^2 = z^2 p (1 - p) / n.
+    for k, n in [(37, 50), (1, 1000), (999, 1000)]:
+        for p in wilson_interval(k, n):
+            np.testing.assert_allclose((k / n - p) ** 2, z**2 * p * (1 - p) / n, rtol=1e-10)
+    low, high = wilson_interval(0, 100)
+    assert low == 0.0
+    np.testing.assert_allclose(high, z**2 / (100 + z**2), rtol=1e-12)
+
+
+def test_failed_samples_are_kept_flagged_and_excluded():
+    a = jnp.array([1.0, 3.0])
+    threshold = 60e-6
+    result = monte_carlo(helpers.FailAbove(a, threshold), TOLERANCES, 200, KEY, chunk_size=64,
+                         requirement=150e-6, **QUIET)
+    values = np.asarray(sample(TOLERANCES, KEY, 200))
+    ok = values[:, 0] <= threshold
+    assert 0 < (~ok).sum() < 200
+    ds = result.dataset
+    assert ds.sizes["sample"] == 200  # every sample kept, failed ones included
+    np.testing.assert_array_equal(ds["success"].values, ok)
+    assert np.isnan(ds["y"].values[~ok]).all()
+    row = result.summary()["y"]
+    assert row["n_failed"] == (~ok).sum() and row["n_used"] == ok.sum() and row["n_nonfinite"] == 0
+    direct = values[ok] @ np.asarray(a)
+    for name, value in [("mean", direct.mean()), ("std", direct.std(ddof=1)), ("q95", np.quantile(direct, 0.95)),
+                        ("yield", np.mean(direct <= 150e-6))]:
+        assert np.isfinite(row[name])
+        np.testing.assert_allclose(row[name], value, rtol=1e-12)
+    assert "failed" in result.report()
+
+
+def test_plots_label_units():
+    result = monte_carlo(helpers.FailAbove(jnp.array([1.0, 3.0]), 60e-6), TOLERANCES, 100, KEY,
+                         units={"y": "arcsec"}, requirement=150e-6, **QUIET)
+    assert next(iter(result.drivers("y"))) == "backlash"  # coefficient 3 and twice the band
+    ax = result.plot_histogram("y")
+    assert ax.get_xlabel() == "y (arcsec)"
+    ax = result.plot_yield_curve("y", units={"y": "µrad"})
+    assert ax.get_xlabel() == "requirement on y (µrad)" and ax.get_ylabel() == "yield"
+    ax = result.plot_scatter("y")
+    assert ax.get_xlabel() == "backlash (m)" and ax.get_ylabel() == "y (arcsec)"
+    matplotlib.pyplot.close("all")
+
+
+# ---------------------------------------------------------------------------------------------
+# Backends, chunks, devices
+
+
+def test_chunked_equals_unchunked_and_sample_draws(tmp_path):
+    model = helpers.Nonlinear()
+    whole = monte_carlo(model, TOLERANCES, 50, KEY, chunk_size=50, **QUIET)
+    chunked = monte_carlo(model, TOLERANCES, 50, KEY, chunk_size=7, **QUIET)
+    assert chunked.dataset.equals(whole.dataset)  # attrs differ: they record the chunk size
+    values = np.asarray(sample(TOLERANCES, KEY, 50))
+    np.testing.assert_array_equal(whole.dataset["backlash"].values, values[:, 1])
+    # Saved and loaded: the same dataset.
+    whole.save(tmp_path / "run.nc")
+    assert MonteCarloResult.load(tmp_path / "run.nc").dataset.identical(whole.dataset)
+
+
+def test_sharded_over_four_devices_equals_one(tmp_path):
+    script = textwrap.dedent(
+        f"""
+        import jax, numpy as np
+        from tolerax._montecarlo import monte_carlo
+        from tolerax._sampling import Tolerances
+        import _mc_helpers
+        assert jax.local_device_count() == 4, jax.devices()
+        t = Tolerances(("carrier_clearance", "backlash"), [50e-6, 30e-6], [20e-6, 40e-6])
+        # chunk 6 is padded to 8 (a multiple of 4 devices); the last chunk holds 2 samples.
+        r = monte_carlo(_mc_helpers.Nonlinear(), t, 20, jax.random.key(2024), chunk_size=6, progress=False)
+        r.save({str(tmp_path / "sharded.nc")!r})
+        """
+    )
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu",
+               PYTHONPATH=os.pathsep.join(sys.path))
+    subprocess.run([sys.executable, "-c", script], env=env, check=True, timeout=120)
+    sharded = MonteCarloResult.load(tmp_path / "sharded.nc")
+    one = monte_carlo(helpers.Nonlinear(), TOLERANCES, 20, KEY, chunk_size=6, **QUIET)
+    assert jax.local_device_count() == 1
+    assert sharded.dataset.identical(one.dataset)
+
+
+def test_processes_backend_and_killed_worker_resume(tmp_path):
+    model = helpers.Nonlinear()
+    reference = monte_carlo(model, TOLERANCES, 40, KEY, chunk_size=5, **QUIET)
+    processes = monte_carlo(model, TOLERANCES, 40, KEY, chunk_size=5, backend="processes", workers=2, **QUIET)
+    assert processes.dataset.identical(reference.dataset)
+    # A worker dies at its second chunk: the pool breaks, the finished chunks are on disk, and a
+    # rerun (the model no longer dies) completes the same dataset.
+    dying = helpers.DieOnce(jnp.array([1.0, 3.0]), str(tmp_path / "died"))
+    out = tmp_path / "run"
+    from concurrent.futures.process import BrokenProcessPool
+
+    with pytest.raises(BrokenProcessPool):
+        monte_carlo(dying, TOLERANCES, 40, KEY, chunk_size=5, backend="processes", workers=2, out=out, **QUIET)
+    assert (tmp_path / "died").exists()
+    saved = sorted(out.glob("chunk-*.nc"))
+    assert 1 <= len(saved) < 8
+    rerun = []
+    resumed = monte_carlo(dying, TOLERANCES, 40, KEY, chunk_size=5, backend="processes", workers=2, out=out,
+                          callback=lambda k, ds: rerun.append(k), **QUIET)
+    assert sorted(rerun) == sorted(set(range(8)) - {int(p.stem[6:]) for p in saved})  # none twice
+    uninterrupted = monte_carlo(dying, TOLERANCES, 40, KEY, chunk_size=5, **QUIET)
+    assert resumed.dataset.identical(uninterrupted.dataset)
+    np.testing.assert_array_equal(resumed.dataset["sample"].values, np.arange(40))
+
+
+def test_dask_local_cluster_equals_vmap_and_survives_a_killed_worker(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    model = helpers.Nonlinear()
+    reference = monte_carlo(model, TOLERANCES, 40, KEY, chunk_size=5, **QUIET)
+    dying = helpers.DieOnce(jnp.array([1.0, 3.0]), str(tmp_path / "died"))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            # The scheduler's address (the engine opens and closes its own client) ...
+            on_dask = monte_carlo(model, TOLERANCES, 40, KEY, chunk_size=5, backend="dask",
+                                  client=cluster.scheduler_address, **QUIET)
+            # ... or a client. Here a worker process dies mid-chunk; the scheduler reruns that
+            # chunk on another worker.
+            survived = monte_carlo(dying, TOLERANCES, 40, KEY, chunk_size=5, backend="dask", client=client,
+                                   out=tmp_path / "run", **QUIET)
+    assert on_dask.dataset.identical(reference.dataset)
+    assert (tmp_path / "died").exists()
+    assert survived.dataset.identical(monte_carlo(dying, TOLERANCES, 40, KEY, chunk_size=5, **QUIET).dataset)
+
+
+# ---------------------------------------------------------------------------------------------
+# Checkpoints
+
+
+def test_interrupted_driver_resumes_exactly(tmp_path):
+    model = helpers.Nonlinear()
+    out = tmp_path / "run"
+
+    def interrupt(k, ds):
+        if k == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, out=out, callback=interrupt, **QUIET)
+    assert sorted(p.name for p in out.iterdir()) == ["chunk-00000.nc", "chunk-00001.nc", "chunk-00002.nc",
+                                                    "manifest.json"]
+    assert json.loads((out / "manifest.json").read_text())["n"] == 30
+    rerun = []
+    resumed = monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, out=out, callback=lambda k, ds: rerun.append(k),
+                          **QUIET)
+    assert rerun == [3, 4, 5, 6, 7]
+    uninterrupted = monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, **QUIET)
+    assert resumed.dataset.identical(uninterrupted.dataset)
+    # A finished run reruns nothing.
+    again = monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, out=out, callback=lambda k, ds: rerun.append(k),
+                        **QUIET)
+    assert rerun == [3, 4, 5, 6, 7] and again.dataset.identical(uninterrupted.dataset)
+    # Other settings into the same folder are refused, naming what differs.
+    with pytest.raises(ValueError, match="chunk_size"):
+        monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=5, out=out, **QUIET)
+    with pytest.raises(ValueError, match="key"):
+        monte_carlo(model, TOLERANCES, 30, jax.random.key(3), chunk_size=4, out=out, **QUIET)
+    with pytest.raises(ValueError, match="model_sha256"):
+        monte_carlo(helpers.Linear(jnp.ones(2)), TOLERANCES, 30, KEY, chunk_size=4, out=out, **QUIET)
+
+
+# ---------------------------------------------------------------------------------------------
+# Sobol indices
+
+
+@pytest.mark.parametrize("distribution", ["uniform", "normal"])
+def test_sobol_additive_against_closed_form(tmp_path, distribution):
+    # y = sum a_i x_i with independent x_i of variance proportional to b_i^2 (uniform: b_i^2 / 3;
+    # truncated normal: the same factor for each): S_i = a_i^2 b_i^2 / sum_j a_j^2 b_j^2 = S_T,i.
+    # The fourth feature has a zero band: not varied, indices 0.
+    a, band = np.array([1.0, 3.0, 2.0, 5.0]), np.array([20e-6, 10e-6, 15e-6, 0.0])
+    tolerances = Tolerances(("a", "b", "c", "d"), [50e-6, 30e-6, 40e-6, 1e-6], band, distribution)
+    result = sobol_indices(helpers.Linear(jnp.asarray(a)), tolerances, 1024, KEY, output="y", chunk_size=2048,
+                           out=tmp_path / "sobol", **QUIET)
+    exact = a**2 * band**2 / np.sum(a**2 * band**2)
+    ds = result.indices
+    # Within twice SALib's 95 % bootstrap half-width (about 4 standard errors).
+    assert np.all(np.abs(ds["first_order"] - exact) <= 2 * ds["first_order_conf"] + 1e-12)
+    assert np.all(np.abs(ds["total"] - exact) <= 2 * ds["total_conf"] + 1e-12)
+    assert result.first_order["d"] == 0.0 and result.total["d"] == 0.0
+    assert result.samples.dataset.sizes["sample"] == 1024 * (3 + 2)
+    # The same folder resumes (here: nothing left to run) to the same indices.
+    again = sobol_indices(helpers.Linear(jnp.asarray(a)), tolerances, 1024, KEY, output="y", chunk_size=2048,
+                          out=tmp_path / "sobol", **QUIET)
+    assert again.indices.identical(result.indices)
+
+
+def test_sobol_ishigami_against_closed_form():
+    # Ishigami & Homma (1990), a = 7, b = 0.1, x_i uniform on [-pi, pi].
+    a, b = 7.0, 0.1
+    v1 = 0.5 * (1 + b * np.pi**4 / 5) ** 2
+    v2 = a**2 / 8
+    v13 = b**2 * np.pi**8 * (1 / 18 - 1 / 50)
+    variance = v1 + v2 + v13
+    first = np.array([v1, v2, 0.0]) / variance
+    total = np.array([v1 + v13, v2, v13]) / variance
+    tolerances = Tolerances(("x1", "x2", "x3"), [0.0, 0.0, 0.0], [np.pi] * 3, lower=None)
+    result = sobol_indices(helpers.Ishigami(a, b), tolerances, 4096, KEY, output="y", chunk_size=4096, **QUIET)
+    ds = result.indices
+    # Within twice SALib's 95 % bootstrap half-width (about 4 standard errors).
+    assert np.all(np.abs(ds["first_order"] - first) <= 2 * ds["first_order_conf"]), ds
+    assert np.all(np.abs(ds["total"] - total) <= 2 * ds["total_conf"]), ds
+
+
+def test_sobol_refuses_failed_samples():
+    with pytest.raises(ValueError, match="Sobol samples failed"):
+        sobol_indices(helpers.FailAbove(jnp.ones(2), 60e-6), TOLERANCES, 64, KEY, output="y", **QUIET)
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad input
+
+
+def test_bad_input_names_the_field():
+    with pytest.raises(ValueError, match="Tolerances.band"):
+        Tolerances(("a", "b"), [1e-5, 1e-5], [1e-6, -1e-6])
+    with pytest.raises(ValueError, match="Tolerances.band"):
+        Tolerances(("a", "b"), [1e-5, 1e-5], [1e-6, np.nan])
+    with pytest.raises(ValueError, match="Tolerances.nominal"):
+        Tolerances(("a", "b"), [1e-5, 1e-5, 1e-5], [1e-6, 1e-6])
+    with pytest.raises(ValueError, match="Tolerances.lower"):
+        Tolerances(("a", "b"), [1e-5, 1e-5], [1e-6, 1e-6], lower=[0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="Tolerances.distribution"):
+        Tolerances(("a",), [1e-5], [1e-6], distribution="lognormal")
+    with pytest.raises(ValueError, match="Tolerances.names"):
+        Tolerances(("a", "a"), [1e-5, 1e-5], [1e-6, 1e-6])
+    with pytest.raises(ValueError, match="below Tolerances.lower"):
+        Tolerances(("a",), [-1e-5], [1e-6])
+    with pytest.raises(ValueError, match="distribution"):
+        unit_draws(KEY, 4, 2, "lognormal")
+    model = helpers.Linear(jnp.ones(2))
+    with pytest.raises(ValueError, match="backend"):
+        monte_carlo(model, TOLERANCES, 10, KEY, backend="threads", **QUIET)
+    with pytest.raises(ValueError, match="client"):
+        monte_carlo(model, TOLERANCES, 10, KEY, backend="dask", **QUIET)
+    with pytest.raises(ValueError, match="n must"):
+        monte_carlo(model, TOLERANCES, 0, KEY, **QUIET)
+    with pytest.raises(ValueError, match="chunk_size"):
+        monte_carlo(model, TOLERANCES, 10, KEY, chunk_size=2.5, **QUIET)
+    with pytest.raises(TypeError, match="success"):
+        monte_carlo(lambda x: {"y": x[0]}, TOLERANCES, 10, KEY, **QUIET)
+    with pytest.raises(ValueError, match="clashes"):
+        monte_carlo(lambda x: {"backlash": x[0], "success": True}, TOLERANCES, 10, KEY, **QUIET)
+    with pytest.raises(ValueError, match="power of 2"):
+        sobol_indices(model, TOLERANCES, 100, KEY, output="y", **QUIET)
+    result = monte_carlo(model, TOLERANCES, 10, KEY, **QUIET)
+    with pytest.raises(ValueError, match="Unknown output"):
+        result.plot_histogram("pointing")
