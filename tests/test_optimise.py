@@ -1,0 +1,248 @@
+"""The constrained tolerance optimiser (`tolerax._optimise`) on problems with known optima: closed
+Lagrange solutions, an active bound, an inactive requirement, and SciPy's SLSQP as a second
+method; the robust statistics against SciPy; no retrace; bad input."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+import pytest
+import scipy.linalg
+import scipy.optimize
+import scipy.stats.mstats
+
+from tolerax._cost import IsoGrade, ReciprocalPower
+from tolerax._optimise import Design, Features, optimise_design, realise, robust
+
+
+UM = 1e-6  # the objectives below read bands in µm as "arcsec"
+FEATURES = Features(["azimuth sun clearance", "azimuth ring backlash", "elevation pin clearance"], [12.0, 80.0, 20.0])
+A = np.array([1.0, 2.0, 0.5])  # cost weights a_i
+W = np.array([1.0, 3.0, 2.0])  # objective weights w_i
+# Cost a_i / t_i exactly: reference band 1 m, floor far below every band used.
+RECIPROCAL = ReciprocalPower(scale=A, reference_band=1.0, floor=1e-15)
+
+
+def _linear_budget(x, draws, continuation):
+    """$\\sum_i w_i t_i$ (µm) plus a continuation offset that the schedule takes to 0."""
+    return jnp.dot(W, x.band) / UM + continuation
+
+
+def _box(nominal_lo, nominal_hi, band_lo, band_hi):
+    full = lambda v: jnp.full(3, v)  # noqa: E731
+    return Design(full(nominal_lo), full(band_lo)), Design(full(nominal_hi), full(band_hi))
+
+
+def test_reciprocal_cost_linear_budget_closed_form():
+    # min sum a_i/t_i s.t. sum w_i t_i <= R: t_i = sqrt(a_i/w_i) R / sum sqrt(a_i w_i) and
+    # lambda = (sum sqrt(a_i w_i))^2 / R^2 (= -dC*/dR).
+    requirement = 30.0
+    t_star = np.sqrt(A / W) * requirement / np.sum(np.sqrt(A * W)) * UM
+    lam_star = np.sum(np.sqrt(A * W)) ** 2 / requirement**2 / UM
+    lower, upper = _box(0.0, 0.0, 1 * UM, 50 * UM)
+    schedule = optax.linear_schedule(5.0, 0.0, 4)
+    result = optimise_design(
+        _linear_budget,
+        FEATURES,
+        requirement=requirement,
+        lower=lower,
+        upper=upper,
+        cost_model=RECIPROCAL,
+        continuation=schedule,
+    )
+    # Stopping tolerance 1e-6 on the dimensionless violation leaves ~1e-6 in the bands.
+    np.testing.assert_allclose(result.x.band, t_star, rtol=1e-5)
+    np.testing.assert_allclose(result.multiplier, lam_star, rtol=1e-4)
+    np.testing.assert_allclose(result.cost, np.sum(A / t_star), rtol=1e-5)
+    assert bool(result.converged) and bool(result.constraint_active)
+    assert abs(float(result.constraint)) < 1e-4
+    np.testing.assert_allclose(result.sensitivity.band, W / UM, rtol=1e-12)
+    np.testing.assert_allclose(result.cost_gradient.band, -A / np.asarray(result.x.band) ** 2, rtol=1e-10)
+    # The schedule reached the objective: history records it, iteration by iteration.
+    n = len(result.history.continuation)
+    np.testing.assert_allclose(result.history.continuation, [schedule(i) for i in range(n)], rtol=1e-14)
+    np.testing.assert_allclose(result.history.steps, 300 * np.arange(1, n + 1))
+
+
+def _orthogonal_draws():
+    """8 draws with zero-mean, mutually orthogonal columns of amplitudes 1, 0.5, 0.8 (Hadamard)."""
+    return jnp.asarray(scipy.linalg.hadamard(8)[:, 1:4] * np.array([1.0, 0.5, 0.8]))
+
+
+def _robust_stack(x, draws, continuation):
+    return robust(realise(x, draws) @ W / UM, "mean+kstd", k=2.0)
+
+
+def test_robust_objective_with_active_bound_closed_form():
+    # With zero-mean orthogonal draws and no clipping, mean + k std of sum w_i v_i is
+    # w.nominal + k sqrt(sum (d_i t_i)^2), d_i = w_i s_i, s_i^2 the columns' sample variances.
+    # Cost does not depend on nominal and the objective grows with it: nominal sits on its lower
+    # bound. Then t_i = alpha (a_i/d_i^2)^(1/3), alpha fixed by k sqrt(sum d^2 t^2) = R - w.nominal.
+    draws, k, requirement = _orthogonal_draws(), 2.0, 400.0
+    d = W * np.sqrt(np.sum(np.asarray(draws) ** 2, axis=0) / 7)
+    lower, upper = _box(60 * UM, 100 * UM, 1 * UM, 50 * UM)
+    spread = (requirement - W @ np.asarray(lower.nominal) / UM) / k
+    t_star = (A / d**2) ** (1 / 3)
+    t_star = t_star * spread / np.sqrt(np.sum(d**2 * t_star**2))
+    lam_star = A[0] * spread / (k * d[0] ** 2 * t_star[0] ** 3) / UM
+    result = optimise_design(
+        _robust_stack, FEATURES, requirement=requirement, lower=lower, upper=upper, draws=draws, cost_model=RECIPROCAL
+    )
+    np.testing.assert_allclose(result.x.band, t_star * UM, rtol=1e-4)
+    np.testing.assert_allclose(result.multiplier, lam_star, rtol=1e-4)
+    np.testing.assert_array_equal(result.x.nominal, lower.nominal)
+    assert np.all(result.at_lower.nominal) and not np.any(result.at_upper.nominal)
+    assert not np.any(result.at_lower.band) and not np.any(result.at_upper.band)
+    np.testing.assert_allclose(result.sensitivity.nominal, W / UM, rtol=1e-12)
+    assert bool(result.converged) and bool(result.constraint_active)
+
+
+def test_inactive_requirement_goes_to_the_upper_bound():
+    # A requirement far above what the loosest design achieves: the cheapest design is the
+    # loosest, the multiplier is exactly 0 and the requirement is reported inactive. Nominal
+    # values change neither cost nor feasibility here, so they stay where they started.
+    lower, upper = _box(60 * UM, 100 * UM, 1 * UM, 50 * UM)
+    loosest = float(_robust_stack(Design(lower.nominal, upper.band), _orthogonal_draws(), 0.0))
+    problem = dict(lower=lower, upper=upper, draws=_orthogonal_draws(), cost_model=RECIPROCAL)
+    result = optimise_design(_robust_stack, FEATURES, requirement=10 * loosest, **problem)
+    np.testing.assert_array_equal(result.x.band, upper.band)
+    np.testing.assert_allclose(result.x.nominal, 0.5 * (lower.nominal + upper.nominal), rtol=1e-14)
+    assert float(result.multiplier) == 0.0 and not bool(result.constraint_active)
+    assert np.all(result.at_upper.band) and bool(result.converged)
+    np.testing.assert_allclose(result.cost, np.sum(A / np.asarray(upper.band)), rtol=1e-12)
+
+
+def _rss_pointing(x, draws, continuation):
+    v = realise(x, draws) * jnp.array([1.0, 2.0, 0.05]) / UM
+    return robust(jnp.sqrt(jnp.sum(v**2, axis=1)), "mean+kstd", k=2.0)
+
+
+def test_against_scipy_slsqp():
+    # A nonlinear, non-separable objective (root-sum-square over random draws) with the ISO cost:
+    # no closed form, so SciPy's SLSQP (a different method: SQP with a quasi-Newton Hessian) is the
+    # reference. The third feature barely matters and its band goes to its upper bound.
+    draws = jnp.asarray(np.random.default_rng(0).uniform(-1.0, 1.0, (16, 3)))
+    model, requirement = IsoGrade(factor_per_grade=2.0), 60.0
+    lower, upper = _box(20 * UM, 40 * UM, 1 * UM, 15 * UM)
+    problem = dict(lower=lower, upper=upper, draws=draws, cost_model=model)
+    result = optimise_design(_rss_pointing, FEATURES, requirement=requirement, **problem)
+
+    def unpack(p):
+        return Design(p[:3] * UM, p[3:] * UM)
+
+    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
+    margin = jax.jit(lambda p: requirement - _rss_pointing(unpack(p), draws, 0.0))
+    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
+    reference = scipy.optimize.minimize(
+        as_numpy(cost),
+        np.r_[np.full(3, 30.0), np.full(3, 8.0)],
+        jac=as_numpy(jax.jit(jax.grad(cost))),
+        method="SLSQP",
+        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
+        constraints=[{"type": "ineq", "fun": as_numpy(margin), "jac": as_numpy(jax.jit(jax.grad(margin)))}],
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
+    assert reference.success
+    # Both stop at ~1e-6 relative (violation tolerance here, ftol there): 1e-5 in x and cost.
+    np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-5)
+    np.testing.assert_allclose(result.cost, reference.fun, rtol=1e-5)
+    assert bool(result.at_upper.band[2]) and np.all(result.at_lower.nominal) and bool(result.converged)
+
+
+def test_extra_args_optimiser_lbfgs():
+    # Any optax transformation, including one that needs value and value_fn (L-BFGS's line search).
+    requirement = 30.0
+    t_star = np.sqrt(A / W) * requirement / np.sum(np.sqrt(A * W)) * UM
+    lower, upper = _box(0.0, 0.0, 1 * UM, 50 * UM)
+    problem = dict(lower=lower, upper=upper, cost_model=RECIPROCAL)
+    result = optimise_design(
+        _linear_budget, FEATURES, requirement=requirement, optimiser=optax.lbfgs(), inner_steps=50, **problem
+    )
+    np.testing.assert_allclose(result.x.band, t_star, rtol=1e-5)
+
+
+def test_no_retrace_when_only_values_change():
+    # Two traces per compilation: the inner step and the final evaluation (value and sensitivities).
+    objective = eqx.debug.assert_max_traces(_robust_stack, max_traces=2)
+    lower, upper = _box(60 * UM, 100 * UM, 1 * UM, 50 * UM)
+    common = dict(lower=lower, upper=upper, cost_model=IsoGrade(), inner_steps=20, max_outer=3)
+    optimise_design(objective, FEATURES, requirement=400.0, draws=_orthogonal_draws(), **common)
+    traces = eqx.debug.get_num_traces(objective)
+    common.update(cost_model=IsoGrade(factor_per_grade=2.0, fixed=0.3))
+    x0 = Design(lower.nominal, 0.3 * upper.band)
+    draws = 0.5 * _orthogonal_draws()
+    schedule = optax.linear_schedule(0.2, 0.05, 2)
+    optimise_design(objective, FEATURES, requirement=350.0, draws=draws, x0=x0, continuation=schedule, **common)
+    assert eqx.debug.get_num_traces(objective) == traces
+
+
+def test_robust_statistics_against_scipy_and_numpy():
+    values = jnp.asarray(np.random.default_rng(1).normal(size=(40, 2)))
+    np.testing.assert_allclose(
+        robust(values, "mean+kstd", k=1.5), np.mean(values, 0) + 1.5 * np.std(values, 0, ddof=1), rtol=1e-13
+    )
+    for q in (0.1, 0.5, 0.9, 0.99):
+        reference = [scipy.stats.mstats.hdquantiles(np.asarray(values[:, j]), prob=[q])[0] for j in range(2)]
+        np.testing.assert_allclose(robust(values, "quantile", q=q), reference, rtol=1e-10)
+
+
+@pytest.mark.parametrize("kind", ["mean+kstd", "quantile"])
+def test_robust_gradient_against_central_differences(kind):
+    values = jnp.asarray(np.random.default_rng(2).normal(size=12))
+    f = lambda v: robust(v, kind, k=2.0, q=0.9)  # noqa: E731
+    grad = np.asarray(jax.grad(f)(values))
+    h = 1e-6  # ranks do not change within h: the samples are > 1e-3 apart
+    fd = [(float(f(values.at[i].add(h))) - float(f(values.at[i].add(-h)))) / (2 * h) for i in range(12)]
+    np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-9)
+    # Zero spread: finite gradient (that of the mean, for mean + k std).
+    assert np.all(np.isfinite(np.asarray(jax.grad(f)(jnp.ones(5)))))
+
+
+def test_realise_clips_at_zero():
+    x = Design(jnp.array([5e-6, 1e-6]), jnp.array([2e-6, 3e-6]))
+    values = realise(x, jnp.array([[1.0, -1.0], [-1.0, 1.0]]))
+    np.testing.assert_allclose(values, [[7e-6, 0.0], [3e-6, 4e-6]], rtol=1e-14)
+
+
+def _call(**changes):
+    lower, upper = _box(0.0, 0.0, 1 * UM, 50 * UM)
+    kwargs = dict(requirement=30.0, lower=lower, upper=upper, cost_model=RECIPROCAL, max_outer=2, inner_steps=5)
+    kwargs.update(changes)
+    objective = kwargs.pop("objective", _linear_budget)
+    return optimise_design(objective, FEATURES, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"lower": Design(jnp.zeros(3), jnp.array([1e-6, 60e-6, 1e-6]))}, r"lower\.band\[1\].*'azimuth ring backlash'"),
+        ({"requirement": -5.0}, r"requirement must be finite and > 0"),
+        ({"requirement": jnp.nan}, r"requirement must be finite and > 0"),
+        ({"x0": Design(jnp.array([jnp.nan, 0.0, 0.0]), jnp.full(3, 5e-6))}, r"x0\.nominal\[0\].*finite"),
+        ({"x0": Design(jnp.zeros(3), jnp.full(3, 90e-6))}, r"x0\.band\[0\].*upper\.band\[0\]"),
+        ({"upper": Design(jnp.zeros(2), jnp.full(2, 5e-6))}, r"upper\.nominal must have shape \(3,\)"),
+        ({"lower": Design(jnp.zeros(3), jnp.full(3, -1e-6))}, r"lower\.band\[0\].*>= 0"),
+        ({"draws": jnp.array([[jnp.nan, 0.0, 0.0]])}, r"draws"),
+        ({"penalty": 0.0}, r"penalty > 0"),
+    ],
+)
+def test_bad_input_names_the_field(changes, message):
+    with pytest.raises(ValueError, match=message):
+        _call(**changes)
+
+
+def test_objective_returning_nan_is_reported():
+    with pytest.raises(RuntimeError, match="objective returned nan"):
+        _call(objective=lambda x, draws, c: jnp.sum(x.band) * jnp.nan)
+
+
+def test_bad_features_and_statistics():
+    with pytest.raises(ValueError, match=r"Features\.size_mm"):
+        Features(["a", "b"], [10.0])
+    with pytest.raises(ValueError, match="distinct"):
+        Features(["a", "a"], [10.0, 20.0])
+    with pytest.raises(ValueError, match="kind"):
+        robust(jnp.ones(4), "median")
+    with pytest.raises(ValueError, match="Design.nominal and Design.band"):
+        Design(jnp.zeros(3), jnp.zeros(2))
