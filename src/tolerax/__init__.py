@@ -45,6 +45,32 @@ from ._bench import BenchResult as BenchResult, TestBench as TestBench
 from ._mechanism import Geometry as Geometry, Inertias as Inertias, Mechanism as Mechanism
 from ._outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
 from ._scenes import antenna as antenna, scan as scan
-from ._design import design_names as design_names, design_of as design_of, with_design as with_design
+from ._design import (
+    design_names as design_names,
+    design_of as design_of,
+    tolerances_of as tolerances_of,
+    with_design as with_design,
+)
+from ._objectives import PointingObjective as PointingObjective
+from ._propose import DesignReport as DesignReport, propose_design as propose_design
+from ._sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
+from ._montecarlo import MonteCarloResult as MonteCarloResult, monte_carlo as monte_carlo, wilson_interval as wilson_interval
+from ._sensitivity import SobolResult as SobolResult, sobol_indices as sobol_indices
+from ._cost import (
+    AbstractCostModel as AbstractCostModel,
+    Exponential as Exponential,
+    IsoGrade as IsoGrade,
+    ReciprocalPower as ReciprocalPower,
+    grade_of as grade_of,
+    it_tolerance as it_tolerance,
+)
+from ._optimise import (
+    Design as Design,
+    Features as Features,
+    OptimisationResult as OptimisationResult,
+    optimise_design as optimise_design,
+    realise as realise,
+    robust as robust,
+)
 
 __version__ = "0.1.0"

@@ -9,7 +9,8 @@ Features a scene does not model are absent, never present with zero effect. In a
 names are prefixed by the joint: `azimuth.planet_clearance`.
 
 `design_of(scene)` reads the vector, `with_design(scene, values)` writes it back (traceable:
-`values` may be a tracer under `grad`/`vmap`), and `design_names(scene)` names its entries.
+`values` may be a tracer under `grad`/`vmap`), `design_names(scene)` names its entries, and
+`tolerances_of(scene, band)` makes the `Tolerances` a Monte Carlo run draws from.
 """
 
 import equinox as eqx
@@ -18,6 +19,7 @@ from jaxtyping import Array, Float
 
 from ._bench import TestBench
 from ._mechanism import Mechanism
+from ._sampling import Tolerances
 
 # feature -> (does the stage model it?, where its value lives in the stage)
 STAGE_FEATURES = {
@@ -77,3 +79,10 @@ def with_design(scene, values: Float[Array, " n_features"]):
     old = [get(scene) for get in getters]
     new = tuple(jnp.broadcast_to(values[k], jnp.shape(o)).astype(float) for k, o in enumerate(old))
     return eqx.tree_at(lambda x: tuple(get(x) for get in getters), scene, new)
+
+
+def tolerances_of(scene, band=10e-6, distribution: str = "uniform") -> Tolerances:
+    """`Tolerances` around the scene's current design: nominal `design_of(scene)`, half-width
+    `band` (m, a scalar or one per feature), drawn `distribution`-ly, floored at 0."""
+    nominal = design_of(scene)
+    return Tolerances(design_names(scene), nominal, jnp.broadcast_to(jnp.asarray(band, dtype=float), nominal.shape), distribution)

@@ -1,0 +1,84 @@
+"""Differentiable objectives on a scene: pointing-error statistics as functions of its design
+vector (`_design`). One `PointingObjective` serves the gradient checks, the tolerance optimiser
+(`propose_design`) and the Monte Carlo engine (`monte_carlo`: a picklable model returning
+scalar outputs and a `success` flag).
+"""
+
+import diffrax
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from ._design import with_design
+from ._outputs import ARCSEC
+from ._scene import simulate
+
+OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
+UNITS = {"pointing_rms": "arcsec", "pointing_peak": "arcsec", "pointing_smooth_peak": "arcsec", "tracking_speed_rms": "arcsec/s"}
+
+
+class PointingObjective(eqx.Module):
+    """Pointing statistics of `scene` over the window `[settle, duration]` (s), as a function of
+    its design vector (clearances and backlash, m, in `design_names(scene)` order).
+
+    Outputs (arcsec): `pointing_rms` $\\sqrt{\\overline{e^2}}$; `pointing_peak` $\\max e$;
+    `pointing_smooth_peak` $(\\overline{e^p})^{1/p}$ with $p$ = `peak_order` (a smooth surrogate
+    of the peak, $\\le$ the peak, $\\ge$ the RMS); `tracking_speed_rms` (arcsec/s, RMS norm of the
+    reflector's angular-velocity error); and `success` (the solver reached `duration`; a failed
+    sample's numbers are meaningless, and the Monte Carlo engine never averages them).
+
+    `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
+    parameter of the optimiser (wide early, exact late). Run settings are static: changing them
+    recompiles; changing the design or the scene's values does not.
+    """
+
+    scene: eqx.Module
+    duration: float = eqx.field(static=True)
+    settle: float = eqx.field(static=True)
+    n_save: int = eqx.field(static=True, default=201)
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    max_steps: int = eqx.field(static=True, default=400_000)
+    peak_order: int = eqx.field(static=True, default=8)
+    start: str = eqx.field(static=True, default="rest")
+
+    def __check_init__(self):
+        if not (0.0 <= self.settle < self.duration):
+            raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
+
+    def with_width(self, values, smoothing_width=None):
+        """The scene with design `values` and, if given, every stage's smoothing width (m)."""
+        scene = with_design(self.scene, values)
+        if smoothing_width is None:
+            return scene
+        width = jnp.asarray(smoothing_width, dtype=float)
+        return eqx.tree_at(_widths, scene, replace_fn=lambda _: width)
+
+    def run(self, values, smoothing_width=None):
+        """The scene's result for design `values` (`throw=False`: read `success`)."""
+        return simulate(
+            self.with_width(values, smoothing_width), self.duration, start=self.start, n_save=self.n_save,
+            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, throw=False,
+        )
+
+    def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
+        res = self.run(values, smoothing_width)
+        window = res.ts >= self.settle
+        weight = window / jnp.sum(window)
+        e = res.pointing_error / ARCSEC
+        speed = jnp.sqrt(jnp.sum(res.tracking_speed_error**2, axis=-1) + 1e-300) / ARCSEC
+        peak_p = jnp.sum(weight * e**self.peak_order) ** (1.0 / self.peak_order)
+        return dict(
+            pointing_rms=jnp.sqrt(jnp.sum(weight * e**2)),
+            pointing_peak=jnp.max(jnp.where(window, e, 0.0)),
+            pointing_smooth_peak=peak_p,
+            tracking_speed_rms=jnp.sqrt(jnp.sum(weight * speed**2)),
+            success=res.result == diffrax.RESULTS.successful,
+        )
+
+
+def _widths(scene):
+    """Every stage's smoothing width in a scene (a bench's stage, or each joint's)."""
+    if hasattr(scene, "stage"):
+        return [scene.stage.smoothing_width]
+    return [scene.azimuth.stage.smoothing_width, scene.pitch.stage.smoothing_width]
