@@ -95,3 +95,23 @@ def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):
     assert report.objective <= 1.5 * baseline * 1.02
     assert report.names == tx.design_names(scan_pointing.scene)
     assert "IT" in report.table()
+
+
+def test_cli_montecarlo_and_design_arguments(tmp_path):
+    """`tolerax montecarlo` runs, writes its files and resumes from its checkpoints; bad
+    arguments give a usage message and exit code 2."""
+    import json
+
+    from tolerax import _cli
+
+    args = ["montecarlo", "--n", "2", "--chunk", "2", "--duration", "0.3", "--settle", "0.1",
+            "--requirement", "1000", "--out", str(tmp_path)]
+    assert _cli.main(args) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
+    assert (tmp_path / "montecarlo.nc").exists() and (tmp_path / "histogram.png").exists()
+    assert _cli.main(args) == 0  # the second run only reloads the finished chunk
+    for bad in (["design", "--requirement", "-1"], ["design"], ["montecarlo", "--settle", "2"], ["montecarlo", "--mode", "roll"]):
+        with pytest.raises(SystemExit) as exit_:
+            _cli.main(bad)
+        assert exit_.value.code == 2

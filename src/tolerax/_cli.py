@@ -2,6 +2,11 @@
 
 - `tolerax demo`: the default joint on its test bench (plot and summary).
 - `tolerax studies`: the reference paper's studies (a JSON table per study).
+- `tolerax montecarlo`: pointing-error distribution and yield of the scan scene over
+  manufacturing errors (netCDF, summary JSON, histogram; resumable).
+- `tolerax design`: a tolerance proposal for the scan scene against a pointing requirement.
+
+Exit codes: 0 done, 2 bad arguments, 3 a simulation or optimisation failed.
 """
 
 import argparse
@@ -90,6 +95,73 @@ def _studies(parser, args) -> int:
     return 0
 
 
+def _scan_objective(args):
+    from . import _objectives, _scenes
+
+    fidelity = (args.fidelity, "ideal") if args.mode == "azimuth" else (("ideal", args.fidelity) if args.mode == "pitch" else args.fidelity)
+    scene = _scenes.scan(args.mode, fidelity=fidelity)
+    return _objectives.PointingObjective(scene, duration=args.duration, settle=args.settle, start="steady", n_save=101)
+
+
+def _montecarlo(args) -> int:
+    import jax
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from . import _design, _montecarlo as MC
+    from ._objectives import UNITS
+
+    pointing = _scan_objective(args)
+    tolerances = _design.tolerances_of(pointing.scene, args.band * 1e-6, args.distribution)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"tolerax montecarlo: {args.n} units of the {args.mode} scan scene, features {', '.join(tolerances.names)} "
+          f"at nominal +- {args.band} um ({args.distribution}); checkpoints in {out / 'chunks'} (rerun to resume).")
+    res = MC.monte_carlo(pointing, tolerances, args.n, jax.random.key(args.seed), backend=args.backend,
+                         chunk_size=args.chunk, out=out / "chunks", units=UNITS,
+                         requirement=None if args.requirement is None else {"pointing_rms": args.requirement})
+    res.save(out / "montecarlo.nc")
+    summary = res.summary()
+    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    fig = res.plot_histogram("pointing_rms", requirement=args.requirement).figure
+    fig.savefig(out / "histogram.png", dpi=120)
+    print(res.report())
+    print(f"wrote {out / 'montecarlo.nc'}, {out / 'summary.json'} and {out / 'histogram.png'}")
+    return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
+
+
+def _design_cmd(args) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from . import _propose
+
+    pointing = _scan_objective(args)
+    print(f"tolerax design: {args.mode} scan scene, requirement {args.requirement} arcsec (RMS pointing, mean + 1 std "
+          f"over {args.draws} units), {args.outer} x {args.inner} optimiser steps.")
+    try:
+        report = _propose.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=args.outer,
+                                         inner_steps=args.inner)
+    except RuntimeError as err:  # a failed simulation makes the objective NaN
+        print(f"tolerax design: {err}", file=sys.stderr)
+        return 3
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "design.md").write_text(report.table() + "\n")
+    report.plot().savefig(out / "design.png", dpi=120)
+    print(report.table())
+    print(f"wrote {out / 'design.md'} and {out / 'design.png'}")
+    return 0
+
+
+def _scan_options(parser):
+    parser.add_argument("--mode", default="azimuth", choices=("azimuth", "pitch", "dual"), help="which joints scan (default azimuth)")
+    parser.add_argument("--fidelity", default="lumped", choices=("lumped", "planetary"), help="fidelity of the scanning joints")
+    parser.add_argument("--duration", type=float, default=0.6, help="simulated time per unit, s (default 0.6)")
+    parser.add_argument("--settle", type=float, default=0.3, help="start of the pointing window, s (default 0.3)")
+    parser.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tolerax", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -104,9 +176,34 @@ def main(argv=None) -> int:
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
     studies.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    mc = sub.add_parser("montecarlo", help="pointing-error distribution and yield over manufacturing errors (scan scene)")
+    _scan_options(mc)
+    mc.add_argument("--n", type=int, default=64, help="manufactured units (default 64)")
+    mc.add_argument("--band", type=float, default=10.0, help="tolerance half-width of every feature, um (default 10)")
+    mc.add_argument("--distribution", default="uniform", choices=("uniform", "normal"))
+    mc.add_argument("--requirement", type=float, default=None, help="pointing requirement for the yield, arcsec RMS")
+    mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
+    mc.add_argument("--chunk", type=int, default=8, help="units per chunk (default 8)")
+    mc.add_argument("--seed", type=int, default=0)
+    design = sub.add_parser("design", help="propose clearances, backlash and tolerance bands for a pointing requirement (scan scene)")
+    _scan_options(design)
+    design.add_argument("--requirement", type=float, required=True, help="RMS pointing requirement, arcsec")
+    design.add_argument("--draws", type=int, default=4, help="manufactured units in the robust objective (default 4)")
+    design.add_argument("--outer", type=int, default=6, help="outer (augmented Lagrangian) iterations (default 6)")
+    design.add_argument("--inner", type=int, default=10, help="optimiser steps per outer iteration (default 10)")
     args = parser.parse_args(argv)
     if args.command == "studies":
         return _studies(parser, args)
+    if args.command in ("montecarlo", "design"):
+        if not (math.isfinite(args.duration) and 0 <= args.settle < args.duration):
+            parser.error(f"need 0 <= --settle < --duration, got {args.settle} and {args.duration}")
+        if args.requirement is not None and not (math.isfinite(args.requirement) and args.requirement > 0):
+            parser.error(f"--requirement must be a positive number of arcsec, got {args.requirement}")
+        if args.command == "design":
+            return _design_cmd(args)
+        if args.n < 1 or args.chunk < 1 or not (math.isfinite(args.band) and args.band >= 0):
+            parser.error("--n and --chunk must be >= 1 and --band a non-negative number of um")
+        return _montecarlo(args)
     for name in ("duration", "clearance", "backlash", "rate"):
         value = getattr(args, name)
         if not math.isfinite(value) or value < 0 or (name == "duration" and value == 0):
