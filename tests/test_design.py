@@ -49,17 +49,18 @@ def scan_pointing():
 def test_scan_gradients_against_finite_differences(scan_pointing):
     """Through one reversal (0.25 s) with the back flank engaging after it: the reverse-mode
     gradient of the RMS pointing error matches central differences. At the 1 um smoothing width
-    of the optimiser's continuation the objective is smooth at finite-difference scale (the
-    differences at 10 nm and 100 nm steps agree to 1.4e-4, benchmarks/gradient_horizon.py), so
-    the tolerance is 1e-3 on the gradient's norm: twice the measured 1.9e-4 plus the differences'
-    own truncation. (At the default 1 nm width the same comparison differs by ~4 %: impacts.)"""
+    of the optimiser's continuation the objective is nearly smooth at finite-difference scale:
+    benchmarks/gradient_horizon.md measured |AD - FD| / |FD| = 7.1e-4 on this scene, with the
+    differences at 10 nm and 100 nm steps themselves differing by 4.9e-4; the tolerance, 2e-3,
+    is about three times that noise. (At the default 1 nm width the same comparison differs by
+    6 %: the output bearing's impacts make the objective rough at that scale.)"""
     p0 = tx.design_of(scan_pointing.scene)
     width = 1e-6
     f = eqx.filter_jit(lambda p: scan_pointing(p, width)["pointing_rms"])
     ad = np.asarray(eqx.filter_jit(jax.grad(lambda p: scan_pointing(p, width)["pointing_rms"]))(p0))
     h = 1e-8
     fd = np.array([(f(p0.at[k].add(h)) - f(p0.at[k].add(-h))) / (2 * h) for k in range(4)])
-    assert np.linalg.norm(ad - fd) < 1e-3 * np.linalg.norm(fd)
+    assert np.linalg.norm(ad - fd) < 2e-3 * np.linalg.norm(fd)
     # Lost motion per metre of backlash seen at the output: 1 / lever (rad/m); the RMS over the
     # run sees a fraction of it, and the pin play enters both flanks with cos a_s + cos a_r.
     lever = float(tx.lumped_mesh(scan_pointing.scene.azimuth.stage, 2e-4).lever)

@@ -47,3 +47,15 @@ def test_paper_studies_notebook_executes(monkeypatch):
     # agree when this was written): regenerated results must come with their recorded claims.
     recorded = _claims_table((NOTEBOOKS / "results" / "claims.md").read_text())
     assert ((n_agree, n_claims), rows) == recorded
+
+
+def test_design_and_yield_notebook_executes(monkeypatch):
+    monkeypatch.setenv("TOLERAX_NOTEBOOK_SIZE", "small")
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    nb = nbformat.read(NOTEBOOKS / "design_and_yield.ipynb", as_version=4)
+    client = NotebookClient(nb, timeout=1200, kernel_name="python3", resources={"metadata": {"path": str(NOTEBOOKS)}})
+    client.execute()
+    outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    assert "small ('azimuth" in outputs  # ran the small size
+    assert "4 of 4 samples used" in outputs  # the Monte Carlo ran every unit
+    assert "Proposed design" in outputs

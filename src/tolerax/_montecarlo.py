@@ -30,7 +30,7 @@ import numpy as np
 import xarray as xr
 from jax.sharding import Mesh, PartitionSpec
 from jaxtyping import PRNGKeyArray
-from tqdm.auto import tqdm
+from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
 
 from ._sampling import Tolerances, sample
 
