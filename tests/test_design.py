@@ -2,7 +2,6 @@
 clearances and backlash matter, pointing-error gradients against finite differences, and the
 Monte Carlo engine and design proposal wired to the physics."""
 
-import math
 
 import equinox as eqx
 import jax

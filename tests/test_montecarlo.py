@@ -5,7 +5,6 @@ per check; the keys are fixed, so the tests are deterministic)."""
 
 import json
 import os
-import pathlib
 import subprocess
 import sys
 import textwrap
@@ -17,7 +16,6 @@ import matplotlib
 import numpy as np
 import pytest
 import scipy.stats
-import xarray as xr
 
 from tolerax._montecarlo import MonteCarloResult, monte_carlo, wilson_interval
 from tolerax._sampling import Tolerances, apply_draws, sample, unit_draws

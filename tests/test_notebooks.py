@@ -23,15 +23,18 @@ def _claims_table(text):
     return tuple(map(int, summary)), rows
 
 
-def test_paper_studies_notebook_executes(monkeypatch):
-    monkeypatch.setenv("TOLERAX_STUDY_SIZE", "small")
+def _execute(monkeypatch, name: str, size_variable: str) -> list[str]:
+    """Execute `notebooks/<name>` at its small size; the text output of each code cell."""
+    monkeypatch.setenv(size_variable, "small")
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    nb = nbformat.read(NOTEBOOKS / "paper_studies.ipynb", as_version=4)
+    nb = nbformat.read(NOTEBOOKS / name, as_version=4)
     client = NotebookClient(nb, timeout=1200, kernel_name="python3", resources={"metadata": {"path": str(NOTEBOOKS)}})
     client.execute()
-    cell_outputs = [
-        "".join(o.get("text", "") for o in c.get("outputs", [])) for c in nb.cells if c.cell_type == "code"
-    ]
+    return ["".join(o.get("text", "") for o in c.get("outputs", [])) for c in nb.cells if c.cell_type == "code"]
+
+
+def test_paper_studies_notebook_executes(monkeypatch):
+    cell_outputs = _execute(monkeypatch, "paper_studies.ipynb", "TOLERAX_STUDY_SIZE")
     outputs = "".join(cell_outputs)
     assert "speed: 2 scenes" in outputs  # ran the small size
     # The conclusions table read the committed full-size results and holds every claim: none
@@ -50,12 +53,7 @@ def test_paper_studies_notebook_executes(monkeypatch):
 
 
 def test_design_and_yield_notebook_executes(monkeypatch):
-    monkeypatch.setenv("TOLERAX_NOTEBOOK_SIZE", "small")
-    monkeypatch.setenv("MPLBACKEND", "Agg")
-    nb = nbformat.read(NOTEBOOKS / "design_and_yield.ipynb", as_version=4)
-    client = NotebookClient(nb, timeout=1200, kernel_name="python3", resources={"metadata": {"path": str(NOTEBOOKS)}})
-    client.execute()
-    outputs = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    outputs = "".join(_execute(monkeypatch, "design_and_yield.ipynb", "TOLERAX_NOTEBOOK_SIZE"))
     assert "small ('azimuth" in outputs  # ran the small size
     assert "4 of 4 samples used" in outputs  # the Monte Carlo ran every unit
     assert "Proposed design" in outputs
