@@ -45,6 +45,14 @@ from ._bench import BenchResult as BenchResult, TestBench as TestBench
 from ._mechanism import Geometry as Geometry, Inertias as Inertias, Mechanism as Mechanism
 from ._outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
 from ._scenes import antenna as antenna, scan as scan
+from ._scenefile import (
+    SceneFile as SceneFile,
+    SceneFileError as SceneFileError,
+    builtin_scenes as builtin_scenes,
+    load_scene as load_scene,
+    parse_scene as parse_scene,
+    save_scene as save_scene,
+)
 from ._design import (
     design_names as design_names,
     design_of as design_of,

@@ -5,6 +5,8 @@
 - `tolerax montecarlo`: pointing-error distribution and yield of the scan scene over
   manufacturing errors (netCDF, summary JSON, histogram; resumable).
 - `tolerax design`: a tolerance proposal for the scan scene against a pointing requirement.
+- `tolerax run SCENE`: simulate a scene file (a built-in name or a .toml path; docs/scene_files.md):
+  netCDF time series, plots and a markdown summary.
 
 Exit codes: 0 done, 2 bad arguments, 3 a simulation or optimisation failed.
 """
@@ -13,6 +15,7 @@ import argparse
 import json
 import math
 import pathlib
+import shlex
 import sys
 import time
 
@@ -154,6 +157,65 @@ def _design_cmd(args) -> int:
     return 0
 
 
+def _run(parser, args) -> int:
+    from . import _scenefile as F
+
+    if args.list:
+        for name, title in F.builtin_titles().items():
+            print(f"{name:28s} {title}")
+        return 0
+    if args.scene is None:
+        parser.error("run needs a SCENE: a built-in scene name or a .toml file (`tolerax run --list` names the built-in ones)")
+    try:
+        scene_file = F.load_scene(args.scene)
+        run = scene_file.run
+        duration = run["duration"] if args.duration is None else args.duration
+        settle = run["settle"] if args.settle is None else args.settle
+        if args.duration is not None and args.settle is None and settle >= duration:
+            parser.error(f"--duration {duration} s is not longer than the scene's run.settle = {settle} s: give --settle too")
+        scene_file = scene_file.replace(duration=args.duration, settle=args.settle, n_save=args.n_save, start=args.start)
+    except F.SceneFileError as err:
+        print(f"tolerax run: {err}", file=sys.stderr)
+        return 2
+    out = pathlib.Path(args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name)
+    print(f"tolerax run: {scene_file.title} ({scene_file.source}); {duration} s simulated; results in {out}/")
+    start = time.perf_counter()
+    try:
+        result = scene_file.simulate(throw=False, progress=args.progress)
+    except (ValueError, TypeError) as err:  # values the builders could not see (checked at solve time)
+        print(f"tolerax run: {err}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter() - start
+    command = shlex.join(["tolerax", *(sys.argv[1:] if args.argv is None else args.argv)])
+    summary = F.write_results(scene_file, result, out, wall_s=wall, command=command)
+    print(F._summary_md(summary))
+    if not result.success:
+        print("tolerax run: " + "\n".join(result.failures()), file=sys.stderr)
+        return 3
+    return 0
+
+
+def _positive(text):
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def _non_negative(text):
+    value = float(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a non-negative number, got {text!r}")
+    return value
+
+
+def _at_least_two(text):
+    value = int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 2, got {text!r}")
+    return value
+
+
 def _scan_options(parser):
     parser.add_argument("--mode", default="azimuth", choices=("azimuth", "pitch", "dual"), help="which joints scan (default azimuth)")
     parser.add_argument("--fidelity", default="lumped", choices=("lumped", "planetary"), help="fidelity of the scanning joints")
@@ -191,7 +253,25 @@ def main(argv=None) -> int:
     design.add_argument("--draws", type=int, default=4, help="manufactured units in the robust objective (default 4)")
     design.add_argument("--outer", type=int, default=6, help="outer (augmented Lagrangian) iterations (default 6)")
     design.add_argument("--inner", type=int, default=10, help="optimiser steps per outer iteration (default 10)")
+    run = sub.add_parser(
+        "run", help="simulate a scene file: netCDF time series, plots and a markdown summary",
+        description="Simulate a scene file (a built-in scene name or a path to a .toml file; schema in "
+        "docs/scene_files.md) and write scene.toml, timeseries.nc, PNG plots, summary.json and summary.md "
+        "into the output folder. Exit codes: 0 done, 2 bad input (the message names the key and line), "
+        "3 the solver failed (the partial results are still written).",
+    )
+    run.add_argument("scene", nargs="?", help="built-in scene name (see --list) or path to a .toml scene file")
+    run.add_argument("--list", action="store_true", help="list the built-in scenes and exit")
+    run.add_argument("--out", default=None, help="output folder (default ./tolerax-out/SCENE_NAME)")
+    run.add_argument("--duration", type=_positive, default=None, help="override run.duration, s")
+    run.add_argument("--settle", type=_non_negative, default=None, help="override run.settle (start of the pointing window), s")
+    run.add_argument("--n-save", type=_at_least_two, default=None, help="override run.n_save (saved times)")
+    run.add_argument("--start", choices=("rest", "steady"), default=None, help="override run.start")
+    run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     args = parser.parse_args(argv)
+    args.argv = argv
+    if args.command == "run":
+        return _run(run, args)
     if args.command == "studies":
         return _studies(parser, args)
     if args.command in ("montecarlo", "design"):

@@ -1,0 +1,305 @@
+"""Scene files (src/tolerax/_scenefile.py, docs/scene_files.md) and `tolerax run`."""
+
+import inspect
+import json
+import math
+import pathlib
+import re
+import textwrap
+
+import equinox as eqx
+import jax
+import numpy as np
+import pytest
+
+import tolerax as tx
+from tolerax import _cli, _scenefile as F, _studies as S
+
+
+def _same_model(a, b, rtol=0.0):
+    """Same structure (tree definition, static fields included) and the same leaves."""
+    la, ta = jax.tree.flatten(eqx.filter(a, eqx.is_array))
+    lb, tb = jax.tree.flatten(eqx.filter(b, eqx.is_array))
+    assert ta == tb
+    assert jax.tree.structure(a) == jax.tree.structure(b)
+    for x, y in zip(la, lb):
+        assert np.shape(x) == np.shape(y)
+        if rtol == 0.0:
+            np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+        else:
+            np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=rtol, atol=0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Round trips and the built-in scenes
+
+
+@pytest.mark.parametrize("name", tx.builtin_scenes())
+def test_builtin_round_trip(name, tmp_path):
+    first = tx.load_scene(name)
+    path = tx.save_scene(first, tmp_path / f"{name}.toml")
+    second = tx.load_scene(path)
+    assert second == first
+    assert second.data == first.data
+    assert second.to_toml() == first.to_toml()  # saving is idempotent
+    _same_model(second.build(), first.build())
+
+
+def test_builtins_cover_the_paper_and_design_scenes():
+    names = set(tx.builtin_scenes())
+    assert {"scan", "scan-azimuth", "scan-pitch", "scan-azimuth-planetary", "paper-table2"} <= names
+    for table in ("table3", "table6", "table7"):
+        assert sum(n.startswith(f"paper-{table}-") for n in names) == 6
+
+
+_STUDY_FILES = {  # study of tolerax._studies -> (label -> built-in name)
+    "radial_clearance": lambda lab: f"paper-table3-{lab['mode']}-{lab['case']}",
+    "backlash": lambda lab: f"paper-table6-{lab['mode']}-b{lab['backlash']}",
+    "coupling": lambda lab: f"paper-table7-{lab['mode']}-{lab['case']}",
+}
+
+
+@pytest.mark.parametrize("study", list(_STUDY_FILES))
+def test_paper_scenes_are_the_studies_scenes(study):
+    """The paper's Tables 3, 6, 7 as files build the models of `tolerax studies` (full size)."""
+    full = S.SIZES["full"]
+    cases = S.scenes(study, "full")
+    assert len(cases) == 6
+    for labels, mech in cases:
+        scene_file = tx.load_scene(_STUDY_FILES[study](labels))
+        # The studies write clearances as n * 1e-6 (100 * 1e-6 = 9.999999999999999e-05), the files
+        # as decimal literals (1e-04): the same numbers to one ulp, so compare to 1e-14.
+        _same_model(scene_file.build(), mech, rtol=1e-14)
+        run = scene_file.run
+        assert (run["duration"], run["settle"], run["n_save"], run["start"]) == (full.duration, full.settle, full.n_save, "steady")
+
+
+def test_table2_and_design_scenes_are_the_builder_calls():
+    law = tx.AdamsImpact()  # its defaults are the paper's Table 2 K = 1e7 N/m, D = 100 N s/m
+    expected = tx.antenna("dual", fidelity="planetary", drive="torque", base="free",
+                          azimuth_stage=tx.default_stage(contact_law=law), pitch_stage=tx.default_stage(contact_law=law))
+    _same_model(tx.load_scene("paper-table2").build(), expected)
+    _same_model(tx.load_scene("scan").build(), tx.scan())
+    _same_model(tx.load_scene("scan-azimuth").build(), tx.scan("azimuth", fidelity=("lumped", "ideal")))
+    _same_model(tx.load_scene("scan-pitch").build(), tx.scan("pitch", fidelity=("ideal", "lumped")))
+    _same_model(tx.load_scene("scan-azimuth-planetary").build(), tx.scan("azimuth", fidelity=("planetary", "ideal")))
+
+
+def test_every_key_is_documented():
+    doc = (pathlib.Path(__file__).parents[1] / "docs" / "scene_files.md").read_text()
+    keys = set(F.TOP_KEYS) | set(F.RUN_KEYS) | set(F.OUTPUT_KEYS) | set(F.TOLERANCE_KEYS) | set(F.SERIES) | set(F.PLOTS)
+    for builder in F.BUILDERS.values():
+        keys |= set(inspect.signature(builder).parameters)
+    keys |= set(inspect.signature(tx.default_stage).parameters)
+    for cls in F.CONTACT_LAWS.values():
+        keys |= set(inspect.signature(cls.__init__).parameters) - {"self"}
+    keys |= set(F.CONTACT_LAWS) | {"kind", "law"}
+    missing = sorted(k for k in keys if f"`{k}`" not in doc)
+    assert not missing, f"undocumented scene-file keys: {missing}"
+    for name in tx.builtin_scenes():
+        stem = re.sub(r"-(a|b|c|b\d+)$", "", name).replace("-azimuth", "-{azimuth,pitch}").replace("-pitch", "-{azimuth,pitch}")
+        assert f"`{name}`" in doc or stem in doc, name
+
+
+# --------------------------------------------------------------------------------------------
+# The writer
+
+
+def test_writer_round_trips_awkward_values():
+    data = {
+        "title": 'quotes " and \\ backslash, a tab\t, é, a newline\n, DEL \x7f, \U0001f600',
+        "scene": {"kind": "scan", "mode": "azimuth", "fidelity": ["lumped", "ideal"], "amplitude": 5e-324,
+                  "azimuth_stage": {"sun_teeth": 18, "ring_teeth": 72, "planet_teeth": 27, "dynamic_backlash": False,
+                                    "backlash": 1.0000000000000002e-05, "mesh_stiffness": 1e300}},
+        "run": {"duration": 0.1, "rtol": 1e-7},
+        "tolerances": {"band": 0.0, "bands": {"azimuth.carrier_clearance": 2.5e-06}},
+    }
+    scene_file = tx.SceneFile.from_data(data)
+    again = tx.parse_scene(scene_file.to_toml())
+    assert again == scene_file
+    assert again.data == data
+    assert type(again.data["scene"]["azimuth_stage"]["sun_teeth"]) is int
+    tol = again.tolerances()
+    bands = dict(zip(tol.names, np.asarray(tol.band)))
+    assert bands["azimuth.carrier_clearance"] == 2.5e-06
+    assert all(v == 0.0 for n, v in bands.items() if n != "azimuth.carrier_clearance")
+
+
+def test_replace_and_objective():
+    scene_file = tx.load_scene("scan-azimuth")
+    short = scene_file.replace(duration=0.1, settle=0.0)
+    assert short.run["duration"] == 0.1 and short != scene_file
+    objective = short.objective()
+    assert (objective.duration, objective.settle, objective.start, objective.n_save) == (0.1, 0.0, "steady", 101)
+    with pytest.raises(tx.SceneFileError, match=r"\[run\] settle: .*settle < duration"):
+        scene_file.replace(duration=0.1)
+
+
+# --------------------------------------------------------------------------------------------
+# Malformed files: the key, its table and its line
+
+
+GOOD = """\
+title = "a test scene"
+
+[scene]
+kind = "scan"
+mode = "azimuth"
+fidelity = ["lumped", "ideal"]
+
+[scene.azimuth_stage]
+sun_teeth = 20
+planet_clearance = 5e-05
+
+[run]
+duration = 0.6
+settle = 0.3
+start = "steady"
+"""
+
+
+def _error(text) -> tx.SceneFileError:
+    with pytest.raises(tx.SceneFileError) as info:
+        tx.parse_scene(text, source="t.toml")
+    return info.value
+
+
+def test_good_text_parses():
+    scene_file = tx.parse_scene(GOOD)
+    assert float(scene_file.build().azimuth.stage.planet_support.bearing.clearance) == 5e-05
+
+
+@pytest.mark.parametrize(
+    "old, new, line, table, key, message",
+    [
+        ("planet_clearance = 5e-05", "planet_clearence = 5e-05", 10, "scene.azimuth_stage", "planet_clearence", "unknown key"),
+        ('mode = "azimuth"', 'mode = "azimuth"\nrotor = 1', 6, "scene", "rotor", "unknown key"),
+        ('start = "steady"', 'start = "steady"\nsolver = "Tsit5"', 16, "run", "solver", "unknown key"),
+        ('title = "a test scene"', 'titel = "a test scene"', 1, "", "titel", "unknown key"),
+        ("sun_teeth = 20", "sun_teeth = 20.0", 9, "scene.azimuth_stage", "sun_teeth", "must be an integer"),
+        ("duration = 0.6", 'duration = "0.6"', 13, "run", "duration", "must be a number"),
+        ('fidelity = ["lumped", "ideal"]', "fidelity = 3", 6, "scene", "fidelity", "must be a string or a list of 2"),
+        ("planet_clearance = 5e-05", "planet_clearance = -5e-05", 10, "scene.azimuth_stage", "planet_clearance", "must be finite and >= 0"),
+        ('mode = "azimuth"', 'mode = "roll"', 5, "scene", "mode", "mode='roll' is unknown"),
+        ('kind = "scan"', 'kind = "robot"', 4, "scene", "kind", "unknown scene kind"),
+        ('start = "steady"', 'start = "moving"', 15, "run", "start", "is unknown"),
+        ("settle = 0.3", "settle = 0.7", 14, "run", "settle", "settle < duration"),
+        ('fidelity = ["lumped", "ideal"]', 'fidelity = "ideal"\nbase = "fixed"', 7, "scene", "base", "nothing to integrate"),
+    ],
+)
+def test_malformed_files_name_key_and_line(old, new, line, table, key, message):
+    err = _error(GOOD.replace(old, new))
+    assert (err.line, err.table, err.key) == (line, table, key)
+    assert str(err).startswith(f"t.toml:{line}: ")
+    assert key in str(err) and message in str(err)
+
+
+def test_bad_toml_syntax_gives_the_line():
+    err = _error(GOOD.replace("duration = 0.6", "duration = 0.6.1"))
+    assert err.line == 13 and "invalid TOML" in str(err) and str(err).startswith("t.toml:13: ")
+
+
+def test_missing_tables_and_keys():
+    err = _error(GOOD.replace("duration = 0.6\n", ""))
+    assert err.line == 12 and "missing key 'duration'" in str(err)
+    err = _error(GOOD.split("[run]")[0])
+    assert "missing table [run]" in str(err)
+
+
+def test_tolerances_and_contact_law_are_checked():
+    text = GOOD + '\n[tolerances]\nband = 1e-05\n\n[tolerances.bands]\n"azimuth.sun_clearance" = 1e-06\n'
+    err = _error(text)  # a lumped joint models no sun clearance
+    assert err.line == 21 and err.key == "azimuth.sun_clearance" and "azimuth.carrier_clearance" in str(err)
+    text = GOOD.replace("sun_teeth = 20", 'sun_teeth = 20\n\n[scene.azimuth_stage.contact_law]\nlaw = "Hertz"')
+    err = _error(text)
+    assert (err.line, err.key) == (12, "law") and "BaiZhao" in str(err)
+    text = GOOD.replace("planet_clearance = 5e-05", 'planet_clearance = 5e-05\n\n[scene.azimuth_stage.contact_law]\nlaw = "AdamsImpact"\nstiffness = -1.0')
+    err = _error(text)  # the builder's own check, located at the key
+    assert (err.line, err.key) == (14, "stiffness") and "AdamsImpact.stiffness must be" in str(err)
+
+
+def test_line_of_other_key_styles():
+    """Dotted keys and inline tables are found by their first `key =`."""
+    text = textwrap.dedent("""\
+        [scene]
+        kind = "scan"
+        azimuth_stage = { sun_teeth = 20, planet_clearence = 1e-05 }
+
+        [run]
+        duration = 0.6
+        """)
+    err = _error(text)
+    assert (err.line, err.key) == (3, "planet_clearence")
+    text = 'scene.kind = "scan"\nscene.fidelty = "lumped"\nrun.duration = 0.6\n'
+    err = _error(text)
+    assert (err.line, err.key) == (2, "fidelty")
+
+
+def test_load_errors():
+    with pytest.raises(tx.SceneFileError, match="no built-in scene 'nope'.*scan-azimuth"):
+        tx.load_scene("nope")
+    with pytest.raises(tx.SceneFileError, match="cannot read"):
+        tx.load_scene("missing/dir/x.toml")
+
+
+# --------------------------------------------------------------------------------------------
+# The command line
+
+
+def test_cli_rejects_bad_input(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(GOOD.replace("sun_teeth = 20", "sun_teeth = 20\nsun_teth = 20"))
+    assert _cli.main(["run", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:10: [scene.azimuth_stage] sun_teth: unknown key" in err
+    assert not (tmp_path / "o").exists()
+    assert _cli.main(["run", "no-such-scene"]) == 2
+    for argv in (["run", "scan", "--duration", "-1"], ["run", "scan", "--n-save", "1"], ["run", "scan", "--bogus"],
+                 ["run"], ["run", "scan-azimuth", "--duration", "0.1"]):
+        with pytest.raises(SystemExit) as info:
+            _cli.main(argv)
+        assert info.value.code == 2, argv
+        assert "usage: tolerax" in capsys.readouterr().err  # unknown options: the top-level usage (argparse)
+    with pytest.raises(SystemExit) as info:
+        _cli.main(["run", "--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "--duration" in out and "Exit codes" in out
+    assert _cli.main(["run", "--list"]) == 0
+    assert "paper-table3-azimuth-a" in capsys.readouterr().out
+
+
+def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
+    import xarray as xr
+
+    out = tmp_path / "run"
+    argv = ["run", "scan-azimuth", "--duration", "0.05", "--settle", "0", "--n-save", "11", "--out", str(out)]
+    assert _cli.main(argv) == 0
+    capsys.readouterr()
+    files = {p.name for p in out.iterdir()}
+    assert {"scene.toml", "timeseries.nc", "pointing_error.png", "joint_angle.png", "summary.json", "summary.md"} <= files
+    ran = tx.load_scene(out / "scene.toml")
+    assert ran == tx.load_scene("scan-azimuth").replace(duration=0.05, settle=0.0, n_save=11)
+    # The file's run against the builder call it describes (same compiled program).
+    direct = tx.simulate(tx.scan("azimuth", fidelity=("lumped", "ideal")), 0.05, start="steady", n_save=11)
+    with xr.open_dataset(out / "timeseries.nc", engine="h5netcdf") as ds:
+        assert ds.pointing_error.attrs["units"] == "rad" and ds.time.attrs["units"] == "s"
+        assert ds.joint_angle.dims == ("time", "joint") and ds.sizes["time"] == 11
+        np.testing.assert_array_equal(ds.pointing_error.values, np.asarray(direct.pointing_error))
+        np.testing.assert_array_equal(ds.joint_angle.values, np.asarray(direct.joint_angle))
+        assert tx.parse_scene(ds.attrs["scene_toml"]) == ran
+    summary = json.loads((out / "summary.json").read_text())
+    rms = np.sqrt(np.mean(np.asarray(direct.pointing_error) ** 2)) / tx.ARCSEC
+    assert math.isclose(summary["metrics"]["pointing_rms_arcsec"], rms, rel_tol=1e-12)
+    assert summary["result"] == "successful" and "--duration 0.05" in summary["command"]
+    assert "RMS pointing error" in (out / "summary.md").read_text()
+
+    # Tolerances no solver can meet: the error control wants a step below dtmin. Only values
+    # change, so the compiled program is reused.
+    failing = tmp_path / "failing.toml"
+    failing.write_text(ran.replace(rtol=1e-14, atol=1e-17, dtmin=1e-4, dt0=2e-4).to_toml())
+    assert _cli.main(["run", str(failing), "--out", str(tmp_path / "fail")]) == 3
+    assert "dt_min_reached" in capsys.readouterr().err
+    summary = json.loads((tmp_path / "fail" / "summary.json").read_text())
+    assert summary["result"] == "failed" and summary["t_reached_s"] < 0.05
+    assert "Failure:" in (tmp_path / "fail" / "summary.md").read_text()
