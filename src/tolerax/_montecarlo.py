@@ -336,15 +336,23 @@ def monte_carlo(
     """Evaluate `model` on `n` manufactured units drawn within `tolerances`.
 
     Sample $i$ has the values `sample(tolerances, key, n)[i]` (drawn from `(key, i)` alone), so a
-    run's results do not depend on the backend, the chunk size or on interruptions.
+    run's *inputs* do not depend on the backend, the chunk size or on interruptions, and its
+    outputs are bitwise identical across backends and resumptions at the same chunk size. The
+    chunk size itself changes a solver's outputs at rounding level, which an adaptive solve may
+    amplify (a vmapped batch is one program that rounds differently; measured on the scan scene:
+    up to 1.3e-5 relative, benchmarks/results/monte_carlo_throughput.md); a resumed run keeps
+    the chunk size of its manifest.
 
     **Backends** (each runs the samples in chunks of `chunk_size`, with a tqdm bar over chunks):
 
     - `"vmap"`: in this process, `jax.vmap(model)` over each chunk, jit-compiled once; with
       several local devices (GPUs, or `XLA_FLAGS=--xla_force_host_platform_device_count=N` on a
       CPU), each chunk is split over them with `jax.shard_map`. On GPUs take large chunks. On CPUs
-      a vmapped adaptive solve steps until its slowest sample is done, so batching pays little:
-      prefer `"processes"` with small chunks.
+      a vmapped adaptive solve steps until its slowest sample is done: on the lumped scan chunks
+      of 16 ran 4x faster than one at a time, on the planetary one (whose samples differ more in
+      cost) batching gained 1.1x (benchmarks/results/monte_carlo_throughput.md). For thousands of
+      samples on a many-core machine `"processes"` wins once its start-up (one compile per
+      worker) is paid.
     - `"processes"`: chunks farmed to `workers` processes of this machine
       (`concurrent.futures.ProcessPoolExecutor`, spawn start; default one per CPU core), each
       running `"vmap"`'s evaluation. A script calling it needs the `if __name__ == "__main__":`
