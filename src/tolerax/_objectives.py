@@ -30,6 +30,11 @@ class PointingObjective(eqx.Module):
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
     recompiles; changing the design or the scene's values does not.
+
+    `adjoint` (optional): how derivatives pass through the solve, a diffrax adjoint handed to
+    `simulate` (default `None`: `diffrax.RecursiveCheckpointAdjoint()`, reverse mode;
+    `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). benchmarks/gradient_methods.md compares
+    their costs.
     """
 
     scene: eqx.Module
@@ -41,6 +46,9 @@ class PointingObjective(eqx.Module):
     max_steps: int = eqx.field(static=True, default=400_000)
     peak_order: int = eqx.field(static=True, default=8)
     start: str = eqx.field(static=True, default="rest")
+    # Not a static field although it is a run setting: `diffrax.BacksolveAdjoint` holds a dict
+    # and cannot be hashed. It holds no arrays, so `eqx.filter_jit` still treats it as static.
+    adjoint: diffrax.AbstractAdjoint | None = None
 
     def __check_init__(self):
         if not (0.0 <= self.settle < self.duration):
@@ -58,7 +66,7 @@ class PointingObjective(eqx.Module):
         """The scene's result for design `values` (`throw=False`: read `success`)."""
         return simulate(
             self.with_width(values, smoothing_width), self.duration, start=self.start, n_save=self.n_save,
-            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, throw=False,
+            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, throw=False, adjoint=self.adjoint,
         )
 
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:

@@ -1,0 +1,164 @@
+"""What does a full gradient of the pointing error cost, by each way of computing it? Reverse mode
+through the solver (diffrax adjoints: recursive checkpointing with several checkpoint budgets,
+and backsolve), forward mode (`diffrax.ForwardMode` with `jax.jacfwd`, one tangent per design
+variable), and central differences (2n forward solves), each against a forward solve of the same
+objective in the same run, and each against a tight reference gradient (issue 12, Build item 3:
+goal, a full gradient in at most 3x a forward solve).
+
+    python benchmarks/gradient_methods.py [--duration 0.6] [--width 1e-6] [--rtol 1e-6]
+        [--checkpoints 30 10000] [--reference-rtol 1e-10] [--repeats 3] [--no-backsolve]
+
+Scene: `tolerax.scan("azimuth", fidelity=("lumped", "ideal"))` (azimuth joint scanning +-0.5 deg,
+1 s period, pitch held rigid, fixed base), steady start. Objective: `PointingObjective`'s RMS
+pointing error (arcsec) over the whole run at smoothing width `--width`, 61 saves, Tsit5 with the
+objective's `rtol` and `atol = 1e-3 rtol`. Design: the azimuth joint's output-bearing clearance,
+planet-pin clearance, sun- and ring-mesh backlash (4 variables, all 100 um).
+
+Each method is compiled by a first call (its compile time is that call minus the best later
+one), then timed `--repeats` times; the table gives the best. The reference gradient is reverse
+mode at `--reference-rtol` (atol 1e-3 of it); its own accuracy is stated by the forward-mode
+gradient at the same tolerance (two different derivative programs of the same discretisation
+error). Central differences use h = `--fd-step` (m).
+"""
+
+import argparse
+import os
+import time
+
+import diffrax
+import equinox as eqx
+import jax
+import numpy as np
+
+import tolerax as tx
+
+import _results
+
+
+def _timed(fn, *args, repeats):
+    """First call (compiles), then `repeats` timed calls: (compile s, best s, output)."""
+    start = time.perf_counter()
+    out = jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - start
+    best = np.inf
+    for _ in range(repeats):
+        start = time.perf_counter()
+        out = jax.block_until_ready(fn(*args))
+        best = min(best, time.perf_counter() - start)
+    return first - best, best, out
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--duration", type=float, default=0.6)
+    parser.add_argument("--width", type=float, default=1e-6)
+    parser.add_argument("--rtol", type=float, default=1e-6)
+    parser.add_argument("--checkpoints", type=int, nargs="*", default=[30, 10000])
+    parser.add_argument("--reference-rtol", type=float, default=1e-10)
+    parser.add_argument("--fd-step", type=float, default=1e-8)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-backsolve", action="store_true")
+    args = parser.parse_args()
+
+    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    p0 = tx.design_of(scene)
+    n = p0.shape[0]
+    loads = [os.getloadavg()]
+
+    def objective(rtol, adjoint=None):
+        pointing = tx.PointingObjective(
+            scene, duration=args.duration, settle=0.0, start="steady", n_save=61, rtol=rtol, atol=1e-3 * rtol,
+            adjoint=adjoint,
+        )
+        return lambda p: pointing(p, args.width)["pointing_rms"]
+
+    def steps(rtol):
+        pointing = tx.PointingObjective(scene, duration=args.duration, settle=0.0, start="steady", n_save=2, rtol=rtol, atol=1e-3 * rtol)
+        res = pointing.run(p0, args.width)
+        return int(res.num_steps), int(res.num_rejected)
+
+    # The reference first: everything else is compared with it.
+    ref_compile, ref_time, reference = _timed(eqx.filter_jit(jax.grad(objective(args.reference_rtol))), p0, repeats=1)
+    reference = np.asarray(reference)
+    _, _, ref_forward = _timed(
+        eqx.filter_jit(jax.jacfwd(objective(args.reference_rtol, diffrax.ForwardMode()))), p0, repeats=0
+    )
+    ref_check = np.linalg.norm(np.asarray(ref_forward) - reference) / np.linalg.norm(reference)
+    loads.append(os.getloadavg())
+    print("reference", reference * 1e-6, "forward-mode check", ref_check, flush=True)
+
+    f = objective(args.rtol)
+    fwd_compile, fwd_time, value = _timed(eqx.filter_jit(f), p0, repeats=args.repeats)
+    rows = []
+
+    def row(method, compile_s, time_s, grad, note=""):
+        grad = np.asarray(grad)
+        rel = np.linalg.norm(grad - reference) / np.linalg.norm(reference)
+        rows.append([method, f"{compile_s:.0f}", f"{time_s:.3f}", f"{time_s / fwd_time:.1f}", f"{rel:.1e}", note])
+        print(rows[-1], flush=True)
+
+    rows.append(["forward solve (value only)", f"{fwd_compile:.0f}", f"{fwd_time:.3f}", "1.0", "", f"RMS {float(value):.3f} arcsec"])
+    for label, adjoint in [("default", None)] + [(f"checkpoints={c}", diffrax.RecursiveCheckpointAdjoint(checkpoints=c)) for c in args.checkpoints]:
+        c, t, g = _timed(eqx.filter_jit(jax.grad(objective(args.rtol, adjoint))), p0, repeats=args.repeats)
+        row(f"reverse: RecursiveCheckpointAdjoint ({label})", c, t, g)
+    if not args.no_backsolve:
+        try:
+            c, t, g = _timed(eqx.filter_jit(jax.grad(objective(args.rtol, diffrax.BacksolveAdjoint()))), p0, repeats=args.repeats)
+            row("reverse: BacksolveAdjoint", c, t, g)
+        except Exception as error:  # report what happens, whatever it is
+            message = " ".join(str(error).split())[:300]
+            rows.append(["reverse: BacksolveAdjoint", "", "", "", "", f"fails: {type(error).__name__}: {message}"])
+            print(rows[-1], flush=True)
+    c, t, g = _timed(eqx.filter_jit(jax.jacfwd(objective(args.rtol, diffrax.ForwardMode()))), p0, repeats=args.repeats)
+    row(f"forward: ForwardMode + jacfwd ({n} tangents)", c, t, g)
+    jf = eqx.filter_jit(f)
+    h = args.fd_step
+
+    def central(p):
+        return np.array([(jf(p.at[k].add(h)) - jf(p.at[k].add(-h))) / (2 * h) for k in range(n)])
+
+    _, t, g = _timed(central, p0, repeats=args.repeats)
+    row(f"central differences ({2 * n} forward solves, h = {h:g} m)", 0.0, t, g, "compiled with the forward solve")
+    loads.append(os.getloadavg())
+
+    n_steps, n_rejected = steps(args.rtol)
+    ref_steps, ref_rejected = steps(args.reference_rtol)
+    names = tx.design_names(scene)
+    grad_rows = [[name, f"{r * 1e-6:.6g}", f"{fr * 1e-6:.6g}"] for name, r, fr in zip(names, reference, np.asarray(ref_forward))]
+    meets = [r[0] for r in rows[1:] if r[3] and float(r[3]) <= 3.0]
+    _results.write_table(
+        "gradient_methods",
+        "Gradient methods: cost as a multiple of a forward solve, and accuracy",
+        _results.command(args),
+        ["method", "compile (s)", "wall (s, best of %d)" % args.repeats, "x forward", "abs(grad - ref) / abs(ref)", "note"],
+        rows,
+        about=(
+            f"Azimuth scan +-0.5 deg, 1 s period, steady start, lumped joint, fixed base; RMS pointing error over "
+            f"{args.duration:g} s at smoothing width {args.width:g} m; Tsit5, rtol {args.rtol:g}, atol {1e-3 * args.rtol:g} "
+            f"({n_steps} accepted, {n_rejected} rejected steps). Load average (1, 5, 15 min) at start, after the "
+            f"reference, at the end: {'; '.join(', '.join(f'{x:.1f}' for x in load) for load in loads)} "
+            f"(on {os.cpu_count()} cores: the absolute times are slowed by other work; the ratios are within one run)."
+        ),
+        notes=[
+            "Meets the goal of a full gradient in at most 3x a forward solve: "
+            + (", ".join(meets) if meets else "none of the methods")
+            + ".",
+            f"Compile: the first call minus the best later one (a negative or tiny value is noise). Reference: reverse "
+            f"mode at rtol {args.reference_rtol:g} ({ref_steps} accepted, {ref_rejected} rejected steps; "
+            f"{ref_time:.1f} s, compile {ref_compile:.0f} s); forward mode at the same tolerance differs from it by "
+            f"{ref_check:.1e} (relative), the resolution of the accuracy column. At rtol {args.rtol:g} every method "
+            "differentiates a solution with the discretisation error of that tolerance, so their distance from the "
+            "reference is mostly the solver's error, not the method's.",
+        ],
+        sections=[
+            _results.Section(
+                "Reference gradient (arcsec/um)",
+                ["design variable", f"reverse mode, rtol {args.reference_rtol:g}", f"forward mode, rtol {args.reference_rtol:g}"],
+                grad_rows,
+            )
+        ],
+    )
+
+
+if __name__ == "__main__":
+    main()

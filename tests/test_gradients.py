@@ -1,0 +1,249 @@
+"""Pointing-error gradients against central finite differences in float64 at several design
+points, on a lumped-joint scene (the scan) and a planetary-joint scene (the bench), including
+points where a contact has only just started to carry load; and the batching identities
+vmap-of-grad == grad-of-vmap == per-point grad (issue 12).
+
+How the points near contact onset are found. In a run with the clearance (or backlash) opened
+so wide that the contact never closes, record the displacement that the contact would see: the
+output bearing's journal eccentricity $|e(t)|$, or the lumped mesh's deflection $g(t)$ against
+the back flank's gap. Setting the clearance to that displacement at a time $t_{on}$ makes the
+contact close at $t_{on}$ and carry load from then on (the motion before $t_{on}$ does not see
+the clearance at all). Choosing $t_{on}$ just before the end of the horizon puts the design
+just on the contact side of onset: its derivative is non-zero but comes from the last few
+milliseconds, where the smoothed contact switches on.
+
+Accuracy budget. The relative tolerance 1e-4 is met only if central differences are better than
+that: the solver is tightened (rtol 1e-10, atol 1e-13 in SI units, against clearances of tens of
+um) and the step h is far below the smoothing width (1 um) that sets the scale of the
+objective's curvature near a contact, yet large enough that solver noise / h stays small. Each
+check computes the differences at two steps and asserts that they agree to 1e-5, which bounds
+the differences' own truncation and noise, before comparing them with the gradient.
+"""
+
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import tolerax as tx
+
+
+# Behind `pytest -m slow`: each reverse-mode gradient program at rtol 1e-10 compiles for minutes on
+# CI's 2 cores (one point took 500 s wall here). The default run keeps one gradient check on
+# physics, tests/test_design.py::test_scan_gradients_against_finite_differences.
+pytestmark = pytest.mark.slow
+
+WIDTH = 1e-6  # m: the optimiser's continuation width at which pointing gradients are meaningful
+RTOL, ATOL = 1e-10, 1e-13
+STEPS = (2e-8, 1e-8)  # m: two central-difference steps, both << WIDTH
+FD_SPREAD = 1e-5  # the two steps agree to this: the differences resolve the derivative
+AD_VS_FD = 1e-4  # the issue's requirement where the objective is smooth
+OPEN = 1e-3  # m: a clearance or backlash so wide that its contact never closes in the horizon
+
+
+def _central(f, p, h):
+    return np.array([(float(f(p.at[k].add(h))) - float(f(p.at[k].add(-h)))) / (2 * h) for k in range(p.shape[0])])
+
+
+def _check_against_differences(f, grad, p):
+    """AD against central differences at `p`; returns (ad, fd) for further checks."""
+    ad = np.asarray(grad(p))
+    fd_coarse, fd = (_central(f, p, h) for h in STEPS)
+    scale = np.linalg.norm(fd)
+    spread = np.linalg.norm(fd_coarse - fd) / scale
+    error = np.linalg.norm(ad - fd) / scale
+    print(f"\n  p = {np.asarray(p) * 1e6} um\n  AD = {ad * 1e-6}\n  FD = {fd * 1e-6} (per um)\n  spread {spread:.1e}, AD-FD {error:.1e}")
+    assert spread < FD_SPREAD
+    assert error < AD_VS_FD
+    return ad, fd
+
+
+# -- lumped joint: the azimuth scan ---------------------------------------------------------------
+
+LUMPED_HORIZON = 0.3  # s: one reversal (0.25 s); before the output bearing's second impact (~0.4 s)
+
+
+class _Lumped:
+    """The scan scene at lumped fidelity with its compiled objective, gradient and probe."""
+
+    def __init__(self):
+        self.scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+        self.pointing = tx.PointingObjective(
+            self.scene, duration=LUMPED_HORIZON, settle=0.0, start="steady", n_save=61, rtol=RTOL, atol=ATOL
+        )
+        rms = lambda p: self.pointing(p, WIDTH)["pointing_rms"]  # noqa: E731
+        self.f = eqx.filter_jit(rms)
+        self.grad = eqx.filter_jit(jax.grad(rms))
+        joint = self.scene.azimuth
+        lever, ratio, lay = tx.lumped_mesh(joint.stage, joint.motor_inertia).lever, joint.stage.ratio, joint.layout
+        sq = self.scene.layout.azimuth_q
+
+        @eqx.filter_jit
+        def probe(p):
+            # The displacements the two contacts see: the output bearing's eccentricity (m) and
+            # the lumped mesh deflection g (m; the back flank closes at g = -back_gap).
+            q = self.pointing.run(p, WIDTH).states[0][:, sq]
+            return jnp.hypot(q[:, lay.carrier_xy][:, 0], q[:, lay.carrier_xy][:, 1]), lever * (q[:, lay.sun] / ratio - q[:, lay.carrier])
+
+        self.probe = probe
+        self.ts = np.linspace(0.0, LUMPED_HORIZON, 61)
+        self.kappa = float(jnp.cos(joint.stage.sun_pressure_angle) + jnp.cos(joint.stage.ring_pressure_angle))
+
+    def bearing_onset(self, t_on, pin, backlash):
+        """Output-bearing clearance (m) at which the journal first touches at `t_on` (s): its
+        eccentricity at `t_on` in a run with the bearing open."""
+        ecc, _ = self.probe(jnp.array([OPEN, pin, backlash, backlash]))
+        return float(np.interp(t_on, self.ts, np.asarray(ecc)))
+
+    def back_flank_onset(self, t_on, bearing, pin):
+        """Per-mesh backlash (m, sun and ring alike) at which the back flank first closes at
+        `t_on` (s): the lumped mesh's back gap $b_s + b_r + \\kappa c_p$ equals $-g(t_{on})$ in
+        a run with the backlash open."""
+        _, g = self.probe(jnp.array([bearing, pin, OPEN, OPEN]))
+        back_gap = -float(np.interp(t_on, self.ts, np.asarray(g)))
+        backlash = 0.5 * (back_gap - self.kappa * pin)
+        assert backlash > 0, "the chosen onset time leaves no room for backlash"
+        return backlash
+
+
+@pytest.fixture(scope="module")
+def lumped():
+    return _Lumped()
+
+
+def _lumped_point(lumped, name):
+    t_late = LUMPED_HORIZON - 0.02  # the contact carries load for the last 20 ms
+    if name == "both at onset":
+        pin = 50e-6
+        backlash = lumped.back_flank_onset(t_late, OPEN, pin)
+        return jnp.array([lumped.bearing_onset(t_late, pin, OPEN), pin, backlash, backlash])
+    if name == "bearing at onset":
+        pin, backlash = 40e-6, 30e-6  # back flank closes at ~0.24 s
+        return jnp.array([lumped.bearing_onset(t_late, pin, backlash), pin, backlash, backlash])
+    if name == "back flank at onset":
+        bearing, pin = 80e-6, 50e-6  # the journal first hits the bearing at ~0.17 s
+        backlash = lumped.back_flank_onset(t_late, bearing, pin)
+        return jnp.array([bearing, pin, backlash, backlash])
+    return {
+        "both in contact": jnp.array([60e-6, 30e-6, 20e-6, 40e-6]),
+        "baseline bearing, tight meshes": jnp.array([100e-6, 40e-6, 10e-6, 25e-6]),
+    }[name]
+
+
+LUMPED_DEFAULT = ["both at onset"]
+LUMPED_SLOW = ["bearing at onset", "back flank at onset", "both in contact", "baseline bearing, tight meshes"]
+
+
+@pytest.mark.parametrize(
+    "name", LUMPED_DEFAULT + [pytest.param(n, marks=pytest.mark.slow) for n in LUMPED_SLOW]
+)
+def test_lumped_scan_gradients_against_finite_differences(lumped, name):
+    """Reverse-mode gradient of the RMS pointing error over 0.3 s of the scan against central
+    differences, at a design point (see the module docstring for the onset points)."""
+    p = _lumped_point(lumped, name)
+    ad, fd = _check_against_differences(lumped.f, lumped.grad, p)
+    # Every derivative is non-trivial at these points: both contacts carry load within the
+    # horizon, so each of the four features moves the pointing error.
+    assert np.all(np.abs(fd) > 1e-3 * np.linalg.norm(fd))
+    # Sun and ring backlash enter the lumped mesh only through their sum.
+    assert ad[2] == pytest.approx(ad[3], rel=1e-9)
+
+
+@pytest.mark.slow
+def test_lumped_vmap_of_grad_equals_grad_of_vmap(lumped):
+    """Batching commutes with differentiation through the adaptive solve: each sample of a
+    vmapped solve takes its own steps, so `vmap(grad f)`, `grad(sum(vmap f))` and the per-point
+    gradients are the same numbers up to rounding."""
+    batch = jnp.stack([_lumped_point(lumped, name) for name in ("both in contact", "baseline bearing, tight meshes")])
+    batch = jnp.concatenate([batch, batch[:1] * 1.3])
+    rms = lambda p: lumped.pointing(p, WIDTH)["pointing_rms"]  # noqa: E731
+    vmap_of_grad = np.asarray(eqx.filter_jit(jax.vmap(jax.grad(rms)))(batch))
+    grad_of_vmap = np.asarray(eqx.filter_jit(jax.grad(lambda b: jnp.sum(jax.vmap(rms)(b))))(batch))
+    per_point = np.stack([np.asarray(lumped.grad(p)) for p in batch])
+    scale = np.linalg.norm(per_point, axis=1, keepdims=True)
+    print(f"\n  vmap(grad) vs grad(vmap): {np.max(np.abs(vmap_of_grad - grad_of_vmap) / scale):.1e}; "
+          f"vs per point: {np.max(np.abs(vmap_of_grad - per_point) / scale):.1e}")
+    np.testing.assert_allclose(vmap_of_grad / scale, grad_of_vmap / scale, rtol=0, atol=1e-12)
+    # Against the unbatched program: measured 1.1e-12 (batched and unbatched kernels round
+    # differently, and ~3000 steps carry the last-bit differences); vmap(grad) and grad(vmap)
+    # agreed exactly (0.0).
+    np.testing.assert_allclose(vmap_of_grad / scale, per_point / scale, rtol=0, atol=1e-11)
+
+
+# -- planetary joint: the bench ---------------------------------------------------------------------
+
+BENCH_HORIZON = 0.02  # s from rest: the servo's start-up closes every play within ~5 ms
+
+
+class _Bench:
+    """The planetary stage on its bench, from rest (the start-up loads every contact), with the
+    RMS output angle error (arcsec) as objective."""
+
+    def __init__(self):
+        bench = tx.TestBench()
+        self.bench = eqx.tree_at(lambda b: b.stage.smoothing_width, bench, jnp.asarray(WIDTH))
+        self.f = eqx.filter_jit(self.rms)
+        self.grad = eqx.filter_jit(jax.grad(self.rms))
+        self.ts = np.linspace(0.0, BENCH_HORIZON, 41)
+        lay = bench.stage.layout
+
+        @eqx.filter_jit
+        def probe(p):
+            # Eccentricities (m) of the sun and the carrier in their bearings.
+            q = self.run(p).states[0]
+            return jnp.linalg.norm(q[:, lay.sun_xy], axis=1), jnp.linalg.norm(q[:, lay.carrier_xy], axis=1)
+
+        self.probe = probe
+
+    def run(self, p):
+        return tx.simulate(
+            tx.with_design(self.bench, p), BENCH_HORIZON, n_save=41, rtol=RTOL, atol=ATOL, max_steps=400_000, throw=False
+        )
+
+    def rms(self, p):
+        return jnp.sqrt(jnp.mean((self.run(p).output_angle_error / tx.ARCSEC) ** 2))
+
+    def onset(self, which, t_on, p):
+        """Sun (`which=0`) or carrier (1) clearance (m) at which that member first touches its
+        bearing at `t_on` (s): its eccentricity at `t_on` with the bearing open."""
+        ecc = self.probe(p.at[which].set(OPEN))[which]
+        return float(np.interp(t_on, self.ts, np.asarray(ecc)))
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return _Bench()
+
+
+def _bench_point(bench, name):
+    base = jnp.array([5e-6, 5e-6, 5e-6, 5e-6, 5e-6])
+    t_late = 0.8 * BENCH_HORIZON
+    if name == "sun bearing at onset":
+        return base.at[0].set(bench.onset(0, t_late, base))
+    if name == "carrier bearing at onset":
+        return base.at[1].set(bench.onset(1, t_late, base))
+    return {
+        "5 um everywhere": base,
+        "mixed": jnp.array([8e-6, 4e-6, 6e-6, 3e-6, 7e-6]),
+        "loose pins": jnp.array([5e-6, 3e-6, 10e-6, 5e-6, 5e-6]),
+    }[name]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(
+    reason="Not yet smooth enough at finite-difference scale: the start-up from rest rattles, and the "
+    "differences at 20 nm and 10 nm steps themselves disagree by 4e-5 to 9e-4 (AD vs FD 1.4e-5 to 1.3e-3) "
+    "at all five points (measured 2026-11-23). Needs a smoother planetary scene or horizon.",
+    strict=False,
+)
+@pytest.mark.parametrize("name", ["5 um everywhere", "mixed", "loose pins", "sun bearing at onset", "carrier bearing at onset"])
+def test_bench_gradients_against_finite_differences(bench, name):
+    """Reverse-mode gradient of the bench's RMS output angle error over its start-up (20 ms from
+    rest: impacts close the backlash and push every member into its bearing) against central
+    differences, at a design point with all five clearances and backlashes of the planetary
+    stage."""
+    p = _bench_point(bench, name)
+    ad, fd = _check_against_differences(bench.f, bench.grad, p)
+    assert np.all(np.abs(fd) > 1e-3 * np.linalg.norm(fd))
