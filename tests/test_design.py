@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
+from tolerax import _propose
 
 
 def _leaves(tree):
@@ -82,6 +83,29 @@ def test_monte_carlo_on_a_scene_equals_direct_evaluation(scan_pointing):
     assert float(ds["pointing_rms"].values[1]) == pytest.approx(direct, rel=1e-9)
     summary = res.summary()["pointing_rms"]
     assert summary["n_used"] == 3 and 0.0 <= summary["yield"] <= 1.0
+
+
+class _Spy(eqx.Module):
+    def __call__(self, x, draws, width):
+        return x
+
+
+def test_design_problem_is_the_set_of_buildable_fits():
+    """The optimiser's box is on (lower limit, band): the zone [l, l + 2b] never reaches below
+    the functional minimum clearance, whatever the band; bad settings are named."""
+    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    pointing = tx.PointingObjective(scene, duration=0.3, settle=0.0)
+    problem = _propose.design_problem(pointing, band=10e-6, min_clearance=[5e-6, 5e-6, 95e-6, 5e-6])
+    np.testing.assert_allclose(problem.x0.nominal, [90e-6, 90e-6, 95e-6, 90e-6])  # 100 um - band, or the minimum
+    np.testing.assert_allclose(problem.lower.nominal, [5e-6, 5e-6, 95e-6, 5e-6])
+    np.testing.assert_allclose(problem.upper.band, np.full(4, 50e-6))
+    x = _propose.FromLowerLimit(_Spy())(tx.Design(jnp.full(4, 5e-6), jnp.full(4, 3e-6)), None, None)
+    np.testing.assert_allclose(x.nominal, np.full(4, 8e-6))  # nominal = l + b
+    np.testing.assert_allclose(x.nominal - x.band, np.full(4, 5e-6))
+    with pytest.raises(ValueError, match="min_clearance"):
+        _propose.design_problem(pointing, min_clearance=-1e-6)
+    with pytest.raises(ValueError, match="band_range"):
+        _propose.design_problem(pointing, band=60e-6)
 
 
 def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):

@@ -67,6 +67,19 @@ class RobustPointing(eqx.Module):
         return robust(value, kind=self.statistic, k=self.k)
 
 
+class FromLowerLimit(eqx.Module):
+    """An objective of a `Design` whose `nominal` field holds the *lower limit* $l$ of each
+    tolerance zone (the minimum clearance or backlash, m) instead of its middle: it calls
+    `objective(Design(l + b, b), ...)`. With $l$ bounded below by a functional minimum (thermal
+    growth, lubricant film, no jamming), the box of the optimiser is the set of buildable fits,
+    which a box on (nominal, band) cannot express ($\\text{nominal} - \\text{band} \\ge l_{min}$)."""
+
+    objective: eqx.Module
+
+    def __call__(self, x: Design, draws, width) -> Array:
+        return self.objective(Design(x.nominal + x.band, x.band), draws, width)
+
+
 @dataclasses.dataclass(frozen=True)
 class DesignReport:
     """What `propose_design` proposes, and why.
@@ -79,7 +92,8 @@ class DesignReport:
       `requirement` (arcsec); `constraint_active`; `multiplier` (cost per arcsec: what one more
       arcsec of requirement saves).
     - `sensitivity` (arcsec/m): d objective / d (nominal, band) per feature at the proposal.
-    - `result`: the full `OptimisationResult` (history included).
+    - `result`: the full `OptimisationResult` (history included); its `x.nominal` holds the
+      lower limits $l$ (`FromLowerLimit`), the proposal's `nominal` is $l + b$.
     """
 
     names: tuple[str, ...]
@@ -98,10 +112,14 @@ class DesignReport:
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature."""
-        rows = ["| feature | nominal (µm) | band ± (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |", "|---|---|---|---|---|---|"]
+        rows = [
+            "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for k, name in enumerate(self.names):
+            low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
-                f"| {name} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | IT{self.grade[k]:.1f} | "
+                f"| {name} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
             )
         head = (
@@ -133,13 +151,68 @@ class DesignReport:
         return fig
 
 
+@dataclasses.dataclass(frozen=True)
+class DesignProblem:
+    """The tolerance-design problem `propose_design` solves, for other optimisers to solve too
+    (benchmarks/design_comparison.py): minimise `cost_model.total(x.band, features.size_mm)`
+    subject to `objective(x, draws, width) <= requirement` over `lower <= x <= upper`, with
+    `x = Design(lower limit, band)` (m; `FromLowerLimit`), starting from `x0`."""
+
+    objective: FromLowerLimit
+    features: Features
+    draws: Array
+    lower: Design
+    upper: Design
+    x0: Design
+    cost_model: AbstractCostModel
+
+
+def design_problem(
+    pointing: PointingObjective,
+    *,
+    band: float = 10e-6,
+    min_clearance=5e-6,
+    band_range: tuple[float, float] = (1e-6, 50e-6),
+    n_draws: int = 4,
+    key=None,
+    statistic: str = "mean+kstd",
+    k: float = 1.0,
+    output: str = "pointing_rms",
+    cost_model: AbstractCostModel | None = None,
+) -> DesignProblem:
+    """The `DesignProblem` of `propose_design` (same arguments, same meaning)."""
+    scene = pointing.scene
+    names = design_names(scene)
+    nominal0 = np.asarray(design_of(scene))
+    n = len(names)
+    min_clearance = np.broadcast_to(np.asarray(min_clearance, dtype=float), (n,))
+    if not (np.all(np.isfinite(min_clearance)) and np.all(min_clearance >= 0)):
+        raise ValueError(f"propose_design: min_clearance must be finite and >= 0 (m), got {min_clearance}.")
+    band_lo, band_hi = (float(v) for v in band_range)
+    if not (0 < band_lo <= band <= band_hi and np.isfinite(band_hi)):
+        raise ValueError(
+            f"propose_design: need 0 < band_range[0] <= band <= band_range[1] (m), got band={band!r}, band_range={band_range!r}."
+        )
+    key = jax.random.key(0) if key is None else key
+    limit0 = np.maximum(nominal0 - band, min_clearance)
+    return DesignProblem(
+        objective=FromLowerLimit(RobustPointing(pointing, output, statistic, k)),
+        features=Features(names, feature_sizes(scene)),
+        draws=unit_draws(key, n_draws, n),
+        lower=Design(min_clearance, np.full(n, band_lo)),
+        upper=Design(limit0, np.full(n, band_hi)),
+        x0=Design(limit0, np.full(n, float(band))),
+        cost_model=OnHalfWidth(IsoGrade() if cost_model is None else cost_model),
+    )
+
+
 def propose_design(
     pointing: PointingObjective,
     requirement: float,
     *,
     band: float = 10e-6,
-    lower: Design | None = None,
-    upper: Design | None = None,
+    min_clearance=5e-6,
+    band_range: tuple[float, float] = (1e-6, 50e-6),
     n_draws: int = 4,
     key=None,
     statistic: str = "mean+kstd",
@@ -155,14 +228,22 @@ def propose_design(
     `requirement` (arcsec, on `statistic` of `output` over `n_draws` manufactured units) at the
     lowest cost.
 
+    The optimiser varies, per feature, the lower limit $l$ of the tolerance zone (the smallest
+    clearance or backlash a part may have) and its half-width $b$; the zone is $[l, l + 2b]$, the
+    nominal $l + b$ (`FromLowerLimit`). Only the bands cost; the lower limits may not go below
+    `min_clearance`, the functional minimum (thermal growth over the orbit's temperature swing,
+    the lubricant film, no jamming) — without it the optimum would be a zero-clearance nominal.
+
     **Arguments:**
 
     - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
       is the starting nominal.
     - `requirement`: arcsec.
-    - `band`: starting tolerance half-width (m) of every feature.
-    - `lower`, `upper`: bounds (`Design`, m); default nominal in [1 µm, current], band in
-      [1 µm, 50 µm].
+    - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
+      the current nominal minus `band` (at least `min_clearance`).
+    - `min_clearance`: smallest allowed lower limit (m), a scalar or one value per feature
+      (`design_names(scene)` order). The largest allowed is the starting one.
+    - `band_range`: (smallest, largest) half-width (m).
     - `n_draws`, `key`: fixed standardised draws (`unit_draws`), the same at every iteration.
     - `statistic`, `k`: `robust` statistic (`"mean+kstd"` with `k`, or `"quantile"`).
     - `widths`: smoothing-width continuation (m), one value per outer iteration, the last
@@ -174,32 +255,26 @@ def propose_design(
 
     **Returns:** a `DesignReport`.
     """
-    scene = pointing.scene
-    names = design_names(scene)
-    nominal0 = np.asarray(design_of(scene))
-    n = len(names)
-    key = jax.random.key(0) if key is None else key
-    draws = unit_draws(key, n_draws, n)
-    features = Features(names, feature_sizes(scene))
-    if lower is None:
-        lower = Design(np.full(n, 1e-6), np.full(n, 1e-6))
-    if upper is None:
-        upper = Design(np.maximum(nominal0, 1e-6), np.full(n, 50e-6))
-    x0 = Design(np.clip(nominal0, lower.nominal, upper.nominal), np.clip(np.full(n, band), lower.band, upper.band))
-    objective = RobustPointing(pointing, output, statistic, k)
+    problem = design_problem(
+        pointing, band=band, min_clearance=min_clearance, band_range=band_range, n_draws=n_draws, key=key,
+        statistic=statistic, k=k, output=output, cost_model=cost_model,
+    )
+    objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
-    cost_model = OnHalfWidth(IsoGrade() if cost_model is None else cost_model)
     baseline_objective = float(eqx.filter_jit(objective)(x0, draws, widths[-1]))
     result = optimise_design(
-        objective, features, requirement=requirement, lower=lower, upper=upper, draws=draws, x0=x0,
+        objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
         cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
         max_outer=max_outer, inner_steps=inner_steps, tol=1e-3,
     )
     band_opt = np.asarray(result.x.band)
+    # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
+    # and at fixed nominal d/db = d/db|_l - d/dl.
+    s_limit, s_band = np.asarray(result.sensitivity.nominal), np.asarray(result.sensitivity.band)
     return DesignReport(
-        names=names,
-        nominal=np.asarray(result.x.nominal),
+        names=features.names,
+        nominal=np.asarray(result.x.nominal) + band_opt,
         band=band_opt,
         grade=np.asarray(grade_of(band_opt * 2, features.size_mm)),
         feature_cost=np.asarray(result.feature_cost),
@@ -208,7 +283,7 @@ def propose_design(
         requirement=float(requirement),
         constraint_active=bool(result.constraint_active),
         multiplier=float(result.multiplier),
-        sensitivity=result.sensitivity,
-        baseline=(nominal0, np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)), baseline_objective),
+        sensitivity=Design(s_limit, s_band - s_limit),
+        baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)), baseline_objective),
         result=result,
     )

@@ -10,6 +10,7 @@ import abc
 
 import diffrax
 import equinox as eqx
+import jax
 
 from . import _validate as V
 from ._solve import DTMIN, SolverReport, raise_on_failure, solve
@@ -99,7 +100,7 @@ def simulate(
     if y0 is None:
         y0 = scene.initial_state(start)
     else:
-        V.state_like(y0, scene.initial_state(start))
+        V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
     solver = diffrax.Tsit5() if solver is None else solver
     sol, observed = solve(
         scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,

@@ -1,0 +1,86 @@
+"""The trade-off curve of tolerance design: the cheapest design's cost against the required
+pointing accuracy, one `propose_design` run per requirement (issue 12, item 8).
+
+    python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--outer 4] [--inner 6]
+
+Same problem as `benchmarks/design_comparison.py`: the azimuth scan (lumped, 0.6 s, steady start),
+mean + 1 std of the RMS pointing error over 4 fixed manufactured units, lower limits of every
+tolerance zone >= 5 um, bands 1-50 um, ISO 286 cost (1 per feature at IT7). Every run reuses one
+compiled optimiser iteration: only the requirement's value changes. Writes
+`benchmarks/results/design_tradeoff.md`, `.png` and `.json` (the points, which
+`notebooks/design_and_yield.ipynb` plots at its small size).
+"""
+
+import argparse
+import json
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import tolerax as tx  # noqa: E402
+
+import _results  # noqa: E402
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--requirements", type=float, nargs="+", default=[300.0, 500.0, 800.0])
+    parser.add_argument("--horizon", type=float, default=0.6)
+    parser.add_argument("--draws", type=int, default=4)
+    parser.add_argument("--outer", type=int, default=4)
+    parser.add_argument("--inner", type=int, default=6)
+    args = parser.parse_args()
+    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    pointing = tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
+    rows, points, curve = [], [], []
+    for requirement in args.requirements:
+        start = time.perf_counter()
+        report = tx.propose_design(pointing, requirement, n_draws=args.draws, max_outer=args.outer, inner_steps=args.inner)
+        wall = time.perf_counter() - start
+        print(report.table(), flush=True)
+        met = report.objective <= requirement * (1 + 1e-3)
+        points.append((requirement, report.cost, met))
+        curve.append(dict(
+            requirement=requirement, objective=report.objective, met=bool(met), cost=report.cost, baseline_cost=report.baseline[2],
+            baseline_objective=report.baseline[3], names=list(report.names), nominal=report.nominal.tolist(), band=report.band.tolist(),
+            grade=report.grade.tolist(), wall=wall,
+        ))
+        rows.append((
+            f"{requirement:g}", f"{report.objective:.0f}", "yes" if met else "no", f"{report.cost:.3g}", f"{report.baseline[2]:.3g}",
+            ", ".join(f"{b * 1e6:.0f}" for b in report.band),
+            ", ".join(f"IT{g:.1f}" for g in report.grade),
+            ", ".join(f"{(n - b) * 1e6:.0f}" for n, b in zip(report.nominal, report.band)),
+            f"{report.multiplier:.3g}", f"{wall:.0f}",
+        ))
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    req, cost, met = (np.array(v) for v in zip(*points))
+    ax.plot(req, cost, "-", color="C0")
+    ax.plot(req[met], cost[met], "o", color="C0", label="requirement met")
+    ax.plot(req[~met], cost[~met], "x", color="C3", label="not met within the budget")
+    ax.set_xlabel("required pointing error, mean + 1 std of RMS (arcsec)")
+    ax.set_ylabel("tolerance cost (1 per feature at IT7)")
+    ax.legend()
+    fig.tight_layout()
+    png = _results.results_dir() / "design_tradeoff.png"
+    fig.savefig(png, dpi=120)
+    (_results.results_dir() / "design_tradeoff.json").write_text(json.dumps(dict(command=_results.command(args), points=curve), indent=1))
+    _results.write_table(
+        "design_tradeoff",
+        "Tolerance cost against required pointing accuracy",
+        _results.command(args),
+        ["requirement (arcsec)", "objective (arcsec)", "met", "cost", "baseline cost", "bands +- (um)", "ISO grades", "lower limits (um)",
+         "multiplier (cost per arcsec)", "wall (s)"],
+        rows,
+        about=(
+            f"Features in order: {', '.join(tx.design_names(scene))}. {args.outer} x {args.inner} optimiser steps per point. "
+            f"Figure: `{png.name}`. The multiplier is the optimiser's estimate of d cost / d requirement (its sign reversed)."
+        ),
+    )
+
+
+if __name__ == "__main__":
+    main()
