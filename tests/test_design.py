@@ -80,7 +80,11 @@ def test_monte_carlo_on_a_scene_equals_direct_evaluation(scan_pointing):
     values = np.stack([ds[name].values for name in tolerances.names], axis=1)
     np.testing.assert_array_equal(values, np.asarray(tx.sample(tolerances, jax.random.key(1), 3)))
     direct = float(eqx.filter_jit(pointing)(jnp.asarray(values[1]))["pointing_rms"])
-    assert float(ds["pointing_rms"].values[1]) == pytest.approx(direct, rel=1e-9)
+    # A vmapped chunk is one program that rounds differently from the single evaluation, and
+    # the adaptive solve amplifies rounding through the impacts: measured up to 1.3e-5 relative
+    # between chunk sizes (benchmarks/results/monte_carlo_throughput.md), 3e-7 here. A wrong
+    # sample (another unit's values) would differ by percent.
+    assert float(ds["pointing_rms"].values[1]) == pytest.approx(direct, rel=1e-4)
     summary = res.summary()["pointing_rms"]
     assert summary["n_used"] == 3 and 0.0 <= summary["yield"] <= 1.0
 
