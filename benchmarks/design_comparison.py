@@ -246,7 +246,7 @@ def main():
             outcome = run_gradient(args, pointing, problem)
         elif method == "random-compute":
             f, to_x, _ = evaluator(problem, args.widths[-1])
-            ratio, t_forward = gradient_cost_ratio(problem, lambda z: f(z), to_x, args.widths[-1])
+            ratio, t_forward = gradient_cost_ratio(problem, f, to_x, args.widths[-1])
             outcome = run_derivative_free("random-compute", args, problem, int(round(budget * ratio)))
             outcome.update(gradient_in_forward_solves=ratio, forward_wall=t_forward)
         else:
