@@ -5,11 +5,15 @@ link 1 → pitch joint → link 2 → reflector, with a fidelity choice per join
 $p_b$, rotation $R_b$, world frame) is a function of the generalised coordinates $q$ and time
 (prescribed ideal joints). With generalised speeds $u$ ($\\dot q = N(q)u$: the identity except
 for the base quaternion), body twists are $v_b = J_b u + \\partial_t p_b$ and
-$\\omega_b = J^\\omega_b u + \\ldots$, with the Jacobians from forward-mode autodiff of the
-kinematics. Then
+$\\omega_b = J^\\omega_b u + \\ldots$. The Jacobians and the accelerations are propagated
+down the chain frame by frame (`Mechanism.kinematics`: constant blocks for the base, rigid
+offsets, each joint's planar motion in its housing from autodiff of its few coordinates), not
+by differentiating the whole chain over all speeds. Then
 $$M(q)\\dot u = Q - \\sum_b J_b^T m_b a_b^0 - \\sum_b J_b^{\\omega T}(I_b\\alpha^0_b + \\omega_b\\times I_b\\omega_b),$$
 $M = \\sum_b m_bJ_b^TJ_b + J^{\\omega T}_bI_bJ^\\omega_b$, and $a^0_b, \\alpha^0_b$ the
-accelerations at $\\dot u = 0$ (one more jvp). Nothing is linearised: the gears spin inside a
+accelerations at $\\dot u = 0$; $M$ is solved by Cholesky. (The earlier formulation, `jacfwd`
+of the twists over $u$ and a `jvp` over $(q, t)$, is kept as `_kane_by_autodiff`, the reference
+the equivalence tests compare against.) Nothing is linearised: the gears spin inside a
 housing that turns (gyroscopic terms included), and the base reacts. Internal forces (meshes,
 contacts, servo and drive torques, drag) act on *relative* coordinates, so with a free base and
 no external load linear and angular momentum are conserved exactly by the equations (a test).
@@ -47,6 +51,7 @@ the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 
 
 import dataclasses
 from collections.abc import Iterator
+from typing import NamedTuple
 
 import equinox as eqx
 import jax
@@ -270,22 +275,36 @@ class Mechanism(AbstractScene):
         (p, r), (pd, rd) = jax.jvp(lambda q_, t_: self.poses(q_, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t)))
         return pd, vee(jnp.einsum("bij,bkj->bik", rd, r))  # skew(omega) = R' R^T
 
+    def kinematics(self, q, u, t) -> "_Frames":
+        """Every body's pose, twist Jacobians, twist and acceleration at $\\dot u = 0$, by
+        propagating frames down the chain (see `_Frames`), in the order of `body_inertia`."""
+        lay, g = self.layout, self.geometry
+        base = _base_frame(self, q, u)
+        parts = [base]
+        housing = _offset(base, g.azimuth_position)
+        # The joints' planar motion is independent of their housings: both in one batch.
+        motions = self.each_joint(lambda joint, qj, uj: _planar_motion(joint, qj, uj, t), ("q", q), ("u", u))
+        for k, (motion, su) in enumerate(zip(motions, (lay.azimuth_u, lay.pitch_u))):
+            bodies = _planar_frames(housing, motion, su, lay.size_u)
+            gears, out = _take(bodies, slice(0, -1)), _take(bodies, slice(-1, None))
+            if k == 0:  # azimuth: link 1 and the pitch housing ride on its output
+                parts += [gears, _offset(out, g.link1_centre)]
+                housing = _offset(out, g.pitch_position, PITCH_HOUSING)
+            else:  # pitch: link 2 and the reflector
+                parts += [gears, _offset(out, g.link2_centre), _offset(out, g.reflector_centre)]
+        return jax.tree.map(lambda *xs: jnp.concatenate(xs), *parts)
+
     def dynamics(self, q, u, t):
         """Mass matrix $M(q)$ and the velocity-product and inertial terms $b(q,u)$ with
-        $M\\dot u = Q - b$."""
+        $M\\dot u = Q - b$ (Kane's equations over the body Jacobians of `kinematics`)."""
         masses, principal = self.body_inertia()
-        _, rot = self.poses(q, t)
-        inertia = world_inertia(rot, principal)
-        jac_v, jac_w = jax.jacfwd(lambda u_: self.twists(q, u_, t))(u)
-        (v, w), (a0, alpha0) = jax.jvp(
-            lambda q_, t_: self.twists(q_, u, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t))
-        )
-        mass = jnp.einsum("b,bin,bim->nm", masses, jac_v, jac_v) + jnp.einsum(
-            "bin,bij,bjm->nm", jac_w, inertia, jac_w
-        )
-        iw = jnp.einsum("bij,bj->bi", inertia, w)
-        rot_term = jnp.einsum("bij,bj->bi", inertia, alpha0) + jnp.cross(w, iw)
-        bias = jnp.einsum("b,bin,bi->n", masses, jac_v, a0) + jnp.einsum("bin,bi->n", jac_w, rot_term)
+        f = self.kinematics(q, u, t)
+        # Angular quantities in body axes, where the inertia is diagonal.
+        jw = jnp.einsum("bji,bjn->bin", f.rot, f.jw)
+        w, alpha = (jnp.einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
+        mass = jnp.einsum("b,bin,bim->nm", masses, f.jv, f.jv) + jnp.einsum("bi,bin,bim->nm", principal, jw, jw)
+        rot_term = principal * alpha + jnp.cross(w, principal * w)
+        bias = jnp.einsum("b,bin,bi->n", masses, f.jv, f.a) + jnp.einsum("bin,bi->n", jw, rot_term)
         return mass, bias
 
     def momentum(self, q, u, t):
@@ -342,23 +361,46 @@ class Mechanism(AbstractScene):
     # ---------------------------------------------------------------------------------------
     # Forces and the equations of motion
 
+    def each_joint(self, fn, *vectors):
+        """`[fn(joint, *parts) for each joint]`, where `parts` are each joint's slices of
+        `vectors` (named by kind: `("q", q)`, `("u", u)`, `("v", v)`).
+
+        Two joints of the same structure (class, static fields, array shapes: the paper's
+        scenes) are evaluated as one batch of two (`vmap`), which halves the number of small
+        kernels a CPU runs for them; otherwise one after the other."""
+        lay = self.layout
+        cut = {"q": (lay.azimuth_q, lay.pitch_q), "u": (lay.azimuth_u, lay.pitch_u), "v": (lay.azimuth_v, lay.pitch_v)}
+        parts = [tuple(x[cut[kind][k]] for kind, x in vectors) for k in range(2)]
+        arrays, rest = zip(*(eqx.partition(j, eqx.is_array) for j in (self.azimuth, self.pitch)))
+        twins = jax.tree.structure(arrays[0]) == jax.tree.structure(arrays[1]) and all(
+            a.shape == b.shape and a.dtype == b.dtype for a, b in zip(jax.tree.leaves(arrays[0]), jax.tree.leaves(arrays[1]))
+        )
+        twins = twins and eqx.tree_equal(rest[0], rest[1]) is True
+        if not twins:
+            return [fn(joint, *part) for joint, part in zip((self.azimuth, self.pitch), parts)]
+        stacked = jax.tree.map(lambda a, b: jnp.stack([a, b]), *arrays)
+        columns = [jnp.stack(pair) for pair in zip(*parts)]
+        out = jax.vmap(lambda a, *xs: fn(eqx.combine(a, rest[0]), *xs))(stacked, *columns)
+        return [jax.tree.map(lambda x: x[k], out) for k in range(2)]
+
     def joint_forces(self, q, u, v, t):
         """Generalised forces on the joints' coordinates and the contact forces, per joint."""
-        return [joint.forces(q[sq], u[su], v[sv], t) for joint, sq, su, sv in self.joints()]
+        return self.each_joint(lambda joint, qj, uj, vj: joint.forces(qj, uj, vj, t), ("q", q), ("u", u), ("v", v))
 
     def accelerations(self, t, q, u, v):
         lay = self.layout
         mass, bias = self.dynamics(q, u, t)
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
         force = jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias
-        return jnp.linalg.solve(mass, force), (ca, cp)
+        # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
+        return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force), (ca, cp)
 
     def vector_field(self, t, y, args):
         q, u, v = y
         with jax.named_scope("mechanism_dynamics"):
             ud, _ = self.accelerations(t, q, u, v)
         with jax.named_scope("impact_memory"):
-            vd = [joint.impact_rate_rates(q[sq], u[su], ud[su], v[sv]) for joint, sq, su, sv in self.joints()]
+            vd = self.each_joint(lambda joint, *x: joint.impact_rate_rates(*x), ("q", q), ("u", u), ("u", ud), ("v", v))
         return self.qdot(q, u), ud, jnp.concatenate(vd)
 
     def observe(self, t, y):
@@ -407,3 +449,170 @@ class Mechanism(AbstractScene):
             azimuth_contact_names=self.azimuth.contact_names,
             pitch_contact_names=self.pitch.contact_names,
         )
+
+
+# -------------------------------------------------------------------------------------------
+# Frame propagation for Kane's equations (`Mechanism.kinematics`)
+
+
+class _Frames(NamedTuple):
+    """Kinematics of a stack of bodies (leading axis), world frame.
+
+    Twists are affine in the speeds, $v = J_v u + \\ldots$, $\\omega = J_\\omega u + \\ldots$
+    (the rest from prescribed motion), so each body carries its Jacobians and, at the actual
+    state, its twist and its acceleration at $\\dot u = 0$ (velocity products and prescribed
+    accelerations): exactly the terms of Kane's equations.
+    """
+
+    pos: Array  # (nb, 3) centre, m
+    rot: Array  # (nb, 3, 3) body-to-world rotation
+    jv: Array  # (nb, 3, n_u) d v / d u
+    jw: Array  # (nb, 3, n_u) d omega / d u
+    v: Array  # (nb, 3) velocity, m/s
+    w: Array  # (nb, 3) angular velocity, rad/s
+    a: Array  # (nb, 3) acceleration at u' = 0, m/s^2
+    alpha: Array  # (nb, 3) angular acceleration at u' = 0, rad/s^2
+
+
+def _take(frames: _Frames, index) -> _Frames:
+    return jax.tree.map(lambda x: x[index], frames)
+
+
+def _base_frame(mech: Mechanism, q, u) -> _Frames:
+    """The base: velocity in the world frame and angular velocity in the base frame are its
+    speeds, so its Jacobians are constant blocks and its accelerations at $\\dot u = 0$ vanish
+    ($\\tfrac{d}{dt}(R\\omega_B) = \\omega\\times\\omega = 0$)."""
+    n = mech.layout.size_u
+    pos, rot = mech.base_pose(q)
+    jv, jw = jnp.zeros((3, n)), jnp.zeros((3, n))
+    if mech.base == "free":
+        jv = jv.at[:, :3].set(jnp.eye(3))
+        jw = jw.at[:, 3:6].set(rot)
+    zero = jnp.zeros(3)
+    return _Frames(pos[None], rot[None], jv[None], jw[None], (jv @ u)[None], (jw @ u)[None], zero[None], zero[None])
+
+
+def _offset(frame: _Frames, offset, turn=None) -> _Frames:
+    """Frames rigidly attached to `frame` at `offset` (its axes, m), turned by the constant
+    rotation `turn`: $v' = v + \\omega\\times\\rho$, $a' = a + \\alpha\\times\\rho +
+    \\omega\\times(\\omega\\times\\rho)$ with $\\rho = R\\,$`offset`."""
+    rho = jnp.einsum("bij,j->bi", frame.rot, offset)
+    rot = frame.rot if turn is None else frame.rot @ jnp.asarray(turn)
+    w = frame.w
+    return _Frames(
+        frame.pos + rho,
+        rot,
+        frame.jv + jnp.cross(frame.jw, rho[:, :, None], axisa=1, axisb=1, axisc=1),
+        frame.jw,
+        frame.v + jnp.cross(w, rho),
+        w,
+        frame.a + jnp.cross(frame.alpha, rho) + jnp.cross(w, jnp.cross(w, rho)),
+        frame.alpha,
+    )
+
+
+def _planar_motion(joint: AbstractJoint, qj, uj, t):
+    """The joint's bodies (`planar`: gears, then its output) in its housing plane: centres $c$
+    (nb, 2) and angles $\\theta$ (nb,), their Jacobians over $q_j$, rates, and accelerations at
+    $\\ddot q_j = 0$ (forward-mode autodiff of `planar`: cheap, its inputs are the joint's own
+    few coordinates)."""
+
+    def planar(qj_, t_):
+        centres, angles, out_c, out_a = joint.planar(qj_, t_)
+        return jnp.concatenate([centres, out_c[None]]), jnp.concatenate([angles, out_a[None]])
+
+    def rates(qj_, t_):
+        return jax.jvp(planar, (qj_, t_), (uj, jnp.ones_like(t_)))
+
+    t = jnp.asarray(t, dtype=float)
+    ((c, theta), (cd, thetad)), (_, (cdd, thetadd)) = jax.jvp(rates, (qj, t), (uj, jnp.ones_like(t)))
+    jc, jtheta = jax.jacfwd(planar)(qj, t)  # (nb, 2, nj), (nb, nj)
+    return c, theta, jc, jtheta, cd, thetad, cdd, thetadd
+
+
+def _planar_frames(housing: _Frames, motion, cols: slice, n: int) -> _Frames:
+    """The bodies of one joint (`_planar_motion`) in the housing frame `housing` (one frame),
+    with the joint's speeds at columns `cols` of the `n` speeds.
+
+    A body at housing-plane centre $c(q_j, t)$ and angle $\\theta(q_j, t)$ has
+    $\\rho = R_h c$, $\\omega = \\omega_h + \\dot\\theta R_h e_z$,
+    $v = v_h + \\omega_h\\times\\rho + R_h\\dot c$,
+    $\\dot\\omega = \\alpha_h + \\dot\\theta\\,\\omega_h\\times R_he_z + \\ddot\\theta R_he_z$ and
+    $a = a_h + \\alpha_h\\times\\rho + \\omega_h\\times(\\omega_h\\times\\rho) + 2\\omega_h\\times R_h\\dot c + R_h\\ddot c$.
+    """
+    c, theta, jc, jtheta, cd, thetad, cdd, thetadd = motion
+    nb = c.shape[0]
+    r_h = housing.rot[0]
+    plane, axis = r_h[:, :2], r_h[:, 2]
+    rho = c @ plane.T
+    rho_dot = cd @ plane.T  # R_h c'
+    w_h, alpha_h = housing.w[0], housing.alpha[0]
+    jw_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(axis[None, :, None] * jtheta[:, None, :])
+    jv_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(jnp.einsum("ik,bkn->bin", plane, jc))
+    jw = housing.jw + jw_own
+    jv = housing.jv + jnp.cross(housing.jw, rho[:, :, None], axisa=1, axisb=1, axisc=1) + jv_own
+    w = w_h + thetad[:, None] * axis
+    v = housing.v + jnp.cross(w_h, rho) + rho_dot
+    alpha = alpha_h + thetad[:, None] * jnp.cross(w_h, axis) + thetadd[:, None] * axis
+    a = (
+        housing.a
+        + jnp.cross(alpha_h, rho)
+        + jnp.cross(w_h, jnp.cross(w_h, rho))
+        + 2.0 * jnp.cross(w_h, rho_dot)
+        + cdd @ plane.T
+    )
+    return _Frames(housing.pos + rho, r_h @ rz(theta), jv, jw, v, w, a, alpha)
+
+
+def _kane_by_autodiff(mech: Mechanism, q, u, t):
+    """The reference formulation of `Mechanism.dynamics` (kept for equivalence tests and
+    benchmarks): body Jacobians by `jacfwd` of `twists` over all speeds, accelerations at
+    $\\dot u = 0$ by a `jvp` of `twists` over $(q, t)$."""
+    masses, principal = mech.body_inertia()
+    _, rot = mech.poses(q, t)
+    inertia = world_inertia(rot, principal)
+    jac_v, jac_w = jax.jacfwd(lambda u_: mech.twists(q, u_, t))(u)
+    (v, w), (a0, alpha0) = jax.jvp(
+        lambda q_, t_: mech.twists(q_, u, t_), (q, t), (mech.qdot(q, u), jnp.ones_like(t))
+    )
+    mass = jnp.einsum("b,bin,bim->nm", masses, jac_v, jac_v) + jnp.einsum("bin,bij,bjm->nm", jac_w, inertia, jac_w)
+    iw = jnp.einsum("bij,bj->bi", inertia, w)
+    rot_term = jnp.einsum("bij,bj->bi", inertia, alpha0) + jnp.cross(w, iw)
+    bias = jnp.einsum("b,bin,bi->n", masses, jac_v, a0) + jnp.einsum("bin,bi->n", jac_w, rot_term)
+    return mass, bias
+
+
+def _vector_field_by_autodiff(mech: Mechanism, t, y):
+    """`Mechanism.vector_field` in the reference formulation (`_kane_by_autodiff`, LU solve, one
+    joint after the other)."""
+    q, u, v = y
+    lay = mech.layout
+    mass, bias = _kane_by_autodiff(mech, q, u, t)
+    (qa, _), (qp, _) = [joint.forces(q[sq], u[su], v[sv], t) for joint, sq, su, sv in mech.joints()]
+    ud = jnp.linalg.solve(mass, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias)
+    vd = [joint.impact_rate_rates(q[sq], u[su], ud[su], v[sv]) for joint, sq, su, sv in mech.joints()]
+    return mech.qdot(q, u), ud, jnp.concatenate(vd)
+
+
+class _KaneByAutodiff(AbstractScene):
+    """A mechanism whose equations of motion are the reference formulation
+    (`_vector_field_by_autodiff`); everything else is the mechanism's. For equivalence tests and
+    the before/after benchmark."""
+
+    mechanism: Mechanism
+    _what = "mechanism"
+
+    def initial_state(self, start="rest"):
+        return self.mechanism.initial_state(start)
+
+    def vector_field(self, t, y, args):
+        return _vector_field_by_autodiff(self.mechanism, t, y)
+
+    def observe(self, t, y):
+        return self.mechanism.observe(t, y)
+
+    def result(self, sol, observed, duration):
+        return self.mechanism.result(sol, observed, duration)
+
+    def check_runnable(self):
+        self.mechanism.check_runnable()
