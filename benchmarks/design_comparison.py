@@ -1,8 +1,8 @@
 """Tolerance design by gradients against derivative-free search, at the same budget (issue 12).
 
     python benchmarks/design_comparison.py [--requirement 400] [--outer 4] [--inner 6]
-        [--methods baseline gradient random grid cma optuna random-compute verify]
-        [--verify-units 10]
+        [--methods baseline gradient gradient-long random grid cma optuna random-compute verify]
+        [--long-outer 10] [--long-inner 6] [--mode forward] [--verify-units 10]
 
 The problem is `tolerax.propose_design`'s own (`tolerax._propose.design_problem`): on the azimuth
 scan (`tolerax.scan("azimuth", fidelity=("lumped", "ideal"))`, 0.6 s from a steady start, one
@@ -12,9 +12,12 @@ ring-mesh backlash, minimising the ISO 286 cost of the bands subject to mean + 1
 pointing error over 4 fixed manufactured units <= the requirement. Baseline: the paper's 100 um
 everywhere, +-10 um.
 
-- `gradient`: `propose_design` (augmented Lagrangian on Adam, reverse-mode gradients,
-  smoothing width 1 um then 0.1 um). Its budget is counted in gradient evaluations
-  (`outer * (inner + 1)`: each outer iteration ends with one more gradient).
+- `gradient`: `propose_design` (augmented Lagrangian on Adam, smoothing width 1 um then 0.1 um;
+  gradients in forward mode through the solves, `--mode reverse` for reverse mode: the same
+  derivatives to rounding). Its budget is counted in gradient evaluations (`outer * (inner + 1)`:
+  each outer iteration ends with one more gradient). `gradient-long`: the same with a larger
+  budget (`--long-outer`, `--long-inner`), to see whether and where it converges; it is not part
+  of the equal-budget comparison.
 - `random` (uniform in the box), `grid` (the 4 bands on a log grid with every lower limit at its
   minimum - a hint the gradient method is not given), `cma` (CMA-ES, `cma` package, bounded, on
   the penalised cost `C/C0 + 10 max(0, f/R - 1)`), `optuna` (TPE, same penalised cost): each
@@ -108,9 +111,9 @@ class Log:
         return dict(z=z, cost=cost, objective=value, feasible=False)
 
 
-def run_gradient(args, pointing, problem):
+def run_gradient(args, pointing, problem, outer, inner):
     start = time.perf_counter()
-    report = tx.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=args.outer, inner_steps=args.inner)
+    report = tx.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=outer, inner_steps=inner, gradient=args.mode)
     wall = time.perf_counter() - start
     print(report.table(), flush=True)
     x = tx.Design(report.result.x.nominal, report.result.x.band)
@@ -118,7 +121,7 @@ def run_gradient(args, pointing, problem):
     return dict(
         cost=report.cost, objective=report.objective, feasible=report.objective <= args.requirement * (1 + 1e-3),
         x=dict(limit=np.asarray(x.nominal).tolist(), band=np.asarray(x.band).tolist()),
-        evaluations=f"{args.outer * (args.inner + 1)} gradients", wall=wall,
+        evaluations=f"{outer * (inner + 1)} gradients ({args.mode} mode)", wall=wall,
         history=dict(cost=np.asarray(hist.cost).tolist(), objective=np.asarray(hist.objective).tolist()),
         table=report.table(),
     )
@@ -223,7 +226,11 @@ def main():
     parser.add_argument("--outer", type=int, default=4)
     parser.add_argument("--inner", type=int, default=6)
     parser.add_argument("--widths", type=float, nargs="+", default=[1e-6, 1e-7])
-    parser.add_argument("--methods", nargs="+", default=["baseline", "gradient", "random", "grid", "cma", "optuna", "random-compute", "verify"])
+    parser.add_argument("--methods", nargs="+", default=["baseline", "gradient", "random", "grid", "cma", "optuna", "random-compute", "verify"],
+                        help="methods to run (gradient-long is not in the default: a larger budget than the others)")
+    parser.add_argument("--long-outer", type=int, default=10, help="gradient-long: outer iterations (a budget beyond the others')")
+    parser.add_argument("--long-inner", type=int, default=6, help="gradient-long: inner steps")
+    parser.add_argument("--mode", default="forward", choices=("forward", "reverse"), help="gradient methods: forward or reverse mode through the solves")
     parser.add_argument("--verify-units", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--table-only", action="store_true")
@@ -243,7 +250,9 @@ def main():
                            x=dict(limit=np.asarray(problem.x0.nominal).tolist(), band=np.asarray(problem.x0.band).tolist()))
             outcome["feasible"] = outcome["objective"] <= args.requirement
         elif method == "gradient":
-            outcome = run_gradient(args, pointing, problem)
+            outcome = run_gradient(args, pointing, problem, args.outer, args.inner)
+        elif method == "gradient-long":
+            outcome = run_gradient(args, pointing, problem, args.long_outer, args.long_inner)
         elif method == "random-compute":
             f, to_x, _ = evaluator(problem, args.widths[-1])
             ratio, t_forward = gradient_cost_ratio(problem, f, to_x, args.widths[-1])
@@ -263,7 +272,7 @@ def run_verification(args, pointing, problem, out):
     gradient_cost = json.loads(gradient.read_text())["cost"] if gradient.exists() else np.inf
     for path in sorted(out.glob("*.json")):
         o = json.loads(path.read_text())
-        if "verification" in o or not (path.stem in ("baseline", "gradient") or (o["feasible"] and o["cost"] < gradient_cost)):
+        if "verification" in o or not (path.stem in ("baseline", "gradient", "gradient-long") or (o["feasible"] and o["cost"] < gradient_cost)):
             continue
         print(f"--- verify {path.stem}", flush=True)
         o["verification"] = verify(args, pointing, problem, o["x"]["limit"], o["x"]["band"], jax.random.key(1000 + args.seed))
@@ -273,7 +282,7 @@ def run_verification(args, pointing, problem, out):
 
 def write(args, problem, out):
     rows, notes = [], []
-    for method in ["baseline", "gradient", "random", "grid", "cma", "optuna", "random-compute"]:
+    for method in ["baseline", "gradient", "gradient-long", "random", "grid", "cma", "optuna", "random-compute"]:
         path = out / f"{method}.json"
         if not path.exists():
             continue
@@ -292,7 +301,7 @@ def write(args, problem, out):
                 f"evaluations of the objective (a forward evaluation of the 4 units: {o['forward_wall']:.1f} s)."
             )
         if "table" in o:
-            notes.append("The gradient method's proposal:\n\n" + o["table"])
+            notes.append(f"The `{method}` method's proposal:\n\n" + o["table"])
     _results.write_table(
         "design_comparison",
         "Tolerance design: gradients against derivative-free search at the same budget",

@@ -93,7 +93,7 @@ def _diffeqsolve(scene, y0, t1, ts, rtol, atol, max_steps, save_states, progress
         stepsize_controller=controller, max_steps=max_steps, throw=False,
         progress_meter=diffrax.TextProgressMeter(minimum_increase=0.1) if progress else diffrax.NoProgressMeter(),
     )
-    (ts_saved, t_last, t_steps), (ys, y_last, y_steps) = sol.ts, sol.ys
+    (ts_saved, t_last, t_steps), (ys, _, y_steps) = sol.ts, sol.ys
     _, rejected_t0, n_rejected = sol.controller_state
     stats = dict(sol.stats, t_reached=t_last[0])
     sol = eqx.tree_at(lambda s: (s.ts, s.ys, s.stats), sol, (ts_saved, ys, stats))

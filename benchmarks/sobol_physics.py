@@ -227,7 +227,7 @@ def _pm(x, c):
 
 
 def write(cases):
-    rows, notes, sections = [], [], []
+    sections = []
     ordered = [cases[c] for c in sorted(cases)]
     for o in ordered:
         case_rows = []

@@ -246,3 +246,45 @@ def test_bad_features_and_statistics():
         robust(jnp.ones(4), "median")
     with pytest.raises(ValueError, match="Design.nominal and Design.band"):
         Design(jnp.zeros(3), jnp.zeros(2))
+
+
+@pytest.mark.parametrize(
+    "continuation, script, chosen",
+    [
+        # (objective, cost) per outer iteration against R = 400: the cheapest feasible iterate
+        # (cost 2.5) wins over the earlier feasible one (3.0) and over the cheaper infeasible ones.
+        (0.0, [(300.0, 3.0), (450.0, 2.0), (350.0, 2.5), (500.0, 1.0)], 2),
+        # The cheapest feasible iterate was at another smoothing width (continuation value): it
+        # does not count; the last iterate is infeasible, so the one feasible at the final width wins.
+        (lambda i: 1.0 if i == 0 else 0.0, [(300.0, 1.0), (350.0, 2.5), (450.0, 2.0)], 1),
+        # No feasible iterate: the last one.
+        (0.0, [(450.0, 2.0), (420.0, 3.0)], 1),
+        # The last iterate is feasible and cheapest: the last one.
+        (0.0, [(300.0, 3.0), (390.0, 2.0)], 1),
+    ],
+)
+def test_result_is_the_cheapest_iterate_that_met_the_requirement(monkeypatch, continuation, script, chosen):
+    """The augmented Lagrangian's iterates oscillate about the requirement when the objective is
+    rough (the pointing scenes); `optimise_design` returns the cheapest iterate that met the
+    requirement at the final continuation value. The outer iteration is scripted here."""
+    from tolerax import _optimise
+
+    calls = iter(range(len(script)))
+
+    def scripted(z, multiplier, penalty, problem, draws, continuation, objective, cost_model, optimiser, steps):
+        k = next(calls)
+        f, cost = script[k]
+        z = Design(jnp.full(3, 0.1 * (k + 1)), jnp.full(3, 0.1 * (k + 1)))  # tells the iterates apart
+        grads = Design(jnp.full(3, float(k)), jnp.zeros(3))
+        return z, jnp.asarray(0.0), jnp.asarray(1.0), jnp.asarray(f), jnp.full(3, cost / 3), grads, grads
+
+    monkeypatch.setattr(_optimise, "_outer_iteration", scripted)
+    lower, upper = _box(60 * UM, 100 * UM, 1 * UM, 50 * UM)
+    result = optimise_design(_linear_budget, FEATURES, requirement=400.0, lower=lower, upper=upper,
+                             cost_model=RECIPROCAL, continuation=continuation, max_outer=len(script))
+    assert int(result.iteration) == chosen
+    assert float(result.objective) == script[chosen][0]
+    np.testing.assert_allclose(float(result.cost), script[chosen][1], rtol=1e-14)
+    np.testing.assert_allclose(result.x.band, lower.band + (upper.band - lower.band) * 0.1 * (chosen + 1), rtol=1e-14)
+    np.testing.assert_array_equal(result.sensitivity.nominal, jnp.full(3, float(chosen)))
+    assert len(result.history.cost) == len(script)

@@ -9,6 +9,7 @@ and the augmented-Lagrangian optimiser on optax (`_optimise`), and returns a `De
 import dataclasses
 import math
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -50,20 +51,59 @@ class OnHalfWidth(AbstractCostModel):
         return self.model(2.0 * band, size_mm)
 
 
+def _unit_output(values, pointing: PointingObjective, output: str, width):
+    """One manufactured unit's `output` (NaN if its solve failed)."""
+    out = pointing(values, width)
+    return jnp.where(out["success"], out[output], jnp.nan)
+
+
+@eqx.filter_custom_vjp
+def _unit_output_forward(values, pointing, output, width):
+    """`_unit_output`, whose reverse-mode derivative is computed in forward mode: the backward
+    pass of a simulation needs the whole trajectory (checkpointed and recomputed), while a
+    handful of tangents carried along the forward solve (`diffrax.ForwardMode`) cost less for
+    the few clearances of a scene (benchmarks/results/gradient_methods.md). The Jacobian over
+    the unit's design vector is formed on the forward pass and kept for the backward one."""
+    return _unit_output(values, pointing, output, width)
+
+
+@_unit_output_forward.def_fwd
+def _unit_output_forward_fwd(perturbed, values, pointing, output, width):
+    forward = dataclasses.replace(pointing, adjoint=diffrax.ForwardMode())
+    jac, value = jax.jacfwd(lambda v: (lambda y: (y, y))(_unit_output(v, forward, output, width)), has_aux=True)(values)
+    return value, jac
+
+
+@_unit_output_forward.def_bwd
+def _unit_output_forward_bwd(jac, cotangent, perturbed, values, pointing, output, width):
+    return cotangent * jac
+
+
 class RobustPointing(eqx.Module):
     """`objective(x, draws, width)`: a robust statistic (`robust`, arcsec) of one output of a
     `PointingObjective` over the manufactured units `realise(x, draws)`, at smoothing width
     `width` (m). A failed solve makes the objective NaN (the optimiser then stops with an error
-    naming the iteration) rather than a silently wrong number."""
+    naming the iteration) rather than a silently wrong number.
+
+    `gradient`: how `jax.grad` of the objective is computed through each unit's simulation:
+    `"forward"` (default; one forward solve carrying one tangent per design feature, then the
+    chain rule through `realise`; the objective then supports reverse-mode `jax.grad`/`vjp` but
+    not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
+    mode). benchmarks/gradient_methods.md measures both."""
 
     pointing: PointingObjective
     output: str = eqx.field(static=True, default="pointing_rms")
     statistic: str = eqx.field(static=True, default="mean+kstd")
     k: float = eqx.field(static=True, default=1.0)
+    gradient: str = eqx.field(static=True, default="forward")
+
+    def __check_init__(self):
+        if self.gradient not in ("forward", "reverse"):
+            raise ValueError(f"RobustPointing: gradient must be 'forward' or 'reverse', got {self.gradient!r}.")
 
     def __call__(self, x: Design, draws, width) -> Array:
-        outputs = jax.vmap(lambda v: self.pointing(v, width))(realise(x, draws))
-        value = jnp.where(outputs["success"], outputs[self.output], jnp.nan)
+        unit = _unit_output_forward if self.gradient == "forward" else _unit_output
+        value = jax.vmap(lambda v: unit(v, self.pointing, self.output, width))(realise(x, draws))
         return robust(value, kind=self.statistic, k=self.k)
 
 
@@ -179,6 +219,7 @@ def design_problem(
     k: float = 1.0,
     output: str = "pointing_rms",
     cost_model: AbstractCostModel | None = None,
+    gradient: str = "forward",
 ) -> DesignProblem:
     """The `DesignProblem` of `propose_design` (same arguments, same meaning)."""
     scene = pointing.scene
@@ -196,7 +237,7 @@ def design_problem(
     key = jax.random.key(0) if key is None else key
     limit0 = np.maximum(nominal0 - band, min_clearance)
     return DesignProblem(
-        objective=FromLowerLimit(RobustPointing(pointing, output, statistic, k)),
+        objective=FromLowerLimit(RobustPointing(pointing, output, statistic, k, gradient)),
         features=Features(names, feature_sizes(scene)),
         draws=unit_draws(key, n_draws, n),
         lower=Design(min_clearance, np.full(n, band_lo)),
@@ -223,6 +264,8 @@ def propose_design(
     max_outer: int = 6,
     inner_steps: int = 10,
     learning_rate: float = 0.1,
+    gradient: str = "forward",
+    progress: bool = False,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
     `requirement` (arcsec, on `statistic` of `output` over `n_draws` manufactured units) at the
@@ -251,13 +294,16 @@ def propose_design(
     - `cost_model`: a cost of the full tolerance width $2b$; default `IsoGrade()` (ISO 286
       grades, relative cost 1 per feature at IT7).
     - `max_outer`, `inner_steps`, `learning_rate`: optimiser budget (each inner step is one
-      gradient of the objective over all draws: a simulation each, reverse mode).
+      gradient of the objective over all draws: a simulation each).
+    - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
+      (`RobustPointing`).
+    - `progress`: a progress bar over the optimiser's outer iterations (`optimise_design`).
 
     **Returns:** a `DesignReport`.
     """
     problem = design_problem(
         pointing, band=band, min_clearance=min_clearance, band_range=band_range, n_draws=n_draws, key=key,
-        statistic=statistic, k=k, output=output, cost_model=cost_model,
+        statistic=statistic, k=k, output=output, cost_model=cost_model, gradient=gradient,
     )
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
@@ -266,7 +312,7 @@ def propose_design(
     result = optimise_design(
         objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
         cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
-        max_outer=max_outer, inner_steps=inner_steps, tol=1e-3,
+        max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
     )
     band_opt = np.asarray(result.x.band)
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
