@@ -90,12 +90,12 @@ def test_bad_duration_rejected():
         tx.simulate(tx.TestBench(), 0.01, start="moving")
 
 
-def test_cli_demo(tmp_path, capsys):
-    code = _cli.main(["demo", "--duration", "0.02", "--out", str(tmp_path)])
+def test_cli_demo_bench(tmp_path, capsys):
+    code = _cli.main(["demo", "--bench", "--duration", "0.02", "--out", str(tmp_path)])
     assert code == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["result"] == "successful"
     assert (tmp_path / "bench.png").stat().st_size > 10_000
     with pytest.raises(SystemExit):
-        _cli.main(["demo", "--clearance", "-5"])
+        _cli.main(["demo", "--bench", "--clearance", "-5"])
     assert "--clearance must be" in capsys.readouterr().err

@@ -48,8 +48,9 @@ def scan_pointing():
 
 def test_scan_gradients_against_finite_differences(scan_pointing):
     """Through one reversal (0.25 s) with the back flank engaging after it: the reverse-mode
-    gradient of the RMS pointing error matches central differences. At the 1 um smoothing width
-    of the optimiser's continuation the objective is nearly smooth at finite-difference scale:
+    gradient of the RMS pointing error matches central differences, and the forward-mode one
+    matches it. At the 1 um smoothing width of the optimiser's continuation the objective is
+    nearly smooth at finite-difference scale:
     benchmarks/gradient_horizon.md measured |AD - FD| / |FD| = 7.1e-4 on this scene, with the
     differences at 10 nm and 100 nm steps themselves differing by 4.9e-4; the tolerance, 2e-3,
     is about three times that noise. (At the default 1 nm width the same comparison differs by
@@ -67,6 +68,16 @@ def test_scan_gradients_against_finite_differences(scan_pointing):
     per_backlash = 1.0 / lever / tx.ARCSEC
     assert 0.1 * per_backlash < ad[2] < per_backlash
     assert ad[2] == pytest.approx(ad[3], rel=1e-9)  # sun and ring backlash add in the lumped mesh
+    # The optimiser's gradient (`RobustPointing(gradient="forward")`: tangents carried through
+    # the solve by `diffrax.ForwardMode`, the Jacobian handed to reverse mode by a custom VJP) is
+    # the same derivative of the same discrete solve by another route, so it agrees far better
+    # than the differences above. Not to the last bit: tangents pushed forward and adjoints
+    # pulled back through ~3000 steps of a contact problem round differently. Measured here
+    # |fwd - rev| / |rev| = 8e-8 (2.6e-6 on the small carrier component alone); at rtol 1e-8 over
+    # 0.4 s, 3e-11. Bound 1e-6: 2000x tighter than the finite-difference check.
+    unit = eqx.filter_jit(jax.grad(lambda p: _propose._unit_output_forward(p, scan_pointing, "pointing_rms", width)))
+    forward = np.asarray(unit(p0))
+    assert np.linalg.norm(forward - ad) < 1e-6 * np.linalg.norm(ad)
 
 
 def test_monte_carlo_on_a_scene_equals_direct_evaluation(scan_pointing):
@@ -123,23 +134,3 @@ def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):
     assert report.objective <= 1.5 * baseline * 1.02
     assert report.names == tx.design_names(scan_pointing.scene)
     assert "IT" in report.table()
-
-
-def test_cli_montecarlo_and_design_arguments(tmp_path):
-    """`tolerax montecarlo` runs, writes its files and resumes from its checkpoints; bad
-    arguments give a usage message and exit code 2."""
-    import json
-
-    from tolerax import _cli
-
-    args = ["montecarlo", "--n", "2", "--chunk", "2", "--duration", "0.3", "--settle", "0.1",
-            "--requirement", "1000", "--out", str(tmp_path)]
-    assert _cli.main(args) == 0
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
-    assert (tmp_path / "montecarlo.nc").exists() and (tmp_path / "histogram.png").exists()
-    assert _cli.main(args) == 0  # the second run only reloads the finished chunk
-    for bad in (["design", "--requirement", "-1"], ["design"], ["montecarlo", "--settle", "2"], ["montecarlo", "--mode", "roll"]):
-        with pytest.raises(SystemExit) as exit_:
-            _cli.main(bad)
-        assert exit_.value.code == 2

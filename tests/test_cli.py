@@ -1,0 +1,141 @@
+"""The command line (src/tolerax/_cli.py): `design` and `montecarlo` on scene files, `demo` (the
+antenna), `bench`, and bad input. `run` is tested with the scene files (tests/test_scenefile.py),
+`demo --bench` with the bench (tests/test_bench.py). Sizes are tiny: these check the wiring, not
+the numbers, which the modules' own tests check."""
+
+import json
+
+import numpy as np
+import pytest
+
+import tolerax as tx
+from tolerax import _cli
+
+
+def _malformed(tmp_path):
+    """scan-azimuth with a misspelt `[run]` key; returns (path, its line)."""
+    text = tx.load_scene("scan-azimuth").to_toml().replace("n_save = 101", "n_save = 101\nsetle = 0.2")
+    line = text.splitlines().index("setle = 0.2") + 1
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    return path, line
+
+
+@pytest.mark.parametrize("command", ["design", "montecarlo"])
+def test_design_and_montecarlo_reject_a_malformed_scene(command, tmp_path, capsys):
+    path, line = _malformed(tmp_path)
+    out = tmp_path / "out"
+    assert _cli.main([command, str(path), "--requirement", "500", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"tolerax {command}: {path}:{line}: [run] setle: unknown key 'setle'" in err
+    assert not out.exists()
+    # A value the scene's own checks reject after an override: named, exit 2, nothing written.
+    assert _cli.main([command, "scan-azimuth", "--settle", "2", "--requirement", "500", "--out", str(out)]) == 2
+    assert "[run] settle: must satisfy 0 <= settle < duration" in capsys.readouterr().err
+    assert _cli.main([command, "no-such-scene", "--requirement", "500"]) == 2
+    assert "no built-in scene 'no-such-scene'" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["design"],  # scan-azimuth sets no requirement
+        ["design", "--requirement", "-1"],
+        ["design", "--draws", "1", "--requirement", "500"],  # mean + 1 std needs two units
+        ["design", "scan", "--mode", "dual", "--requirement", "500"],  # --mode is gone: scene files name it
+        ["montecarlo", "--fidelity", "planetary"],
+        ["montecarlo", "--n", "0"],
+        ["montecarlo", "--band", "-3"],
+        ["montecarlo", "--duration", "0.2"],  # not longer than the scene's settle = 0.3 s
+        ["demo", "--steps", "-1"],
+        ["demo", "--clearance", "5"],  # a bench option without --bench
+        ["bench", "--duration", "0"],
+        ["bench", "--fidelities", "rigid"],
+        ["bogus"],
+        [],
+    ],
+)
+def test_bad_options_print_usage_and_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        _cli.main(argv)
+    assert info.value.code == 2
+    assert "usage: tolerax" in capsys.readouterr().err
+
+
+def test_help_names_every_command_and_option(capsys):
+    with pytest.raises(SystemExit) as info:
+        _cli.main(["--help"])
+    assert info.value.code == 0
+    text = capsys.readouterr().out
+    for command in ("demo", "run", "design", "montecarlo", "studies", "bench"):
+        assert f"tolerax {command}" in text
+    with pytest.raises(SystemExit):
+        _cli.main(["montecarlo", "--help"])
+    text = capsys.readouterr().out
+    for option in ("--duration", "--settle", "--band", "--distribution", "--requirement", "--n ", "scan-azimuth"):
+        assert option in text
+    assert "--mode" not in text and "--fidelity" not in text
+
+
+def test_montecarlo_writes_netcdf_and_resumes(tmp_path):
+    """`tolerax montecarlo SCENE` on 2 units: files written, the scene as run saved, the samples
+    drawn within the scene's bands, and a second run only reloads the finished chunk."""
+    import xarray as xr
+
+    args = ["montecarlo", "scan-azimuth", "--n", "2", "--chunk", "2", "--duration", "0.3", "--settle", "0.1",
+            "--requirement", "1000", "--out", str(tmp_path)]
+    assert _cli.main(args) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
+    assert (tmp_path / "histogram.png").exists()
+    ran = tx.load_scene(tmp_path / "scene.toml")
+    assert ran == tx.load_scene("scan-azimuth").replace(duration=0.3, settle=0.1)
+    with xr.open_dataset(tmp_path / "montecarlo.nc", engine="h5netcdf") as ds:
+        assert ds.sizes["sample"] == 2
+        assert np.all(np.isfinite(ds["pointing_rms"].values)) and np.all(ds["pointing_rms"].values > 0)
+        nominal = np.asarray(tx.design_of(ran.build()))
+        for k, name in enumerate(tx.design_names(ran.build())):
+            # the scene's [tolerances] band = 10 um (features are in m)
+            assert np.all(np.abs(ds[name].values - nominal[k]) <= 10e-6 * (1 + 1e-12))
+    assert _cli.main(args) == 0  # the second run only reloads the finished chunk
+    # Other tolerances in the same folder: the checkpoints are refused, not mixed.
+    assert _cli.main([*args, "--band", "20"]) == 2
+
+
+def test_demo_at_a_tiny_size(tmp_path, capsys):
+    """`tolerax demo` without the proposal (`--steps 0`) on 50 ms of the scan scene."""
+    assert _cli.main(["demo", "--duration", "0.05", "--steps", "0", "--out", str(tmp_path)]) == 0
+    assert "RMS pointing error" in capsys.readouterr().out
+    assert (tmp_path / "demo.png").stat().st_size > 10_000
+    summary = json.loads((tmp_path / "scan" / "summary.json").read_text())
+    assert summary["result"] == "successful" and summary["scene"] == "scan"
+    assert summary["run"]["duration"] == 0.05 and summary["run"]["settle"] == 0.0
+    text = (tmp_path / "demo.md").read_text()
+    assert f"{summary['metrics']['pointing_rms_arcsec']:.1f} arcsec" in text and "load average" in text
+    assert not (tmp_path / "design").exists()
+
+
+def test_bench_at_a_tiny_size(tmp_path, capsys):
+    assert _cli.main(["bench", "--duration", "0.002", "--fidelities", "ideal", "--out", str(tmp_path)]) == 0
+    table = (tmp_path / "bench.md").read_text()
+    assert table in capsys.readouterr().out
+    assert "| ideal | 6 | 0 |" in table and "load average" in table
+    (row,) = json.loads((tmp_path / "bench.json").read_text())["rows"]
+    assert row["fidelity"] == "ideal" and row["per_sim_s"] > 0
+    # Ideal joints under a speed command follow it exactly (tests/test_mechanism.py: <= 1e-9 rad).
+    assert row["pointing_rms_arcsec"] < 1e-9 / tx.ARCSEC
+
+
+@pytest.mark.slow
+def test_demo_and_design_propose(tmp_path):
+    """The proposal paths at their smallest: one optimiser step over two units (minutes of
+    compilation for the forward-mode gradient)."""
+    assert _cli.main(["demo", "--duration", "0.05", "--steps", "1", "--outer", "1", "--out", str(tmp_path / "demo")]) == 0
+    assert "IT" in (tmp_path / "demo" / "design" / "design.md").read_text()
+    scene = tmp_path / "req.toml"
+    scene.write_text(tx.load_scene("scan-azimuth").to_toml() + "requirement = 1000.0\n")  # [tolerances] is the last table
+    assert _cli.main(["design", str(scene), "--duration", "0.1", "--settle", "0", "--draws", "2", "--outer", "1",
+                      "--inner", "1", "--out", str(tmp_path / "design")]) == 0
+    text = (tmp_path / "design" / "design.md").read_text()
+    assert "against a requirement of 1000.0 arcsec" in text
