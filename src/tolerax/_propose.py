@@ -165,9 +165,16 @@ class DesignReport:
         head = (
             f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); objective "
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
-            f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}."
+            f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
+            f"{self._iteration_text()}."
         )
         return head + "\n\n" + "\n".join(rows)
+
+    def _iteration_text(self) -> str:
+        chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
+        if chosen == n - 1:
+            return f"the last of {n} outer iterations"
+        return f"outer iteration {chosen + 1} of {n}, the cheapest that met the requirement"
 
     def plot(self):
         """History (cost, objective) and sensitivities; returns the matplotlib figure."""
@@ -180,6 +187,7 @@ class DesignReport:
         ax2 = axes[0].twinx()
         ax2.plot(it, np.asarray(hist.objective), "s--", color="C1", label="objective (arcsec)")
         ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":")
+        axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--")  # the proposed iterate
         axes[0].set_xlabel("outer iteration")
         axes[0].set_ylabel("cost (model units)")
         ax2.set_ylabel(f"robust pointing error ({UNITS['pointing_rms']})")
