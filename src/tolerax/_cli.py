@@ -66,7 +66,7 @@ def _with_tolerances(scene_file, band_um=None, distribution=None):
 
     if band_um is None and distribution is None:
         return scene_file
-    data = json.loads(json.dumps(scene_file.data))
+    data = F._copy(scene_file.data)
     tol = data.setdefault("tolerances", {})
     if band_um is not None:
         tol["band"] = band_um * 1e-6
