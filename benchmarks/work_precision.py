@@ -243,9 +243,15 @@ def main():
     default_width = 1e-9
     scene = case.make(default_width)
     rows = []
+    call = rhs_call_cost(scene, case.start)
+    command = _results.command(args)
+    reference_state = {}
 
     def log(row):
         rows.append(row)
+        # Rewrite the results after every row: a run of this size takes an hour or more, and a
+        # killed run keeps what it measured (the table says which rows exist).
+        write(case, command, rows, reference_state["rec"], reference_state["agreement"], call)
         errs = row.get("errors") or {}
         print(
             f"{row['family']:>9} {row['method']:>16} rtol={row['rtol']:<8g} eps={row['eps']:<8g} "
@@ -261,6 +267,7 @@ def main():
     check_rec, check = run_diffrax(case, scene, diffrax.Tsit5(), 1e-11)
     agreement = errors(check, reference) if check is not None else None
     print("reference Dopri8 1e-12 vs Tsit5 1e-11:", agreement, flush=True)
+    reference_state.update(rec=ref_rec, agreement=agreement)
 
     tolerances = [1e-4, 1e-6, 1e-8] if args.quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
     explicit = [("Tsit5", diffrax.Tsit5()), ("Dopri5", diffrax.Dopri5()), ("Dopri8", diffrax.Dopri8()), ("Bosh3", diffrax.Bosh3())]
@@ -293,13 +300,11 @@ def main():
                 log(dict(family="scipy", method=method, rtol=rtol, eps=default_width, **rec, errors=errors(qs, reference) if qs else None))
                 if rec["wall_s"] > 600:
                     break  # tighter tolerances only cost more
-    call = rhs_call_cost(scene, case.start)
-    write(case, _results.command(args), rows, ref_rec, agreement, call)
 
 
 def write(case, command, rows, ref_rec, agreement, call):
     stem = _results.results_dir() / f"work_precision_{case.name}"
-    keys = list(next(r["errors"] for r in rows if r["errors"]).keys())
+    keys = list(next((r["errors"] for r in rows if r["errors"]), agreement or {}).keys())
     payload = dict(
         scene=case.description, duration=case.duration, command=command, reference=ref_rec,
         reference_check=agreement, rhs_call_s=call, rows=rows,
@@ -331,7 +336,8 @@ def write(case, command, rows, ref_rec, agreement, call):
             "whose first call took over 120 s and was timed once, compilation included).",
         ],
     )
-    plot(case, rows, keys, stem.with_suffix(".png"))
+    if keys:
+        plot(case, rows, keys, stem.with_suffix(".png"))
 
 
 def plot(case, rows, keys, path):
