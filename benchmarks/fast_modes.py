@@ -174,8 +174,20 @@ def recorded_median_step(t):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--times", nargs="+", type=float, default=[1.0, 1.5], help="s: instants to linearise at")
+    parser.add_argument(
+        "--mass-scaling", type=float, help="linearise the mass-scaled joints (`MassScaledPlanetaryJoint`) instead; "
+        "writes fast_modes_scaled.md, without the recorded steps (those are the full stage's)"
+    )
     args = parser.parse_args()
     mech = tolerax.antenna("dual", fidelity="planetary")
+    name, fidelity = "fast_modes", "planetary"
+    if args.mass_scaling is not None:
+        mech = tolerax.Mechanism(
+            *(tolerax.MassScaledPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque, mass_scaling=args.mass_scaling)
+              for j in (mech.azimuth, mech.pitch)),
+            base=mech.base,
+        )
+        name, fidelity = "fast_modes_scaled", "planetary-scaled"
     labels = coordinate_labels(mech)
     t_end = max(args.times)
     n_save = int(round(t_end / 0.01)) + 1
@@ -193,7 +205,7 @@ def main():
         steps = np.array([tsit5_radius(lam / abs(lam)) / abs(lam) if lam.real < 0 else np.inf for lam in fast])
         worst = fast[np.argmin(steps)]
         n_unstable = int(np.sum(fast.real >= 0))
-        dt_taken = recorded_median_step(ts[k])
+        dt_taken = recorded_median_step(ts[k]) if args.mass_scaling is None else None
         freqs, shapes = modes(mass, stiffness)
         rows.append([
             f"{ts[k]:.2f}", f"{abs(worst) / (2 * np.pi):.0f}", f"{-worst.real / abs(worst):.3f}",
@@ -213,20 +225,22 @@ def main():
         fmax = np.array(fmax)
         dt = r_mesh / (2 * np.pi * fmax)
         cand_rows.append([
-            " + ".join(cand) if cand else "none (today's planetary joint)",
+            " + ".join(cand) if cand else f"none ({fidelity} joints as they are)",
             " / ".join(f"{f:.0f}" for f in fmax),
             " / ".join(f"{d * 1e6:.1f}" for d in dt),
             " / ".join(f"{x:.1f}" for x in base_f / fmax),
         ])
     at = " / ".join(f"{t:g} s" for t in args.times)
     _results.write_table(
-        "fast_modes",
+        name,
         "Planetary dual-axis antenna: where the fast eigenvalues come from",
         _results.command(args),
         ["t (s)", "limiting mode (Hz)", "its damping ratio", "stability limit (µs)", "step taken (µs)",
          "undamped fastest (Hz)", "Re λ >= 0"],
         rows,
-        about=f"`tolerax.antenna('dual', fidelity='planetary')`, steady start, Tsit5 rtol 1e-6, linearised at {at} "
+        about=f"`tolerax.antenna('dual', fidelity='{fidelity}')`"
+        + ("" if args.mass_scaling is None else f" with mass_scaling {args.mass_scaling:g}")
+        + f", steady start, Tsit5 rtol 1e-6, linearised at {at} "
         "(the rattle developed; each contact held as it is at that instant).",
         intro=[
             f"Stability limit: the smallest r(arg λ)/|λ| over the eigenvalues of ∂f/∂y with |λ| > 2π·100 Hz "

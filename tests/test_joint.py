@@ -68,6 +68,13 @@ def test_a_fourth_fidelity_is_one_class_and_matches_the_lumped_joint():
 
 
 def test_fidelity_registry_names_the_classes():
-    assert tx.FIDELITIES == {"ideal": tx.IdealJoint, "lumped": tx.LumpedJoint, "planetary": tx.PlanetaryJoint}
+    assert tx.FIDELITIES == {
+        "ideal": tx.IdealJoint,
+        "lumped": tx.LumpedJoint,
+        "planetary": tx.PlanetaryJoint,
+        "planetary-scaled": tx.MassScaledPlanetaryJoint,
+    }
     mech = tx.antenna("dual", fidelity=("lumped", "planetary"))
     assert type(mech.azimuth) is tx.LumpedJoint and type(mech.pitch) is tx.PlanetaryJoint
+    mech = tx.antenna("dual", fidelity="planetary-scaled")
+    assert type(mech.pitch) is tx.MassScaledPlanetaryJoint and float(mech.pitch.mass_scaling) == 10.0

@@ -36,6 +36,7 @@ from ._joint import (
     IdealJoint as IdealJoint,
     LumpedJoint as LumpedJoint,
     LumpedMesh as LumpedMesh,
+    MassScaledPlanetaryJoint as MassScaledPlanetaryJoint,
     PlanetaryJoint as PlanetaryJoint,
     lumped_mesh as lumped_mesh,
 )

@@ -45,8 +45,9 @@ joint" and "pitch joint" bodies (3.77 kg, small inertia about their own $z$) are
 rotating output members: link 1 with its $z$ along the azimuth axis, link 2 with its $z$ along
 the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 0.61 m).
 
-**Joint fidelity** per joint is its class (`IdealJoint`, `LumpedJoint`, `PlanetaryJoint`, see
-`_joint`); the mechanism asks each joint for its coordinates, bodies, forces and contacts.
+**Joint fidelity** per joint is its class (`IdealJoint`, `LumpedJoint`, `PlanetaryJoint`,
+`MassScaledPlanetaryJoint`, see `_joint`); the mechanism asks each joint for its coordinates,
+bodies, forces, contacts and any inertia added on its own speeds.
 """
 
 import dataclasses
@@ -305,7 +306,16 @@ class Mechanism(AbstractScene):
         mass = jnp.einsum("b,bin,bim->nm", masses, f.jv, f.jv) + jnp.einsum("bi,bin,bim->nm", principal, jw, jw)
         rot_term = principal * alpha + jnp.cross(w, principal * w)
         bias = jnp.einsum("b,bin,bi->n", masses, f.jv, f.a) + jnp.einsum("bin,bi->n", jw, rot_term)
-        return mass, bias
+        return self._with_added_inertia(mass), bias
+
+    def _with_added_inertia(self, mass):
+        """`mass` plus each joint's constant `added_inertia` on its own speeds (no bias term:
+        constant in the joint's coordinates, whose speeds are their rates)."""
+        for joint, _, su, _ in self.joints():
+            added = joint.added_inertia()
+            if added is not None:
+                mass = mass.at[su, su].add(added)
+        return mass
 
     def momentum(self, q, u, t):
         """Total linear (kg m/s) and angular momentum about the world origin (kg m²/s)."""
@@ -322,7 +332,12 @@ class Mechanism(AbstractScene):
         _, rot = self.poses(q, t)
         v, w = self.twists(q, u, t)
         w_body = jnp.einsum("bji,bj->bi", rot, w)
-        return 0.5 * jnp.sum(masses * jnp.sum(v**2, -1)) + 0.5 * jnp.sum(principal * w_body**2)
+        energy = 0.5 * jnp.sum(masses * jnp.sum(v**2, -1)) + 0.5 * jnp.sum(principal * w_body**2)
+        for joint, _, su, _ in self.joints():
+            added = joint.added_inertia()
+            if added is not None:
+                energy += 0.5 * u[su] @ added @ u[su]
+        return energy
 
     def potential_energy(self, q):
         """Elastic energy (J) of conservative joints (linear meshes; contact laws with a
@@ -579,7 +594,7 @@ def _kane_by_autodiff(mech: Mechanism, q, u, t):
     iw = jnp.einsum("bij,bj->bi", inertia, w)
     rot_term = jnp.einsum("bij,bj->bi", inertia, alpha0) + jnp.cross(w, iw)
     bias = jnp.einsum("b,bin,bi->n", masses, jac_v, a0) + jnp.einsum("bin,bi->n", jac_w, rot_term)
-    return mass, bias
+    return mech._with_added_inertia(mass), bias
 
 
 def _vector_field_by_autodiff(mech: Mechanism, t, y):

@@ -35,8 +35,9 @@ def antenna(
     """A scene of the paper: driving `mode` `"azimuth"`, `"pitch"` (single-axis) or `"dual"`.
 
     - `fidelity`: one for both joints or `(azimuth, pitch)`; a name in `FIDELITIES`
-      (`"ideal"`, `"lumped"`, `"planetary"`), i.e. the joint classes `IdealJoint`,
-      `LumpedJoint`, `PlanetaryJoint`.
+      (`"ideal"`, `"lumped"`, `"planetary"`, `"planetary-scaled"`), i.e. the joint classes
+      `IdealJoint`, `LumpedJoint`, `PlanetaryJoint`, `MassScaledPlanetaryJoint` (its default
+      `mass_scaling`).
     - `rate`: commanded output rate of each driven joint (rad/s; the paper's 0.49, 0.98,
       1.96 °/s). A non-driven joint is held by its servo at angle 0 (`drive="speed"`).
     - `drive`: `"speed"` (PI servo on each motor), `"scan"` (the servo tracks a back-and-forth
