@@ -587,7 +587,7 @@ def main(argv=None) -> int:
     )
     bench.add_argument("--duration", type=_positive, default=0.1, help="simulated time per fidelity, s (default 0.1)")
     bench.add_argument("--fidelities", nargs="+", default=None, metavar="FIDELITY",
-                       help="joint fidelities to time (default: ideal lumped planetary)")
+                       help="joint fidelities to time (default: all of tolerax.FIDELITIES: ideal lumped planetary planetary-scaled)")
     bench.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
     args = parser.parse_args(argv)
     args.argv = argv
