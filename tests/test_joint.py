@@ -5,13 +5,18 @@ torsional spring and holds the output bearing rigid. It is written from the phys
 from `LumpedJoint`'s code; with the lumped joint's stiffness and damping and a stage whose
 meshes are linear and whose supports are rigid, the two must give the same motion (the lumped
 joint then *is* a linear torsional spring): an independent check of `LumpedJoint` and a
-demonstration that the mechanism never asks which fidelity a joint is.
+demonstration that the mechanism never asks which fidelity a joint is. Then the fidelity
+registry, and the mass-scaled joint's added inertia against closed forms (its momentum and energy
+invariants are in `tests/test_mechanism.py` with the other fidelities').
 """
 
 import math
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import tolerax as tx
 from tolerax._joint import JointLayout
@@ -78,3 +83,57 @@ def test_fidelity_registry_names_the_classes():
     assert type(mech.azimuth) is tx.LumpedJoint and type(mech.pitch) is tx.PlanetaryJoint
     mech = tx.antenna("dual", fidelity="planetary-scaled")
     assert type(mech.pitch) is tx.MassScaledPlanetaryJoint and float(mech.pitch.mass_scaling) == 10.0
+
+
+def test_mass_scaling_adds_inertia_only_to_relative_motion():
+    # Closed forms of `MassScaledPlanetaryJoint`'s added inertia (every family), through the
+    # whole mechanism's mass matrix and kinetic energy: (1) rigid rolling at the servo's rate
+    # carries none (the kinetic energy of the steady state equals the full planetary joint's);
+    # (2) a unit speed of one coordinate against the rigid train (sun or carrier translation at
+    # 1 m/s; a planet or the sun spinning at 1 rad/s with the carrier still) adds (s-1)/2 times
+    # the scaled bodies' own mass or inertia (the motor's included for the sun, the planets' for
+    # the carrier) to the full joint's kinetic energy, and s/2 times it where only those bodies
+    # move (the carrier's translation also moves everything the output carries); (3) s = 1
+    # gives the planetary joint's vector field to rounding; (4) bad input is refused.
+    from tolerax._joint import SCALED_FAMILIES
+
+    s = 37.0
+    full = tx.antenna("dual", fidelity="planetary")
+    scaled = tx.Mechanism(
+        *(
+            tx.MassScaledPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque, mass_scaling=s, families=SCALED_FAMILIES)
+            for j in (full.azimuth, full.pitch)
+        ),
+        base=full.base,
+    )
+    q, u, v = scaled.initial_state("steady")
+    t = jnp.asarray(0.0)
+    assert float(jnp.abs(u).max()) > 0.0
+    np.testing.assert_allclose(float(scaled.kinetic_energy(q, u, t)), float(full.kinetic_energy(q, u, t)), rtol=1e-14)
+    joint, lay = scaled.azimuth, scaled.layout
+    stage, jl = joint.stage, joint.stage.layout
+    for index, inertia in (
+        (jl.sun_xy.start, stage.sun_mass),
+        (jl.carrier_xy.start, stage.carrier_mass + stage.n_planets * stage.planet_mass),  # planets ride along
+        (jl.planet_xy.start, stage.planet_mass),
+        (jl.planet_theta.start, stage.planet_inertia),
+        (jl.sun_theta, stage.sun_inertia + joint.motor_inertia),
+    ):
+        du = jnp.zeros(lay.size_u).at[lay.azimuth_u.start + index].set(1.0)
+        mass, _ = scaled.dynamics(q, du, t)
+        own = float(full.kinetic_energy(q, du, t))
+        want = own + 0.5 * (s - 1.0) * float(inertia)
+        np.testing.assert_allclose(float(scaled.kinetic_energy(q, du, t)), want, rtol=1e-12)
+        np.testing.assert_allclose(0.5 * float(du @ mass @ du), want, rtol=1e-12)
+        if index != jl.carrier_xy.start:
+            np.testing.assert_allclose(own, 0.5 * float(inertia), rtol=1e-12)
+    unscaled = eqx.tree_at(lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), scaled, (jnp.asarray(1.0), jnp.asarray(1.0)))
+    y = (q, u.at[lay.azimuth_u.start + jl.sun_xy.start].add(1e-3), v)
+    got, want = unscaled.vector_field(t, y, None), full.vector_field(t, y, None)
+    for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+        np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * float(jnp.abs(b).max(initial=0.0)))
+    for bad in (0.5, float("nan")):
+        with pytest.raises(ValueError, match="mass_scaling"):
+            tx.MassScaledPlanetaryJoint(mass_scaling=bad)
+    with pytest.raises(ValueError, match="families"):
+        tx.MassScaledPlanetaryJoint(families=("ring_translation",))
