@@ -40,6 +40,7 @@ import json
 import pathlib
 
 import diffrax
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -182,10 +183,9 @@ def main():
     mech = tolerax.antenna("dual", fidelity="planetary")
     name, fidelity = "fast_modes", "planetary"
     if args.mass_scaling is not None:
-        mech = tolerax.Mechanism(
-            *(tolerax.MassScaledPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque, mass_scaling=args.mass_scaling)
-              for j in (mech.azimuth, mech.pitch)),
-            base=mech.base,
+        s = jnp.asarray(args.mass_scaling)
+        mech = eqx.tree_at(
+            lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), tolerax.antenna("dual", fidelity="planetary-scaled"), (s, s)
         )
         name, fidelity = "fast_modes_scaled", "planetary-scaled"
     labels = coordinate_labels(mech)

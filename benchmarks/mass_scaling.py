@@ -37,6 +37,7 @@ import json
 import os
 import time
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -49,14 +50,11 @@ FAMILIES = ("sun", "carrier", "planet")
 
 
 def scene(scaling):
-    full = tolerax.antenna("dual", fidelity="planetary")
     if scaling is None:
-        return full
-    joints = (
-        tolerax.MassScaledPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque, mass_scaling=scaling)
-        for j in (full.azimuth, full.pitch)
-    )
-    return tolerax.Mechanism(*joints, base=full.base)
+        return tolerax.antenna("dual", fidelity="planetary")
+    scaled = tolerax.antenna("dual", fidelity="planetary-scaled")
+    s = jnp.asarray(float(scaling))
+    return eqx.tree_at(lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), scaled, (s, s))
 
 
 def outputs(res, window_start):

@@ -245,21 +245,6 @@ def main():
     rows = []
     call = rhs_call_cost(scene, case.start)
     command = _results.command(args)
-    reference_state = {}
-
-    def log(row):
-        rows.append(row)
-        # Rewrite the results after every row: a run of this size takes an hour or more, and a
-        # killed run keeps what it measured (the table says which rows exist).
-        write(case, command, rows, reference_state["rec"], reference_state["agreement"], call)
-        errs = row.get("errors") or {}
-        print(
-            f"{row['family']:>9} {row['method']:>16} rtol={row['rtol']:<8g} eps={row['eps']:<8g} "
-            f"wall={row['wall_s']:8.3f}s compile={row['compile_s']:6.1f}s steps={row['steps']:>8} ok={row['ok']} "
-            + " ".join(f"{v:.2e}" for v in errs.values()),
-            flush=True,
-        )
-
     # Reference, checked by a second method.
     ref_rec, reference = run_diffrax(case, scene, diffrax.Dopri8(), 1e-12)
     if reference is None:
@@ -267,7 +252,19 @@ def main():
     check_rec, check = run_diffrax(case, scene, diffrax.Tsit5(), 1e-11)
     agreement = errors(check, reference) if check is not None else None
     print("reference Dopri8 1e-12 vs Tsit5 1e-11:", agreement, flush=True)
-    reference_state.update(rec=ref_rec, agreement=agreement)
+
+    def log(row):
+        rows.append(row)
+        # Rewrite the results after every row: a run of this size takes an hour or more, and a
+        # killed run keeps what it measured (the table says which rows exist).
+        write(case, command, rows, ref_rec, agreement, call)
+        errs = row.get("errors") or {}
+        print(
+            f"{row['family']:>9} {row['method']:>16} rtol={row['rtol']:<8g} eps={row['eps']:<8g} "
+            f"wall={row['wall_s']:8.3f}s compile={row['compile_s']:6.1f}s steps={row['steps']:>8} ok={row['ok']} "
+            + " ".join(f"{v:.2e}" for v in errs.values()),
+            flush=True,
+        )
 
     tolerances = [1e-4, 1e-6, 1e-8] if args.quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9]
     explicit = [("Tsit5", diffrax.Tsit5()), ("Dopri5", diffrax.Dopri5()), ("Dopri8", diffrax.Dopri8()), ("Bosh3", diffrax.Bosh3())]
