@@ -6,7 +6,7 @@ Lin & Parker's coordinates with a fixed ring, clearance contacts at the sun, car
 pins (the restitution laws), nonlinear meshes with time-varying stiffness, profile error and
 dynamic backlash, smoothed with the stage's width, a PI speed servo on the sun and a smoothed drag
 on the carrier. Every Jacobian is written out by hand (forward-mode chain rule on 15-vectors), not
-taken from JAX; `check` compares the two right-hand sides. Only the default bench's structure is
+taken from JAX; `work_precision.numpy_check` compares the two right-hand sides. Only the default bench's structure is
 covered (fixed ring, clearance supports, nonlinear meshes, `SpeedServo`): anything else raises.
 
 State: the flattened `(q, qd, impact_rates)` of `TestBench.initial_state`, 15 + 15 + 5 numbers.
