@@ -67,9 +67,9 @@ def numpy_rhs(bench):
     e_r = np.stack([np.cos(psi), np.sin(psi)], -1)  # (N, 2)
     e_t = np.stack([-np.sin(psi), np.cos(psi)], -1)
     S = np.array([[0.0, -1.0], [1.0, 0.0]])  # d/dtheta R(theta) = R(theta) S
-    # Meshes: (name, mesh, line-of-action angle psi -/+ alpha, alpha, internal).
+    # Mesh families: the sun meshes (external) and the ring meshes (internal), their constants.
     meshes = []
-    for mesh, sign, alpha, internal in ((st.sun_mesh, -1.0, a_s, False), (st.ring_mesh, 1.0, a_r, True)):
+    for mesh, alpha, internal in ((st.sun_mesh, a_s, False), (st.ring_mesh, a_r, True)):
         m_eq = (I_p * float(st.sun_inertia) / (I_p * rs**2 + float(st.sun_inertia) * rp**2)) if not internal else I_p / rp**2
         meshes.append(dict(
             km=float(mesh.stiffness), eps=float(mesh.contact_ratio), xi=float(mesh.damping_ratio), m_eq=m_eq,
