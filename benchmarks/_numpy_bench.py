@@ -3,11 +3,12 @@ write them for `scipy.integrate.solve_ivp`: the SciPy baseline of `work_precisio
 
 Same model as `tolerax.TestBench.vector_field` (docs/MODEL.md §2-4; `_planetary`): the stage in
 Lin & Parker's coordinates with a fixed ring, clearance contacts at the sun, carrier and planet
-pins (the restitution laws), nonlinear meshes with time-varying stiffness, profile error and
+pins (the paper's BaiZhao law), nonlinear meshes with time-varying stiffness, profile error and
 dynamic backlash, smoothed with the stage's width, a PI speed servo on the sun and a smoothed drag
 on the carrier. Every Jacobian is written out by hand (forward-mode chain rule on 15-vectors), not
 taken from JAX; `work_precision.numpy_check` compares the two right-hand sides. Only the default bench's structure is
-covered (fixed ring, clearance supports, nonlinear meshes, `SpeedServo`): anything else raises.
+covered (fixed ring, clearance supports, nonlinear meshes, BaiZhao contacts, `SpeedServo`):
+anything else raises.
 
 State: the flattened `(q, qd, impact_rates)` of `TestBench.initial_state`, 15 + 15 + 5 numbers.
 """
@@ -40,7 +41,7 @@ def numpy_rhs(bench):
             and st.sun_mesh.kind == st.ring_mesh.kind == "nonlinear"
             and st.sun_mesh.dynamic_backlash and st.ring_mesh.dynamic_backlash
             and st.sun_torsion is None and st.carrier_torsion is None
-            and hasattr(st.contact_law, "chi")):
+            and isinstance(st.contact_law, tolerax.BaiZhao)):
         raise ValueError("numpy_rhs covers only the default bench structure (see its module docstring).")
     f = lambda x: np.asarray(x, dtype=float)  # noqa: E731
     N, n = st.n_planets, lay.size
@@ -58,7 +59,6 @@ def numpy_rhs(bench):
     kp, ki, omega = float(bench.servo.proportional), float(bench.servo.integral), float(bench.servo.output_rate)
     T_load = float(bench.load_torque)
     chi = float(st.contact_law.chi())
-    law = type(st.contact_law).__name__
     floor, tau = float(st.impact_rate_floor), float(st.impact_memory_time)
     # Index map.
     TS, TC, TP = lay.sun_theta, lay.carrier_theta, np.arange(n)[lay.planet_theta]
@@ -80,9 +80,10 @@ def numpy_rhs(bench):
     # Contacts, in state order: sun, carrier, planets.
     bearings = [st.sun_support.bearing, st.carrier_support.bearing] + [st.planet_support.bearing] * N
     idx = [SXY, CXY] + [PXY[k] for k in range(N)]
-    clear = np.array([float(np.broadcast_to(b.clearance, (N,))[max(i - 2, 0)]) for i, b in enumerate(bearings)])
-    length = np.array([float(np.broadcast_to(b.length, (N,))[max(i - 2, 0)]) for i, b in enumerate(bearings)])
-    modulus = np.array([float(np.broadcast_to(b.modulus, (N,))[max(i - 2, 0)]) for i, b in enumerate(bearings)])
+    def per_contact(field):  # a bearing field per contact (the pins' may be per planet)
+        return np.array([float(np.broadcast_to(getattr(b, field), (N,))[max(i - 2, 0)]) for i, b in enumerate(bearings)])
+
+    clear, length, modulus = per_contact("clearance"), per_contact("length"), per_contact("modulus")
     nc = len(idx)
     # Constant mass-matrix pieces (sun, carrier, planet spins); the planets' translation is
     # added per call.
@@ -132,7 +133,7 @@ def numpy_rhs(bench):
         gzt[np.arange(N), PXY[:, 0]] += 1.0
         get[np.arange(N), PXY[:, 1]] += 1.0
         Q = np.zeros(n)
-        for mesh_i, mesh in enumerate(meshes):
+        for mesh in meshes:
             internal, alpha = mesh["internal"], mesh["alpha"]
             if not internal:
                 lam = psi - alpha
@@ -144,6 +145,8 @@ def numpy_rhs(bench):
                 gg[np.arange(N), TP] += rp
                 gg[:, TC] -= rc * math.cos(alpha)
                 phase = zs * (th_s - th_c) + mesh["phk"]
+                gphase = np.zeros(n)
+                gphase[TS], gphase[TC] = zs, -zs
             else:
                 other, gother = np.zeros(2), np.zeros((2, n))
                 g = zt * math.sin(alpha) - et * math.cos(alpha) - rp * q[TP] - rc * math.cos(alpha) * th_c
@@ -151,12 +154,9 @@ def numpy_rhs(bench):
                 gg[np.arange(N), TP] -= rp
                 gg[:, TC] -= rc * math.cos(alpha)
                 phase = zr * th_c + mesh["phk"]
-            # Profile error e(phase) and its gradient (phase depends on th_s, th_c).
-            gphase = np.zeros(n)
-            if not internal:
-                gphase[TS], gphase[TC] = zs, -zs
-            else:
+                gphase = np.zeros(n)
                 gphase[TC] = zr
+            # Profile error e(phase) and its gradient.
             err = mesh["E"] * np.sin(phase + mesh["phe"])
             gerr = (mesh["E"] * np.cos(phase + mesh["phe"]))[:, None] * gphase[None, :]
             # Dynamic backlash from the planet centre's distance to the other gear's centre.
@@ -194,10 +194,7 @@ def numpy_rhs(bench):
         pen = _ramp(gap, w)
         rate = np.sum(normal * edot, 1)
         pd = np.maximum(pen, 0.0)
-        if law == "BaiZhao":
-            f_el = length * 0.5 * math.pi * modulus * pd**1.5 / np.sqrt(2.0 * (clear + pd))
-        else:
-            raise ValueError(f"numpy_rhs has the BaiZhao law only, not {law}.")
+        f_el = length * 0.5 * math.pi * modulus * pd**1.5 / np.sqrt(2.0 * (clear + pd))  # BaiZhao
         v_eff = floor + _ramp(v - floor, 0.1 * floor)
         total = f_el * _step(gap, w) * (1.0 + chi * rate / v_eff)
         alive = f_el > FORCE_FLOOR

@@ -18,7 +18,6 @@ Writes `benchmarks/results/implicit_window.md`, rewritten after every row.
 """
 
 import argparse
-import math
 import time
 
 import diffrax
@@ -33,7 +32,6 @@ from tolerax._solve import _NAMES
 
 import _results
 
-ARCSEC = math.pi / (180 * 3600)
 METHODS = {
     "Tsit5": lambda rtol: diffrax.Tsit5(),
     "Dopri8": lambda rtol: diffrax.Dopri8(),
@@ -66,7 +64,7 @@ def solve(mech, solver, t0, t1, y0, rtol, atol, ts, max_steps):
 def outputs(mech, sol):
     """Pointing error (arcsec) and the tracking speed error (urad/s, 3 components) at the saves."""
     obs = jax.vmap(mech.observe)(sol.ts, sol.ys)
-    return np.asarray(obs.pointing_error) / ARCSEC, np.asarray(obs.tracking_speed_error) * 1e6
+    return np.asarray(obs.pointing_error) / tolerax.ARCSEC, np.asarray(obs.tracking_speed_error) * 1e6
 
 
 def main():
