@@ -40,7 +40,6 @@ import json
 import pathlib
 
 import diffrax
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -183,10 +182,7 @@ def main():
     mech = tolerax.antenna("dual", fidelity="planetary")
     name, fidelity = "fast_modes", "planetary"
     if args.mass_scaling is not None:
-        s = jnp.asarray(args.mass_scaling)
-        mech = eqx.tree_at(
-            lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), tolerax.antenna("dual", fidelity="planetary-scaled"), (s, s)
-        )
+        mech = tolerax.antenna("dual", fidelity="planetary-scaled", mass_scaling=args.mass_scaling)
         name, fidelity = "fast_modes_scaled", "planetary-scaled"
     labels = coordinate_labels(mech)
     t_end = max(args.times)

@@ -37,7 +37,6 @@ import json
 import os
 import time
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -52,9 +51,7 @@ FAMILIES = ("sun", "carrier", "planet")
 def scene(scaling):
     if scaling is None:
         return tolerax.antenna("dual", fidelity="planetary")
-    scaled = tolerax.antenna("dual", fidelity="planetary-scaled")
-    s = jnp.asarray(float(scaling))
-    return eqx.tree_at(lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), scaled, (s, s))
+    return tolerax.antenna("dual", fidelity="planetary-scaled", mass_scaling=float(scaling))
 
 
 def outputs(res, window_start):

@@ -83,6 +83,12 @@ def test_fidelity_registry_names_the_classes():
     assert type(mech.azimuth) is tx.LumpedJoint and type(mech.pitch) is tx.PlanetaryJoint
     mech = tx.antenna("dual", fidelity="planetary-scaled")
     assert type(mech.pitch) is tx.MassScaledPlanetaryJoint and float(mech.pitch.mass_scaling) == 10.0
+    mech = tx.antenna("dual", fidelity=("planetary-scaled", "lumped"), mass_scaling=100.0)
+    assert float(mech.azimuth.mass_scaling) == 100.0 and type(mech.pitch) is tx.LumpedJoint
+    with pytest.raises(ValueError, match="needs a 'planetary-scaled' joint"):
+        tx.antenna("dual", fidelity="planetary", mass_scaling=100.0)
+    with pytest.raises(ValueError, match="mass_scaling"):
+        tx.antenna("dual", fidelity="planetary-scaled", mass_scaling=0.5)
 
 
 def test_mass_scaling_adds_inertia_only_to_relative_motion():

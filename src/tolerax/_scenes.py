@@ -31,6 +31,7 @@ def antenna(
     motor_inertia: float = 2e-4,
     scan_amplitude: float = math.radians(0.5),
     scan_period: float = 2.0,
+    mass_scaling: float | None = None,
 ) -> Mechanism:
     """A scene of the paper: driving `mode` `"azimuth"`, `"pitch"` (single-axis) or `"dual"`.
 
@@ -49,6 +50,8 @@ def antenna(
     - `azimuth_stage`, `pitch_stage`: gear data (default `default_stage()`: 100 µm clearances
       and backlash).
     - `servo_gains`: $(k_p, k_i)$ of the motor servos (N m s/rad, N m/rad).
+    - `mass_scaling`: $s \\ge 1$ of every `"planetary-scaled"` joint (default: the class's,
+      10); an error with no such joint.
     """
     if mode not in DRIVE_MODES:
         raise ValueError(f"mode={mode!r} is unknown; use one of {DRIVE_MODES}.")
@@ -63,6 +66,9 @@ def antenna(
     for name, pair in (("torques", torques), ("servo_gains", servo_gains)):
         if np.shape(pair) != (2,):
             raise ValueError(f"antenna({name}=...) must be a pair of numbers, got {pair!r}.")
+    if mass_scaling is not None and "planetary-scaled" not in fids:
+        raise ValueError(f"mass_scaling={mass_scaling!r} needs a 'planetary-scaled' joint; fidelity is {fidelity!r}.")
+    scaling = {} if mass_scaling is None else dict(mass_scaling=mass_scaling)
     driven = (mode in ("azimuth", "dual"), mode in ("pitch", "dual"))
     joints = []
     for k, (stage, fid, on) in enumerate(zip((azimuth_stage, pitch_stage), fids, driven)):
@@ -72,7 +78,8 @@ def antenna(
             drv = ScanServo(scan_amplitude, scan_period, *servo_gains)
         else:
             drv = SpeedServo(rate if on else 0.0, *servo_gains)
-        joints.append(FIDELITIES[fid](stage, drv, motor_inertia=motor_inertia, drag_torque=drag_torque))
+        extra = scaling if fid == "planetary-scaled" else {}
+        joints.append(FIDELITIES[fid](stage, drv, motor_inertia=motor_inertia, drag_torque=drag_torque, **extra))
     return Mechanism(joints[0], joints[1], base=base)
 
 
