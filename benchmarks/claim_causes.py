@@ -1,8 +1,9 @@
-"""Measured causes of the paper's claims that the 1 s studies did not reproduce (the "differ" rows
-of the 1 s `notebooks/results/claims.md`, in git history, other than the output-bearing forces,
-which `output_bearing.py` explains). Those studies read 0.3-1 s of a 1 s run from the steady
-start, which turned out to be the servo's start-up (the studies now read 2-3 s of a 3 s run and
-keep 0.3-1 s under `"start_up"`); these parts measure that window.
+"""Measured causes of the paper's claims that the studies do not reproduce (the "differ" rows of
+`notebooks/results/claims.md`, other than the output-bearing forces, which `output_bearing.py`
+explains). The 1 s studies (in git history) read 0.3-1 s of a 1 s run from the steady start,
+which turned out to be the servo's start-up (`transient`); the studies now read 2-3 s of a 3 s
+run and keep 0.3-1 s under `"start_up"`. `flanks` and `floor` measure that old window,
+`steady-floor` today's.
 
     python benchmarks/claim_causes.py --part flanks [--flank-rate 20000]
     python benchmarks/claim_causes.py --part floor
@@ -26,6 +27,11 @@ after every row (so two can run at once, one per core):
   metric makes under the tighter tolerance is below what these runs resolve (the rattle is
   chaotic: rounding-level changes grow into different trajectories). Also the peak of the
   tracking speed error's magnitude (the study reports per-axis peaks).
+- `steady-floor`: the same question for today's full-size studies (3 s, metrics over 2-3 s):
+  the scenes behind claims decided by small differences rerun at rtol 1e-7 against their
+  committed rows (`notebooks/results/*-full.json`, rtol 1e-6). `--duration` does not apply.
+- `transient`: why the 1 s studies measured the start-up: the speed error and lag of one study
+  scene (and its lumped twin) per 0.25 s over `--duration` seconds.
 """
 
 import argparse
@@ -245,8 +251,8 @@ def main():
             f"Metrics over t >= {WINDOW[0]} s saved at {SAVE_RATE:g} points per second, as in the 1 s studies; the "
             "rtol-1e-6 rows repeat those runs with today's code (the 1 s study files were computed on 2026-11-21 by "
             "earlier code, so their values differ from these rows by at least the chaos floor). Speed error: "
-            "reflector angular velocity relative to the base minus the commanded one, base-frame components, and the peak of its magnitude; position error: reflector "
-            "centre. X is the pitch axis at zero azimuth, Z the azimuth axis."
+            "reflector angular velocity relative to the base minus the commanded one, base-frame components, and the "
+            "peak of its magnitude; position error: reflector centre. X is the pitch axis at zero azimuth, Z the azimuth axis."
         ]
     about = ("Study scenes at full size (free base, driven joint planetary, the other lumped; dual-axis: both planetary), "
              f"{FULL.duration if args.part == 'steady-floor' else args.duration:g} s from a steady start, Tsit5 atol 1e-9. Load average (1 min) at start: {os.getloadavg()[0]:.2f}.")
