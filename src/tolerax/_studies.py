@@ -3,13 +3,13 @@ metrics we compare with its figures and tables.
 
 Each study is a list of scenes (a label and a `Mechanism`), run at a *size*: `"small"` (a few
 scenes, a few hundredths of a second: it proves the pipeline in CI) or `"full"` (the paper's
-grids, coarser where noted, 3 s each with metrics over the last 1 s: about two hours of CPU).
-Scenes start in steady rolling at the commanded rate (free base, meshes undeflected). That is
-not the loaded steady state: the servo then builds its lag against the output drag, and the
-output's speed swings down to nearly a stop and back over the first ~2 s (measured:
-the `"start_up"` entries of `notebooks/results/*-full.json`). Metrics therefore start at `settle` = 2 s. The
-full size also records each scene's metrics over 0.3-1 s under `"start_up"`, the window of the
-1 s studies committed before (which measured the start-up, not the steady state).
+grids, coarser where noted, 3 s each with metrics over the last 1 s: 109 min of CPU for the 46
+scenes on 2026-11-24). Scenes start in steady rolling at the commanded rate (free base, meshes
+undeflected). That is not the loaded steady state: the servo then builds its lag against the
+output drag, and the output's speed swings down to nearly a stop and back over the first ~2 s
+(`benchmarks/results/claim_causes_transient.md`). Metrics therefore start at `settle` = 2 s.
+The full size also records each scene's metrics over 0.3-1 s under `"start_up"`, the window of
+the 1 s studies committed before (which measured the start-up, not the steady state).
 
 Fidelity per joint, chosen for what each study asks: the *driving* joint is `"planetary"` (the
 studies vary its planet, carrier and mesh clearances); the non-driving joint, which the paper
