@@ -81,6 +81,11 @@ def _flank_extremes(stage, qs):
     return jax.vmap(one)(qs)
 
 
+def _scene(study, **want):
+    """(labels, mechanism) of the full-size scene of `study` whose labels include `want`."""
+    return next((lab, m) for lab, m in scenes(study, "full") if all(lab[k] == v for k, v in want.items()))
+
+
 def _label(labels):
     return ", ".join(f"{k} {v}" for k, v in labels.items())
 
@@ -117,7 +122,7 @@ FLOOR_SCENES = (
 
 def floor_rows(duration):
     for study, want in FLOOR_SCENES:
-        labels, mech = next((lab, m) for lab, m in scenes(study, "full") if all(lab[k] == v for k, v in want.items()))
+        labels, mech = _scene(study, **want)
         for rtol in (1e-6, 1e-7):
             res = tolerax.simulate(mech, duration, start="steady", n_save=int(round(duration * SAVE_RATE)) + 1, rtol=rtol)
             met = metrics(mech, res, WINDOW[0])
@@ -139,7 +144,7 @@ def floor_rows(duration):
 def transient_rows(duration, step=0.25):
     """The azimuth 0.98 deg/s study scene (planetary azimuth joint) and the same scene with lumped
     joints: speed-error range and mean lag per `step` of a `duration` run."""
-    _, planetary = next((lab, m) for lab, m in scenes("speed", "full") if lab["mode"] == "azimuth" and lab["rate"] == 0.98)
+    _, planetary = _scene("speed", mode="azimuth", rate=0.98)
     lumped = tolerax.antenna("azimuth", fidelity="lumped", rate=math.radians(0.98))
     series = {}
     for name, mech in (("planetary", planetary), ("lumped", lumped)):
@@ -177,7 +182,7 @@ def _committed(study, labels):
 def steady_rows():
     """The steady window (settle-duration of the full size) at rtol 1e-7 against the committed rtol-1e-6 rows."""
     for study, want in STEADY_SCENES:
-        labels, mech = next((lab, m) for lab, m in scenes(study, "full") if all(lab[k] == v for k, v in want.items()))
+        labels, mech = _scene(study, **want)
         res = tolerax.simulate(mech, FULL.duration, start="steady", n_save=FULL.n_save, rtol=1e-7)
         rows = (("1e-06 (committed)", _committed(study, labels)), ("1e-07", metrics(mech, res, FULL.settle)))
         for rtol, met in rows:
