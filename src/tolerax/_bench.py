@@ -75,6 +75,11 @@ class TestBench(AbstractScene):
     def initial_state(self, start: str = "rest"):
         """Every component centred, meshes at $g = 0$; at rest (`start="rest"`) or in rigid
         kinematics at the commanded speed (`"steady"`)."""
+        if start == "loaded":
+            raise ValueError(
+                "start='loaded' is built for mechanisms (tolerax.antenna scenes); the test bench "
+                "has 'rest' and 'steady'."
+            )
         stage = self.stage
         lay = stage.layout
         omega_c = self.servo.rate(0.0) * (1.0 if start == "steady" else 0.0)

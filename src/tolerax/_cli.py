@@ -538,7 +538,7 @@ def main(argv=None) -> int:
     run.add_argument("--duration", type=_positive, default=None, help="override run.duration, s")
     run.add_argument("--settle", type=_non_negative, default=None, help="override run.settle (start of the pointing window), s")
     run.add_argument("--n-save", type=_count(2), default=None, help="override run.n_save (saved times)")
-    run.add_argument("--start", choices=("rest", "steady"), default=None, help="override run.start")
+    run.add_argument("--start", choices=("rest", "steady", "loaded"), default=None, help="override run.start")
     run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     design = sub.add_parser(
         "design", help="propose clearances, backlash and tolerance bands for a pointing requirement",

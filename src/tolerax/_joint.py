@@ -127,6 +127,22 @@ class AbstractJoint(eqx.Module):
         uj = uj.at[lay.carrier].set(rate)
         return uj if lay.sun is None else uj.at[lay.sun].set(self.stage.ratio * rate)
 
+    def _loaded_sun(self, t):
+        """`(T, theta_s)`: the drag torque $T$ (N m) at the commanded rate and the sun angle (rad)
+        at which the servo's angle term supplies the sun torque $T/i$ that carries it,
+        $\\theta_s = i\\theta^*(t) - T/(i k_i)$ (the rate term is zero at the commanded speed)."""
+        i = self.stage.ratio
+        torque = drag(self.drag_torque, self.drive.rate(t))
+        return torque, i * self.drive.angle(t) - torque / (i * self.drive.integral)
+
+    def loaded_coordinates(self, t=0.0):
+        """Coordinates `qj` of the loaded steady state at time `t`, in closed form up to the
+        meshes' and supports' elastic deflections (a first guess that `Mechanism.initial_state
+        ("loaded")` polishes): a constant-rate servo lags its command by what the output drag
+        needs, and the gear train's play is taken up on the loaded flanks. Zeros here (a joint
+        with no coordinates, or no servo)."""
+        return jnp.zeros(self.layout.size)
+
     # -- forces ---------------------------------------------------------------------------
 
     def drive_forces(self, qj, uj, t):
@@ -300,6 +316,18 @@ class LumpedJoint(_RigidTrainJoint):
         lay = self.layout
         return lm.lever * (qj[lay.sun] / self.stage.ratio - qj[lay.carrier])
 
+    def loaded_coordinates(self, t=0.0):
+        """Sun at the servo lag (`_loaded_sun`), output behind the sun's rigid position by the
+        equivalent mesh's gap on the loaded flank plus its deflection: $g = $ `drive_gap`
+        $+ F/K$ (or $-$`back_gap`$ + F/K$ turning backwards), $F = T/r$; output bearing centred."""
+        lay = self.layout
+        torque, theta_s = self._loaded_sun(t)
+        lm = self.mesh
+        force = torque / lm.lever
+        g = jnp.where(torque >= 0, lm.drive_gap, -lm.back_gap) + force / lm.stiffness
+        theta_c = theta_s / self.stage.ratio - g / lm.lever
+        return jnp.zeros(lay.size).at[lay.sun].set(theta_s).at[lay.carrier].set(theta_c)
+
     def _bearing(self):
         return jax.tree.map(lambda x: x[None], self.stage.carrier_support.bearing)
 
@@ -388,6 +416,43 @@ class _AbstractStageJoint(AbstractJoint):
             planets = self.stage.layout.planet_theta
             uj = uj.at[planets].set(_planet_spin_ratio(self.stage) * self.drive.rate(t))
         return uj
+
+    def loaded_coordinates(self, t=0.0):
+        """Sun at the servo lag (`_loaded_sun`); the train rolled rigidly with it; then, turning
+        forwards, each planet against its pin on the trailing side ($\\eta_n = c$, the smallest
+        pin clearance) with the carrier behind by $c/r_c$, which leaves both meshes of every
+        planet at zero deflection (the lumped joint's play $c(\\cos\\alpha_s+\\cos\\alpha_r)$ on
+        the lever $i r_{bs} = r_c(\\cos\\alpha_s+\\cos\\alpha_r)$). Turning backwards the same
+        mirrored, and the carrier and planets turned further until both back flanks touch:
+        $\\Delta\\theta_c = \\min_n(b_{s,n} + b_{r,n})/(r_c(\\cos\\alpha_s+\\cos\\alpha_r))$,
+        $\\Delta\\theta_n = (r_c\\cos\\alpha_s\\Delta\\theta_c - b_s)/r_{bp}$. Translations of sun
+        and carrier zero; mesh deflections under load left to the polish."""
+        stage, lay = self.stage, self.stage.layout
+        torque, theta_s = self._loaded_sun(t)
+        ahead = jnp.where(torque >= 0, 1.0, -1.0)
+        theta_c = theta_s / stage.ratio
+        theta_p = _planet_spin_ratio(stage) * theta_c
+        if stage.planet_support.kind == "clearance" and lay.planet_xy is not None:
+            c = jnp.min(jnp.broadcast_to(stage.planet_support.bearing.clearance, (stage.n_planets,)))
+            theta_c = theta_c - ahead * c / stage.carrier_radius
+            eta = ahead * c
+        else:
+            eta = 0.0
+        if stage.sun_mesh.kind == "nonlinear":
+            n = stage.n_planets
+            b_s, b_r = (jnp.broadcast_to(m.backlash, (n,)) for m in (stage.sun_mesh, stage.ring_mesh))
+            kappa = jnp.cos(stage.sun_pressure_angle) + jnp.cos(stage.ring_pressure_angle)
+            # The first planet whose two back flanks close carries the load (backlash per planet).
+            d_c = jnp.min(b_s + b_r) / (stage.carrier_radius * kappa)
+            d_p = (stage.carrier_radius * jnp.cos(stage.sun_pressure_angle) * d_c - b_s) / stage.planet_base_radius
+            backwards = torque < 0
+            theta_c = theta_c + jnp.where(backwards, d_c, 0.0)
+            theta_p = theta_p + jnp.where(backwards, d_p, 0.0)
+        qj = jnp.zeros(lay.size).at[lay.sun_theta].set(theta_s).at[lay.carrier_theta].set(theta_c)
+        qj = qj.at[lay.planet_theta].set(theta_p)
+        if lay.planet_xy is not None:
+            qj = qj.at[lay.planet_xy.start + 1 : lay.planet_xy.stop : 2].set(eta)
+        return qj
 
     def forces(self, qj, uj, vj, t):
         f = _planetary.stage_forces(self.stage, qj, uj, vj)

@@ -57,9 +57,11 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import optimistix as optx
 from jaxtyping import Array, Float
 
 from . import _outputs, _validate as V
+from ._drives import SpeedServo
 from ._joint import AbstractJoint, PlanetaryJoint
 from ._rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, vee, world_inertia
 from ._scene import AbstractScene
@@ -430,21 +432,79 @@ class Mechanism(AbstractScene):
         return jnp.concatenate(parts)
 
     def initial_state(self, start: str = "rest"):
-        """`(q, u, impact_rates)` at t = 0: everything centred, joint angles 0, base at rest.
+        """`(q, u, impact_rates)` at t = 0; the base at rest.
 
-        `start="rest"`: the joints at rest (a servo start-up follows). `"steady"`: each
-        servo-driven joint already turning at its commanded rate in rigid kinematics (sun at
-        $i\\Omega$, planets rolling), so a short run skips most of the start-up transient.
-        Prescribed (ideal) joints are at their commanded state either way."""
+        - `start="rest"`: everything centred, joint angles 0, the joints at rest (a servo
+          start-up follows).
+        - `"steady"`: as `"rest"`, but each servo-driven joint already turning at its commanded
+          rate in rigid kinematics (sun at $i\\Omega$, planets rolling), meshes undeflected and
+          the servo at zero lag. The servo then builds its lag against the output drag: the
+          output's speed swings and settles over ~2 s at the default gains
+          (`benchmarks/results/loaded_start.md`).
+        - `"loaded"`: the loaded steady state itself (`loaded_state`): speeds as `"steady"`, and
+          each servo lagging its command by what the drag needs, the gear train's play taken up
+          on the loaded flanks and every mesh and contact deflected under that load. Needs
+          constant-rate servos (`SpeedServo`) with an integral gain; solves a small nonlinear
+          least-squares problem (compiles once per structure).
+
+        Prescribed (ideal) joints are at their commanded state in every case."""
         lay = self.layout
         q = jnp.zeros(lay.size_q)
         if self.base == "free":
             q = q.at[3].set(1.0)  # identity quaternion
         u = jnp.zeros(lay.size_u)
-        if start == "steady":
+        if start in ("steady", "loaded"):
             for joint, _, su, _ in self.joints():
                 u = u.at[su].set(joint.steady_speeds())
+        if start == "loaded":
+            q = self.loaded_state(q, u)
         return q, u, self.initial_impact_rates(q, u)
+
+    def loaded_state(self, q, u, *, max_steps: int = 200):
+        """The coordinates `q` at t = 0 at which the joints, turning at speeds `u` (the steady
+        speeds), are in equilibrium: zero accelerations of every joint coordinate.
+
+        Start: each joint's closed form (`AbstractJoint.loaded_coordinates`: servo lag
+        $T/(i k_i)$ on the sun, play taken up on the loaded flanks). Then Levenberg-Marquardt
+        (`optimistix`) on the joint coordinates (base pose held) for the residual
+        $\\sqrt{M_{kk}}\\,\\dot u_k$ over the joint speeds (the generalised force per unit
+        square-root inertia: balances sun, planets and heavy output), plus a weak anchor
+        `LOADED_ANCHOR` $(x - x_0)$ to the closed form (a ~1 N/m spring against 1e8 N/m meshes):
+        members floating in clearance and backlash allow many equilibria (a probe without it
+        put the pitch joint's sun against its bearing and the planets at unequal spins), and
+        the anchor picks the one nearest the closed form (moved by <= 1.6 urad, 35 nm).
+
+        Outside `jit`, a `ValueError` if the polish leaves more than 1 % of the residual that
+        the `"steady"` state has (measured 2e-4 planetary, 4e-3 lumped). What remains is the
+        pitch output's radial load (the centripetal force of link 2 and the reflector turning
+        about the azimuth axis, ~1e-3 N): the carrier floats in its clearance, where that force
+        has no gradient to follow, so it drifts to the bearing wall over the first ~1 s of a
+        run and lands at well under 1 mm/s (`benchmarks/results/loaded_start.md`)."""
+        lay = self.layout
+        for name, joint in (("azimuth", self.azimuth), ("pitch", self.pitch)):
+            if joint.layout.sun is None:
+                continue
+            if not isinstance(joint.drive, SpeedServo):
+                raise ValueError(
+                    f"start='loaded' needs constant-rate servos; the {name} joint's drive is a "
+                    f"{type(joint.drive).__name__}, whose load changes with time. Use start='steady'."
+                )
+            if not V.is_traced(joint.drive.integral) and float(joint.drive.integral) <= 0.0:
+                raise ValueError(
+                    f"start='loaded' needs a servo with an integral (angle) gain > 0 to hold the load; "
+                    f"the {name} joint's SpeedServo has integral={float(joint.drive.integral)!r}. Use start='steady'."
+                )
+        guess = q
+        for joint, sq, _, _ in self.joints():
+            guess = guess.at[sq].set(joint.loaded_coordinates())
+        steady_norm, x, norm = _polish_loaded(self, q, u, guess[lay.base_q :], max_steps)
+        if not V.is_traced(norm) and not float(norm) <= 1e-2 * float(steady_norm):
+            raise ValueError(
+                f"The loaded steady state was not found: the equilibrium residual is {float(norm):.3g} "
+                f"against {float(steady_norm):.3g} at start='steady' (Levenberg-Marquardt, {max_steps} "
+                "steps). Use start='steady' (and a longer settle), or raise max_steps."
+            )
+        return q.at[lay.base_q :].set(x)
 
     def check_runnable(self):
         if self.layout.size_u == 0:
@@ -468,6 +528,32 @@ class Mechanism(AbstractScene):
 
 # -------------------------------------------------------------------------------------------
 # Frame propagation for Kane's equations (`Mechanism.kinematics`)
+
+
+def _loaded_residual(mech: Mechanism, q, u, x):
+    """$\\sqrt{M_{kk}}\\,\\dot u_k$ over the joint speeds at joint coordinates `x` (base as in `q`)."""
+    lay = mech.layout
+    qx = q.at[lay.base_q :].set(x)
+    v = mech.initial_impact_rates(qx, u)
+    mass, bias = mech.dynamics(qx, u, 0.0)
+    (qa, ca), (qp, cp) = mech.joint_forces(qx, u, v, 0.0)
+    force = jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias
+    ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force)
+    return (jnp.sqrt(jnp.diag(mass)) * ud)[lay.base_u :]
+
+
+LOADED_ANCHOR = 1.0  # sqrt(kg)/s^2: weight of (x - x0) beside the residual (see `Mechanism.loaded_state`)
+
+
+@eqx.filter_jit
+def _polish_loaded(mech: Mechanism, q, u, x0, max_steps: int):
+    """Levenberg-Marquardt from `x0`; returns (residual norm at `"steady"`, solution, its norm)."""
+    lay = mech.layout
+    residual = lambda x: _loaded_residual(mech, q, u, x)  # noqa: E731
+    fn = lambda x, _: jnp.concatenate([residual(x), LOADED_ANCHOR * (x - x0)])  # noqa: E731
+    solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
+    sol = optx.least_squares(fn, solver, x0, max_steps=max_steps, throw=False)
+    return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))
 
 
 class _Frames(NamedTuple):

@@ -1,7 +1,7 @@
 """A scene is anything `simulate` can run: the joint on its test bench, the antenna mechanism.
 
-A scene provides its initial state (`start="rest"` or `"steady"`: already turning at the
-commanded rate in rigid kinematics), its equations of motion (`vector_field`), what is observed
+A scene provides its initial state (`start="rest"`; `"steady"`: already turning at the
+commanded rate in rigid kinematics; `"loaded"`, mechanisms only: the loaded steady state), its equations of motion (`vector_field`), what is observed
 at a saved state (`observe`), and how the saved series become its result type. `simulate` is the
 one entry point; `_solve.solve` the one diffrax call.
 """
@@ -15,7 +15,7 @@ import jax
 from . import _validate as V
 from ._solve import DTMIN, SolverReport, raise_on_failure, solve
 
-STARTS = ("rest", "steady")
+STARTS = ("rest", "steady", "loaded")
 
 
 class AbstractScene(eqx.Module):
@@ -25,7 +25,7 @@ class AbstractScene(eqx.Module):
 
     @abc.abstractmethod
     def initial_state(self, start: str = "rest") -> tuple:
-        """The state at t = 0 for `start` (`"rest"` or `"steady"`)."""
+        """The state at t = 0 for `start` (one of `STARTS`)."""
 
     @abc.abstractmethod
     def vector_field(self, t, y, args):
@@ -71,8 +71,11 @@ def simulate(
       `n_save`); changing values (clearances, stiffnesses, rates) reuses the compiled program.
     - `duration`: simulated time (s).
     - `start`: `"rest"` (everything at rest: a servo start-up closes the backlash, so the run
-      has impacts) or `"steady"` (each servo-driven joint already turning at its commanded rate
-      in rigid kinematics, meshes at zero deflection). Ignored when `y0` is given.
+      has impacts), `"steady"` (each servo-driven joint already turning at its commanded rate
+      in rigid kinematics, meshes at zero deflection, servo at zero lag: a start-up of ~2 s
+      follows as the servo builds its lag against the drag) or, for a mechanism with
+      constant-rate servos, `"loaded"` (the loaded steady state: `Mechanism.initial_state`).
+      Ignored when `y0` is given.
     - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
     - `n_save`: number of equally spaced save times.
     - `solver`: a diffrax solver (default `Tsit5`, explicit; implicit solvers are compared in
