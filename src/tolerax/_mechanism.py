@@ -478,8 +478,9 @@ class Mechanism(AbstractScene):
         the `"steady"` state has (measured 2e-4 planetary, 4e-3 lumped). What remains is the
         pitch output's radial load (the centripetal force of link 2 and the reflector turning
         about the azimuth axis, ~1e-3 N): the carrier floats in its clearance, where that force
-        has no gradient to follow, so it drifts to the bearing wall over the first ~1 s of a
-        run and lands at well under 1 mm/s (`benchmarks/results/loaded_start.md`)."""
+        has no gradient to follow, so it drifts to the bearing wall over the first 1-2 s of a
+        run (lumped joints: output-bearing peaks of 0.5-3.7 N from 1 s, speed error up to
+        7 urad/s, `benchmarks/results/loaded_start.md`)."""
         lay = self.layout
         for name, joint in (("azimuth", self.azimuth), ("pitch", self.pitch)):
             if joint.layout.sun is None:
