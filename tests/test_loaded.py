@@ -93,6 +93,8 @@ def test_planetary_loaded_state_is_the_closed_form(sign):
 def test_loaded_start_needs_constant_rate_servos():
     with pytest.raises(ValueError, match="constant-rate"):
         tx.antenna("dual", fidelity="lumped", drive="scan").initial_state("loaded")
+    with pytest.raises(ValueError, match="constant-rate"):
+        tx.antenna("azimuth", fidelity="ideal", drive="torque").initial_state("loaded")
     with pytest.raises(ValueError, match="integral"):
         tx.antenna("azimuth", fidelity="lumped", servo_gains=(0.2, 0.0)).initial_state("loaded")
     with pytest.raises(ValueError, match="mechanisms"):

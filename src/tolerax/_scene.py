@@ -1,9 +1,10 @@
 """A scene is anything `simulate` can run: the joint on its test bench, the antenna mechanism.
 
 A scene provides its initial state (`start="rest"`; `"steady"`: already turning at the
-commanded rate in rigid kinematics; `"loaded"`, mechanisms only: the loaded steady state), its equations of motion (`vector_field`), what is observed
-at a saved state (`observe`), and how the saved series become its result type. `simulate` is the
-one entry point; `_solve.solve` the one diffrax call.
+commanded rate in rigid kinematics; `"loaded"`, mechanisms only: the loaded steady state), its
+equations of motion (`vector_field`), what is observed at a saved state (`observe`), and how
+the saved series become its result type. `simulate` is the one entry point; `_solve.solve` the
+one diffrax call.
 """
 
 import abc
