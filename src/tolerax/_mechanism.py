@@ -405,12 +405,19 @@ class Mechanism(AbstractScene):
         return self.each_joint(lambda joint, qj, uj, vj: joint.forces(qj, uj, vj, t), ("q", q), ("u", u), ("v", v))
 
     def accelerations(self, t, q, u, v):
+        """`(udot, (azimuth contact forces, pitch contact forces))`."""
+        ud, contacts, _ = self._accelerations_and_mass(t, q, u, v)
+        return ud, contacts
+
+    def _accelerations_and_mass(self, t, q, u, v):
+        """`accelerations` and the mass matrix they were solved with (an unused output costs
+        nothing under jit)."""
         lay = self.layout
         mass, bias = self.dynamics(q, u, t)
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
         force = jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias
         # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
-        return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force), (ca, cp)
+        return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force), (ca, cp), mass
 
     def vector_field(self, t, y, args):
         q, u, v = y
@@ -535,11 +542,7 @@ def _loaded_residual(mech: Mechanism, q, u, x):
     """$\\sqrt{M_{kk}}\\,\\dot u_k$ over the joint speeds at joint coordinates `x` (base as in `q`)."""
     lay = mech.layout
     qx = q.at[lay.base_q :].set(x)
-    v = mech.initial_impact_rates(qx, u)
-    mass, bias = mech.dynamics(qx, u, 0.0)
-    (qa, ca), (qp, cp) = mech.joint_forces(qx, u, v, 0.0)
-    force = jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias
-    ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force)
+    ud, _, mass = mech._accelerations_and_mass(0.0, qx, u, mech.initial_impact_rates(qx, u))
     return (jnp.sqrt(jnp.diag(mass)) * ud)[lay.base_u :]
 
 
