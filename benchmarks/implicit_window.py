@@ -15,6 +15,14 @@ from the controller) or with `optimistix.Newton` (Jacobian at every iteration, r
 controller's, atol 1e-9). Step budget `--max-steps` per run; a run that exhausts it is reported
 as failed with the time it reached. Each configuration is solved twice (compile = first - second).
 Writes `benchmarks/results/implicit_window.md`, rewritten after every row.
+
+The same window serves the explicit alternatives (`--output explicit_window`): Bosh3 (3
+evaluations per step: along the mesh modes' direction, damping ratio 0.06, its stability radius
+per evaluation is 0.675 against Tsit5's 0.429, so where the step is stability-bound it should need
+~1.6x fewer evaluations), Dopri5, and Tsit5 with other step control: PI coefficients
+(`-PI`: pcoeff 0.3, icoeff 0.3), a step cap just under the ~21.6-22.6 us stability limit that
+`fast_modes.md` found in the developed rattle (`-dtmax20us`, so that steps are not rejected
+into the unstable mesh modes), and an error norm without the impact-rate states (`-no-v-norm`).
 """
 
 import argparse
@@ -34,18 +42,31 @@ import _results
 
 METHODS = {
     "Tsit5": lambda rtol: diffrax.Tsit5(),
+    "Bosh3": lambda rtol: diffrax.Bosh3(),
+    "Dopri5": lambda rtol: diffrax.Dopri5(),
+    "Tsit5-PI": lambda rtol: diffrax.Tsit5(),
+    "Tsit5-dtmax20us": lambda rtol: diffrax.Tsit5(),
+    "Tsit5-no-v-norm": lambda rtol: diffrax.Tsit5(),
     "Dopri8": lambda rtol: diffrax.Dopri8(),
     "Kvaerno3": lambda rtol: diffrax.Kvaerno3(),
     "Kvaerno5": lambda rtol: diffrax.Kvaerno5(),
     "Kvaerno3-Newton": lambda rtol: diffrax.Kvaerno3(root_finder=optx.Newton(rtol=rtol, atol=1e-9)),
     "Kvaerno5-Newton": lambda rtol: diffrax.Kvaerno5(root_finder=optx.Newton(rtol=rtol, atol=1e-9)),
 }
+# Step-control options of the variants (default: diffrax's I-controller, dtmax 1 ms, RMS norm
+# over the whole state q, u and impact rates v).
+CONTROL = {
+    "Tsit5-PI": dict(pcoeff=0.3, icoeff=0.3),
+    "Tsit5-dtmax20us": dict(dtmax=2e-5),
+    "Tsit5-no-v-norm": dict(norm=lambda y: optx.rms_norm((y[0], y[1]))),
+}
 
 
-def solve(mech, solver, t0, t1, y0, rtol, atol, ts, max_steps):
-    """(solution, compile s, run s): diffrax over [t0, t1] from y0, PID control, dtmax 1 ms."""
+def solve(mech, solver, t0, t1, y0, rtol, atol, ts, max_steps, **control):
+    """(solution, compile s, run s): diffrax over [t0, t1] from y0, PID control (dtmax 1 ms unless
+    `control` says otherwise)."""
     term = diffrax.ODETerm(mech.vector_field)
-    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, dtmax=1e-3)
+    ctrl = diffrax.PIDController(rtol=rtol, atol=atol, **{"dtmax": 1e-3, **control})
 
     @eqx.filter_jit
     def go(y0):
@@ -59,6 +80,15 @@ def solve(mech, solver, t0, t1, y0, rtol, atol, ts, max_steps):
         jax.block_until_ready(sol.ys)
         walls.append(time.perf_counter() - start)
     return sol, walls[0] - walls[1], walls[1]
+
+
+def rhs_per_step(solver):
+    """Right-hand-side evaluations per attempted step of an explicit Runge-Kutta method (its
+    stages, less one where the last stage is reused as the next step's first); None otherwise."""
+    if not isinstance(solver, diffrax.AbstractERK):
+        return None
+    tableau = solver.tableau
+    return len(tableau.b_sol) - (1 if tableau.fsal else 0)
 
 
 def outputs(mech, sol):
@@ -75,6 +105,7 @@ def main():
     parser.add_argument("--methods", nargs="+", default=["Tsit5", "Kvaerno5", "Kvaerno5-Newton", "Kvaerno3-Newton"], choices=list(METHODS))
     parser.add_argument("--rtols", type=float, nargs="+", default=[1e-4, 1e-6])
     parser.add_argument("--max-steps", type=int, default=20000, help="step budget of each window run")
+    parser.add_argument("--output", default="implicit_window", choices=["implicit_window", "explicit_window"], help="result file name")
     args = parser.parse_args()
 
     mech = tolerax.antenna("dual", fidelity=args.fidelity)
@@ -85,13 +116,14 @@ def main():
     ref, _, ref_wall = solve(mech, diffrax.Tsit5(), t0, t1, y0, 1e-9, 1e-12, ts, 10**7)
     ref_p, ref_w = outputs(mech, ref)
     columns = ["method", "rtol", "result", "accepted (rejected)", "compile (s)", "wall (s)", "wall per simulated s",
-               "us per attempted step", "pointing diff (arcsec, max)", "speed-error diff (urad/s, max)"]
+               "us per attempted step", "RHS evaluations", "pointing diff (arcsec, max)", "speed-error diff (urad/s, max)"]
     rows = []
 
     def write():
         _results.write_table(
-            "implicit_window",
-            "Implicit solvers on the rattling planetary dual-axis antenna",
+            args.output,
+            {"implicit_window": "Implicit solvers on the rattling planetary dual-axis antenna",
+             "explicit_window": "Explicit solvers and step control on the rattling planetary dual-axis antenna"}[args.output],
             _results.command(args),
             columns,
             rows,
@@ -106,7 +138,7 @@ def main():
     for name in args.methods:
         for rtol in args.rtols:
             print(f"{name} rtol {rtol:g} ...", flush=True)
-            s, compile_s, wall = solve(mech, METHODS[name](rtol), t0, t1, y0, rtol, 1e-9, ts, args.max_steps)
+            s, compile_s, wall = solve(mech, METHODS[name](rtol), t0, t1, y0, rtol, 1e-9, ts, args.max_steps, **CONTROL.get(name, {}))
             acc, rej = int(s.stats["num_accepted_steps"]), int(s.stats["num_rejected_steps"])
             ok = bool(s.result == diffrax.RESULTS.successful)
             if ok:
@@ -116,8 +148,10 @@ def main():
                 dp = dw = ""
             reached = float(s.ts[jnp.isfinite(s.ts)].max()) if bool(jnp.isfinite(s.ts).any()) else t0
             result = "ok" if ok else f"failed at {reached:.4f} s: {_NAMES[int(s.result._value)]}"
+            evals = rhs_per_step(METHODS[name](rtol))
             rows.append([name, f"{rtol:g}", result, f"{acc} ({rej})", f"{compile_s:.1f}", f"{wall:.2f}",
-                         f"{wall / args.window:.1f}", f"{1e6 * wall / max(acc + rej, 1):.0f}", dp, dw])
+                         f"{wall / args.window:.1f}", f"{1e6 * wall / max(acc + rej, 1):.0f}",
+                         "—" if evals is None else str(evals * (acc + rej)), dp, dw])
             print(rows[-1], flush=True)
             write()
 

@@ -3,6 +3,12 @@ fidelity (free base, 0.98 deg/s on both joints, 100 um clearances and backlash, 
 Tsit5 rtol 1e-6 atol 1e-9).
 
     python benchmarks/mechanism_cost.py [--duration 0.5] [--fidelities ideal lumped planetary]
+        [--scalings 100]
+
+`--scalings` adds a `planetary-scaled` row at each given `mass_scaling` (the fidelity's own row
+uses its default, 10). The load average before each scene is recorded: absolute wall times mean
+something only on an otherwise idle machine (on this 2-core VM a second busy process slowed a
+planetary run about 2.5x), ratios within one run are robust.
 
 Writes `benchmarks/results/mechanism_cost.md` (the measurement is `tolerax._timing.fidelity_cost`,
 also behind `tolerax bench`). Each scene is solved twice: the first call's
@@ -11,6 +17,7 @@ so the ratios between fidelities are what to read).
 """
 
 import argparse
+import os
 
 import tolerax
 from tolerax._timing import cost_table, fidelity_cost
@@ -22,11 +29,16 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--duration", type=float, default=0.5, help="simulated seconds per scene")
     parser.add_argument("--fidelities", nargs="+", choices=list(tolerax.FIDELITIES), default=list(tolerax.FIDELITIES))
+    parser.add_argument("--scalings", nargs="*", type=float, default=[], help="extra planetary-scaled rows at these mass scalings")
     args = parser.parse_args()
-    rows = []
-    for fid in args.fidelities:
-        rows.append(fidelity_cost(fid, args.duration))
+    rows, loads = [], []
+    jobs = [(fid, {}) for fid in args.fidelities]
+    jobs += [("planetary-scaled", dict(mass_scaling=s, label=f"planetary-scaled, s = {s:g}")) for s in args.scalings]
+    for fid, options in jobs:
+        loads.append(os.getloadavg()[0])
+        rows.append(fidelity_cost(fid, args.duration, **options))
         print(rows[-1], flush=True)
+    loads.append(os.getloadavg()[0])
     columns, cells = cost_table(rows)
     _results.write_table(
         "mechanism_cost",
@@ -34,7 +46,8 @@ def main():
         _results.command(args),
         columns,
         cells,
-        about=f"{args.duration} s simulated per scene, steady start, 0.98 deg/s both joints.",
+        about=f"{args.duration} s simulated per scene, steady start, 0.98 deg/s both joints. Load average (1 min) "
+        f"before each scene and after the last: {', '.join(f'{x:.2f}' for x in loads)} (2 cores).",
     )
 
 

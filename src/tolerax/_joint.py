@@ -504,9 +504,12 @@ class MassScaledPlanetaryJoint(_AbstractStageJoint):
     (the sun translating on its three meshes with the planets spinning) and the 12-15 kHz
     planet-pin modes (`benchmarks/results/fast_modes.md`): pure stability limits, not accuracy.
     Scaling their inertia by $s$ lowers them by $\\sqrt s$. Making them quasi-static instead
-    (the singular-perturbation limit) is ill-posed here: a sun or planet floating in its
-    clearance with its teeth in backlash has no static equilibrium. With the default families
-    at $s = 100$ the next limit is the sun's torsional mode on its meshes (~2.3 kHz,
+    (the singular-perturbation limit) needs the force balance of the floating sun and planets
+    solved inside every right-hand side, and it is badly posed: a sun or planet floating in its
+    clearance with its teeth in backlash has no unique position (though the forces it transmits
+    are unique); solved with `optimistix.LevenbergMarquardt` it took 49 iterations, 185x a
+    right-hand side of the whole antenna (`benchmarks/results/quasi_static_solve.md`). With the
+    default families at $s = 100$ the next limit is the sun's torsional mode on its meshes (~2.3 kHz,
     `results/fast_modes_scaled.md`), which `"sun_rotation"` scales too.
     This is explicit dynamics' *selective mass scaling* (Olovsson, Simonsson & Unosson, IJNME
     63 (2005) 1436): added mass that leaves rigid-body motion alone.

@@ -19,9 +19,11 @@ COLUMNS = (
 )
 
 
-def fidelity_cost(fidelity: str, duration: float, *, n_save: int = 51) -> dict:
-    """Compile and run time of `antenna("dual", fidelity=fidelity)` (free base, 0.98 deg/s on both
-    joints, 100 um clearances and backlash) over `duration` (s) from a steady start.
+def fidelity_cost(fidelity: str, duration: float, *, n_save: int = 51, label: str | None = None, **options) -> dict:
+    """Compile and run time of `antenna("dual", fidelity=fidelity, **options)` (free base, 0.98
+    deg/s on both joints, 100 um clearances and backlash) over `duration` (s) from a steady start.
+    `label` names the row (default: the fidelity); `options` go to `antenna` (for example
+    `mass_scaling=100.0` with `"planetary-scaled"`).
 
     The scene is solved twice: the second call's wall time is the run time, the first call's
     minus the second's the compile time.
@@ -30,7 +32,7 @@ def fidelity_cost(fidelity: str, duration: float, *, n_save: int = 51) -> dict:
     `compile_s`, `per_sim_s` (wall s per simulated s), `steps_per_sim_s` (accepted steps per
     simulated s), `rejected` (rejected steps), `pointing_rms_arcsec` (over the whole run).
     """
-    mech = antenna("dual", fidelity=fidelity)
+    mech = antenna("dual", fidelity=fidelity, **options)
     times, res = [], None
     for _ in range(2):
         start = time.perf_counter()
@@ -40,7 +42,7 @@ def fidelity_cost(fidelity: str, duration: float, *, n_save: int = 51) -> dict:
     first, run = times
     lay = mech.layout
     return dict(
-        fidelity=fidelity,
+        fidelity=fidelity if label is None else label,
         dofs=int(lay.size_u),
         contacts=int(lay.size_v),
         compile_s=first - run,
