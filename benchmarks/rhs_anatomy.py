@@ -2,6 +2,7 @@
 and what the cheaper formulation of Kane's equations buys over a short planetary run.
 
     python benchmarks/rhs_anatomy.py [--fidelities ideal lumped planetary] [--calls 300] [--horizon 0.5]
+        [--batches 1 4 16 64]
 
 Writes `benchmarks/results/rhs_anatomy.md`. Each piece is timed *inside* one compiled program
 (a `lax.scan` of `--calls` evaluations at slightly perturbed states, so nothing is hoisted), which
@@ -13,6 +14,12 @@ the reference formulation in the same run (`_vector_field_by_autodiff`: `jacfwd`
 over all speeds, `jvp` over $(q, t)$, LU solve); their parts; the joints' forces and impact-rate
 rates; poses; twists. Then the planetary dual-axis antenna from a steady start over `--horizon`
 seconds with both formulations (wall time after compilation, steps): the per-step saving.
+
+`--batches`: the whole vector field `vmap`ped over that many states at once (what a Monte Carlo
+chunk pays per evaluation), per fidelity: microseconds per batched call and per state. If the
+cost were the dispatch of XLA's ~220 small kernels, the per-state cost would fall about as 1/B;
+it falls much less when the kernels' own work (arithmetic, and copies into padded and
+concatenated arrays) dominates.
 """
 
 import argparse
@@ -86,6 +93,18 @@ def pieces(mech, n, only):
     return {k: timed(fn, mech, args, n) for k, fn in PIECES.items() if not only or k in only}
 
 
+def batched(mech, n, batch):
+    """Microseconds per call of the vector field `vmap`ped over `batch` slightly different states."""
+    q, u, v = mech.initial_state("steady")
+    scale = 1.0 + 1e-6 * jnp.arange(batch, dtype=float)[:, None]
+    args = (jnp.asarray(0.01), q[None] * scale, u[None] * scale, v[None] * scale)
+
+    def fn(m, t, qb, ub, vb):
+        return jax.vmap(lambda q_, u_, v_: m.vector_field(t, (q_, u_, v_), None))(qb, ub, vb)
+
+    return timed(fn, mech, args, max(n // batch, 20))
+
+
 def trajectory(horizon):
     """Wall time (s, after compilation) and steps of the planetary dual-axis antenna from a
     steady start, reference and today's formulation, same run."""
@@ -110,16 +129,28 @@ def main():
     parser.add_argument("--calls", type=int, default=300, help="evaluations per compiled loop")
     parser.add_argument("--horizon", type=float, default=0.5, help="simulated seconds of the planetary run (0: skip)")
     parser.add_argument("--pieces", nargs="*", default=[], help="time only these pieces (default: all)")
+    parser.add_argument("--batches", nargs="*", type=int, default=[], help="also time the vector field vmapped over these batch sizes")
     args = parser.parse_args()
-    rows, sizes = {}, {}
+    rows, sizes, batch_us = {}, {}, {}
     load = [os.getloadavg()]
     for fid in args.fidelities:
         mech = tolerax.antenna("dual", fidelity=fid)
         rows[fid] = pieces(mech, args.calls, args.pieces)
         sizes[fid] = (mech.layout.size_u, mech.layout.size_v)
         print(fid, {k: round(x, 1) for k, x in rows[fid].items()}, flush=True)
+        batch_us[fid] = {b: batched(mech, args.calls, b) for b in args.batches}
+        if args.batches:
+            print(fid, "batched", {b: round(x, 1) for b, x in batch_us[fid].items()}, flush=True)
     load.append(os.getloadavg())
     sections, notes = [], []
+    if args.batches:
+        sections.append(
+            _results.Section(
+                "The vector field over a batch of states (vmap): µs per batched call (µs per state)",
+                ["batch"] + list(rows),
+                [[str(b)] + [f"{batch_us[f][b]:.1f} ({batch_us[f][b] / b:.1f})" for f in rows] for b in args.batches],
+            )
+        )
     if args.horizon > 0:
         runs = trajectory(args.horizon)
         load.append(os.getloadavg())
