@@ -30,6 +30,18 @@ backlash), steady start, Tsit5 rtol 1e-6 (`simulate`'s defaults). It runs to the
    remaining frequency and the stable step it allows ($r$ at the fastest mode's damping ratio
    over $\\omega$), for each candidate family and combination, in both joints at once.
 
+4. **What an IMEX split would leave explicit.** With the joints' internal forces (meshes,
+   supports, clearance contacts: `forces` less `drive_forces`) taken implicitly through the true
+   mass matrix, $f_I = (\dot q_j = u_j;\ \dot u = M(q)^{-1}[0; Q_{int}];\ 0)$, as diffrax's
+   IMEX Runge-Kutta methods (KenCarp3/4/5) would with `MultiTerm(explicit, implicit)`, the
+   explicit remainder $f_E = f - f_I$ carries the servo, the drag, the velocity terms, the base's
+   kinematics and the impact-rate states. The table gives the fastest eigenvalue of $\partial
+   f_E/\partial y$ and the step the explicit tableau of KenCarp4 allows for it. This is a
+   necessary condition only: an additive method's stability is not that of its two parts, and
+   it says nothing of accuracy (the implicit window of `implicit_window.md` took smaller steps
+   than Tsit5 in the developed rattle), or of the cost (a Jacobian of $f_I$ over all states and
+   an LU per step, five implicit stages).
+
 The linearisation holds each contact in its current state (in or out of contact, smoothed law
 differentiated where it is): it is the stiffness the solver sees between two switches.
 """
@@ -72,9 +84,13 @@ CANDIDATES = (
 
 
 def tsit5_radius(direction: complex) -> float:
-    """Radius of Tsit5's stability region along the unit complex `direction` (bisection on
-    $|R(z)| = 1$ from the origin)."""
-    tableau = diffrax.Tsit5.tableau
+    """Radius of Tsit5's stability region along the unit complex `direction`."""
+    return stability_radius(diffrax.Tsit5.tableau, direction)
+
+
+def stability_radius(tableau, direction: complex) -> float:
+    """Radius of an explicit Butcher tableau's stability region along the unit complex
+    `direction` (scan of $|R(z)| = 1$ from the origin)."""
     n = len(tableau.b_sol)
     a = np.zeros((n, n))
     for i, row in enumerate(tableau.a_lower):
@@ -115,6 +131,29 @@ def linearise(mech, t, y):
     dq = jax.jacfwd(joint_q_forces)(q[lay.base_q:])  # joint coordinates: q_j and u_j coincide
     stiffness = jnp.zeros((lay.size_u, lay.size_u)).at[lay.base_u:, lay.base_u:].set(-dq)
     return np.linalg.eigvals(np.asarray(jac)), np.asarray(mass), np.asarray(stiffness)
+
+
+def explicit_remainder(mech, t, y):
+    """Eigenvalues of d(f - f_I)/dy, f_I the joints' internal forces through M(q)^-1 (see item 4)."""
+    flat, unravel = ravel_pytree(y)
+    lay = mech.layout
+
+    def f_full(x):
+        return ravel_pytree(mech.vector_field(t, unravel(x), None))[0]
+
+    def f_imp(x):
+        q, u, v = unravel(x)
+        mass, _ = mech.dynamics(q, u, t)
+        internal = [jnp.zeros(lay.base_u)]
+        for joint, sq, su, sv in mech.joints():
+            total, _ = joint.forces(q[sq], u[su], v[sv], t)
+            internal.append(total - joint.drive_forces(q[sq], u[su], t))
+        ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), jnp.concatenate(internal))
+        qd = jnp.zeros_like(q).at[lay.base_q:].set(u[lay.base_u:])  # joint coordinates: q_j and u_j coincide
+        return ravel_pytree((qd, ud, jnp.zeros_like(v)))[0]
+
+    jac = jax.jacfwd(f_full)(flat) - jax.jacfwd(f_imp)(flat)
+    return np.linalg.eigvals(np.asarray(jac))
 
 
 def modes(mass, stiffness):
@@ -192,7 +231,8 @@ def main():
     states = res.states
     zeta_mesh = float(mech.azimuth.stage.sun_mesh.damping_ratio)
     r_mesh = tsit5_radius(complex(-zeta_mesh, np.sqrt(1 - zeta_mesh**2)))
-    rows, mode_rows, what_if = [], [], {}
+    rows, mode_rows, what_if, imex_rows = [], [], {}, []
+    kencarp = diffrax.KenCarp4.tableau.tableaus[0]  # the explicit half of the additive tableau
     for t in args.times:
         k = int(np.argmin(np.abs(ts - t)))
         y = jax.tree.map(lambda x: x[k], states)
@@ -215,6 +255,18 @@ def main():
         for cand in CANDIDATES:
             what_if.setdefault(cand, []).append(condensed_fmax(mass, stiffness, labels, cand))
         print(rows[-1], flush=True)
+        eig_e = explicit_remainder(mech, ts[k], y)
+        decaying = eig_e[(np.abs(eig_e) > 2 * np.pi * 1.0) & (eig_e.real < 0)]
+        steps_e = np.array([stability_radius(kencarp, lam / abs(lam)) / abs(lam) for lam in decaying])
+        worst_e = decaying[np.argmin(steps_e)]
+        fastest_e = eig_e[np.argmax(np.abs(eig_e))]
+        growing = int(np.sum((eig_e.real >= 0) & (np.abs(eig_e) > 2 * np.pi * 10.0)))
+        imex_rows.append([
+            f"{ts[k]:.2f}", f"{abs(fastest_e) / (2 * np.pi):.0f}", f"{abs(worst_e) / (2 * np.pi):.0f}",
+            f"{-worst_e.real / abs(worst_e):.3f}", f"{np.min(steps_e) * 1e6:.0f}",
+            f"{np.min(steps_e) / np.min(steps):.0f}", str(growing),
+        ])
+        print("imex", imex_rows[-1], flush=True)
     base_f = np.array(what_if[()])
     cand_rows = []
     for cand, fmax in what_if.items():
@@ -260,6 +312,17 @@ def main():
                     f"{zeta_mesh:g}. Quasi-static = massless (Guyan condensation of K, the exact small-mass "
                     "limit); a reduced fidelity would also need the condensed contacts' forces solved at "
                     "each evaluation (a small nonlinear solve), which this table does not cost.",
+                ],
+            ),
+            _results.Section(
+                "What an IMEX split would leave explicit: the joints' internal forces implicit (item 4 above)",
+                ["t (s)", "fastest |λ| of the remainder (Hz)", "limiting mode (Hz)", "its damping ratio",
+                 "KenCarp4 explicit-tableau limit (µs)", "x the Tsit5 limit of the whole field", "Re λ >= 0 above 10 Hz"],
+                imex_rows,
+                [
+                    "Limit: the smallest r(arg λ)/|λ| over the decaying eigenvalues of ∂(f - f_I)/∂y above 1 Hz, r the "
+                    "stability radius of KenCarp4's explicit tableau (6 stages, not FSAL) along λ. Eigenvalues with "
+                    "Re λ >= 0 no step makes stable (growth of the physical or the split system): counted, not in the limit.",
                 ],
             ),
         ],

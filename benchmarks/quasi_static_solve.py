@@ -4,7 +4,7 @@ floating members, solved at every right-hand side.
     python benchmarks/quasi_static_solve.py [--repeats 20]
 
 `fast_modes.md` finds that making the sun's translation and the planets' translation and spin
-quasi-static (massless) would lengthen Tsit5's stable step 44-62x on the planetary dual-axis
+quasi-static (massless) would lengthen Tsit5's stable step 46-66x on the planetary dual-axis
 antenna. The price is a nonlinear solve inside every right-hand side: given the slow coordinates
 (sun and carrier rotation, carrier translation), find the sun centre, the planet offsets
 $(\\zeta_n, \\eta_n)$ and the planet spins at which the generalised forces on them
