@@ -60,6 +60,7 @@ from jax.flatten_util import ravel_pytree
 import tolerax
 
 import _results
+import _split
 
 FAMILIES = {
     "sun rotation": ("theta_s",),
@@ -136,21 +137,14 @@ def linearise(mech, t, y):
 def explicit_remainder(mech, t, y):
     """Eigenvalues of d(f - f_I)/dy, f_I the joints' internal forces through M(q)^-1 (see item 4)."""
     flat, unravel = ravel_pytree(y)
-    lay = mech.layout
 
     def f_full(x):
         return ravel_pytree(mech.vector_field(t, unravel(x), None))[0]
 
+    internal = _split.internal_field(mech)
+
     def f_imp(x):
-        q, u, v = unravel(x)
-        mass, _ = mech.dynamics(q, u, t)
-        internal = [jnp.zeros(lay.base_u)]
-        for joint, sq, su, sv in mech.joints():
-            total, _ = joint.forces(q[sq], u[su], v[sv], t)
-            internal.append(total - joint.drive_forces(q[sq], u[su], t))
-        ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), jnp.concatenate(internal))
-        qd = jnp.zeros_like(q).at[lay.base_q:].set(u[lay.base_u:])  # joint coordinates: q_j and u_j coincide
-        return ravel_pytree((qd, ud, jnp.zeros_like(v)))[0]
+        return ravel_pytree(internal(t, unravel(x), None))[0]
 
     jac = jax.jacfwd(f_full)(flat) - jax.jacfwd(f_imp)(flat)
     return np.linalg.eigvals(np.asarray(jac))
