@@ -17,11 +17,11 @@ def internal_field(mech):
     def f_imp(t, y, args):
         q, u, v = y
         mass, _ = mech.dynamics(q, u, t)
-        internal = [jnp.zeros(lay.base_u)]
-        for joint, sq, su, sv in mech.joints():
-            total, _ = joint.forces(q[sq], u[su], v[sv], t)
-            internal.append(total - joint.drive_forces(q[sq], u[su], t))
-        ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), jnp.concatenate(internal))
+        # Both joints in one batch where they are twins, as `Mechanism.joint_forces` does.
+        internal = mech.each_joint(
+            lambda joint, qj, uj, vj: joint.forces(qj, uj, vj, t)[0] - joint.drive_forces(qj, uj, t), ("q", q), ("u", u), ("v", v)
+        )
+        ud = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), jnp.concatenate([jnp.zeros(lay.base_u), *internal]))
         qd = jnp.zeros_like(q).at[lay.base_q:].set(u[lay.base_u:])  # joint coordinates: q_j and u_j coincide
         return qd, ud, jnp.zeros_like(v)
 

@@ -147,8 +147,9 @@ def main():
     for name in args.methods:
         for rtol in args.rtols:
             print(f"{name} rtol {rtol:g} ...", flush=True)
+            solver = METHODS[name](rtol)
             s, compile_s, wall = solve(
-                mech, METHODS[name](rtol), t0, t1, y0, rtol, 1e-9, ts, args.max_steps, split=name in SPLIT, **CONTROL.get(name, {})
+                mech, solver, t0, t1, y0, rtol, 1e-9, ts, args.max_steps, split=name in SPLIT, **CONTROL.get(name, {})
             )
             acc, rej = int(s.stats["num_accepted_steps"]), int(s.stats["num_rejected_steps"])
             ok = bool(s.result == diffrax.RESULTS.successful)
@@ -159,7 +160,7 @@ def main():
                 dp = dw = ""
             reached = float(s.ts[jnp.isfinite(s.ts)].max()) if bool(jnp.isfinite(s.ts).any()) else t0
             result = "ok" if ok else f"failed at {reached:.4f} s: {_NAMES[int(s.result._value)]}"
-            evals = rhs_per_step(METHODS[name](rtol))
+            evals = rhs_per_step(solver)
             rows.append([name, f"{rtol:g}", result, f"{acc} ({rej})", f"{compile_s:.1f}", f"{wall:.2f}",
                          f"{wall / args.window:.1f}", f"{1e6 * wall / max(acc + rej, 1):.0f}",
                          "—" if evals is None else str(evals * (acc + rej)), dp, dw])

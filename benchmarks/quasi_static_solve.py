@@ -17,7 +17,8 @@ fidelity='planetary').initial_state('loaded')`, polished so that every accelerat
 floating coordinates are the known answer. Each optimistix solver starts from the nominal position
 (all offsets zero, what a right-hand side without memory would have) with rtol 1e-10 and atol
 1e-13 m, at most 100 iterations; the table gives iterations, the compiled time of one solve
-(best of `--repeats`), its ratio to one right-hand side of the whole antenna in this process, and
+(best of `--repeats`), its ratio to one right-hand side of the whole antenna in this process
+(`rhs_anatomy.timed`: 500 calls inside one program, best of 3), and
 the distance to the loaded state. Writes `benchmarks/results/quasi_static_solve.md`.
 """
 
@@ -35,6 +36,7 @@ from tolerax import _planetary
 from tolerax._joint import _planet_spin_ratio
 
 import _results
+from rhs_anatomy import timed
 
 SOLVERS = {
     "LevenbergMarquardt": ("least_squares", lambda: optx.LevenbergMarquardt(rtol=1e-10, atol=1e-13)),
@@ -84,11 +86,7 @@ def main():
     z_true = jnp.concatenate([data[0][trans], rbp * (data[0][spin] - rho * data[0][lay.carrier_theta])])
     z0 = jnp.zeros_like(z_true)
 
-    y = (q, u, v)
-    reps = 500
-    rhs_loop = jax.jit(lambda y: jax.lax.fori_loop(
-        0, reps, lambda i, y: jax.tree.map(lambda a, b: a + 1e-12 * b, y, mech.vector_field(0.0, y, None)), y))
-    rhs_us = best_time(lambda: rhs_loop(y), 5) / reps * 1e6
+    rhs_us = timed(lambda m, t, q_, u_, v_: m.vector_field(t, (q_, u_, v_), None), mech, (jnp.asarray(0.0), q, u, v), 500)
     print(f"one RHS {rhs_us:.1f} us", flush=True)
 
     rows = []
