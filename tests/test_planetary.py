@@ -153,6 +153,37 @@ def test_stage_energy_conserved_without_damping():
     assert drift < 1e-7, drift
 
 
+def test_generalised_forces_are_minus_the_potential_gradient():
+    """`stage_forces` projects the forces through the deflections' Jacobian (forward mode,
+    `D^T F`); independently, for a conservative stage at rest (no damping, restitution 1, planets
+    pressed into their pins) the generalised forces are $-\\partial V/\\partial q$ of
+    `potential_energy` (reverse mode through a different function). Random states with the
+    carrier turned (the deflections' nonlinear part)."""
+    from tolerax import Flores
+
+    stage = tx.default_stage(
+        mesh="linear",
+        mesh_damping_ratio=0.0,
+        sun_support="spring",
+        carrier_support="spring",
+        planet_support="clearance",
+        planet_clearance=2e-6,
+        contact_law=Flores(1.0),
+        smoothing_width=1e-9,
+    )
+    lay = stage.layout
+    for k in range(3):
+        q = 3e-6 * jax.random.normal(jax.random.key(k), (lay.size,))
+        q = q.at[lay.carrier_theta].set(0.7 * k + 0.3).at[lay.sun_theta].add(0.2 * k)
+        zero = jnp.zeros(lay.size)
+        f = P.stage_forces(stage, q, zero, jnp.zeros(len(stage.contact_names)))
+        assert float(jnp.abs(f.contact).max()) > 0.0  # some planet is in contact
+        want = -jax.grad(lambda q_: P.potential_energy(stage, q_))(q)
+        scale = float(jnp.abs(want).max())
+        assert scale > 0.0
+        np.testing.assert_allclose(np.asarray(f.generalised), np.asarray(want), rtol=0, atol=1e-10 * scale)
+
+
 def test_dynamic_backlash_follows_planet_displacement():
     """In the stage, moving a planet radially outward by dz opens the sun mesh's back-flank gap
     and closes the ring mesh's one, by 2 dz sin(alpha) relative to the drive flank."""

@@ -305,9 +305,13 @@ class Mechanism(AbstractScene):
         # Angular quantities in body axes, where the inertia is diagonal.
         jw = jnp.einsum("bji,bjn->bin", f.rot, f.jw)
         w, alpha = (jnp.einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
-        mass = jnp.einsum("b,bin,bim->nm", masses, f.jv, f.jv) + jnp.einsum("bi,bin,bim->nm", principal, jw, jw)
         rot_term = principal * alpha + jnp.cross(w, principal * w)
-        bias = jnp.einsum("b,bin,bi->n", masses, f.jv, f.a) + jnp.einsum("bin,bi->n", jw, rot_term)
+        # One stacked Jacobian J (6 nb x n) and weights W: M = J^T W J and b = J^T g as two
+        # products (fewer, larger kernels than one pair per translation and rotation).
+        jac = jnp.concatenate([f.jv, jw], axis=1).reshape(-1, f.jv.shape[-1])
+        weights = jnp.concatenate([jnp.broadcast_to(masses[:, None], f.a.shape), principal], axis=1).reshape(-1)
+        mass = jnp.einsum("kn,k,km->nm", jac, weights, jac)
+        bias = jnp.einsum("kn,k->n", jac, jnp.concatenate([masses[:, None] * f.a, rot_term], axis=1).reshape(-1))
         return self._with_added_inertia(mass), bias
 
     def _with_added_inertia(self, mass):
