@@ -15,6 +15,12 @@ over all speeds, `jvp` over $(q, t)$, LU solve); their parts; the joints' forces
 rates; poses; twists. Then the planetary dual-axis antenna from a steady start over `--horizon`
 seconds with both formulations (wall time after compilation, steps): the per-step saving.
 
+Pieces are compiled with the XLA options `tolerax.simulate` uses for a single solve on a CPU
+(`tolerax._solve.CPU_COMPILER_OPTIONS`: no YNNPACK fusions), and the whole vector field once more
+with XLA's defaults. For planetary joints, the stages' deflection rates and force projection
+both ways: today's Jacobian by forward mode and two products, and the `jvp` + `vjp` pair used
+before commit 2e0792c.
+
 `--batches`: the whole vector field `vmap`ped over that many states at once (what a Monte Carlo
 chunk pays per evaluation), per fidelity: microseconds per batched call and per state. If the
 cost were the dispatch of XLA's ~220 small kernels, the per-state cost would fall about as 1/B;
@@ -23,23 +29,32 @@ concatenated arrays) dominates.
 """
 
 import argparse
+import functools
 import os
 import time
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jax.flatten_util import ravel_pytree
 
 import tolerax
-from tolerax import _mechanism
+from tolerax import _mechanism, _planetary
+from tolerax._joint import _AbstractStageJoint
+from tolerax._solve import CPU_COMPILER_OPTIONS
 
 import _results
 
+# What `tolerax.simulate` compiles a single solve with on a CPU (Monte Carlo's vmapped programs
+# keep XLA's defaults, and so does `--batches` here).
+CPU_OPTIONS = CPU_COMPILER_OPTIONS if jax.default_backend() == "cpu" else None
 
-def timed(fn, mech, args, n):
-    """Compiled microseconds per call of `fn(mech, *args)`, best of 3 loops of `n` calls."""
 
-    @eqx.filter_jit
+def timed(fn, mech, args, n, options=CPU_OPTIONS):
+    """Compiled microseconds per call of `fn(mech, *args)`, best of 3 loops of `n` calls, compiled
+    with XLA `options` (default: those `tolerax.simulate` compiles with on a CPU)."""
+
+    @functools.partial(eqx.filter_jit, compiler_options=options)
     def loop(mech, args):
         def body(c, k):
             a = jax.tree.map(lambda x: x + 1e-12 * k * c, args)
@@ -57,6 +72,25 @@ def timed(fn, mech, args, n):
     return best / n * 1e6
 
 
+def _stage_projection(m, q, u, how):
+    """What `_planetary.stage_forces` does with the deflections of both stages (vmapped as in
+    the vector field): their rates and the projection of forces (here the deflections
+    themselves, same shapes) onto the coordinates. `how="jacobian"`: today's, the Jacobian once
+    by forward mode and two products; `"jvp+vjp"`: before commit 2e0792c, a `jvp` and a `vjp`."""
+
+    def one(joint, qj, uj):
+        stage = joint.stage
+        defl = lambda q_: _planetary.deflections(stage, q_)  # noqa: E731
+        if how == "jacobian":
+            flat, unravel = ravel_pytree(defl(qj))
+            jac = jax.jacfwd(lambda q_: ravel_pytree(defl(q_))[0])(qj)
+            return unravel(jac @ uj), jac.T @ flat
+        values, pullback = jax.vjp(defl, qj)
+        return jax.jvp(defl, (qj,), (uj,))[1], pullback(values)[0]
+
+    return m.each_joint(one, ("q", q), ("u", u))
+
+
 def _cholesky(mass, force):
     return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force)
 
@@ -67,6 +101,7 @@ def _impact_rate_rates(m, q, u, ud, v):
 
 PIECES = {
     "vector field (all)": lambda m, t, q, u, v, ud, mass, f: m.vector_field(t, (q, u, v), None),
+    "vector field (all), XLA's default CPU options": lambda m, t, q, u, v, ud, mass, f: m.vector_field(t, (q, u, v), None),
     "vector field, reference (jacfwd Kane, LU)": lambda m, t, q, u, v, ud, mass, f: _mechanism._vector_field_by_autodiff(m, t, (q, u, v)),
     "dynamics: M and b (frames)": lambda m, t, q, u, v, ud, mass, f: m.dynamics(q, u, t),
     "  kinematics: frames down the chain": lambda m, t, q, u, v, ud, mass, f: m.kinematics(q, u, t),
@@ -76,6 +111,8 @@ PIECES = {
         lambda a, b: m.twists(a, u, b), (q, t), (m.qdot(q, u), jnp.ones_like(t))
     ),
     "joint forces (both joints)": lambda m, t, q, u, v, ud, mass, f: m.joint_forces(q, u, v, t),
+    "  stages' deflections, rates and projection: Jacobian once (today)": lambda m, t, q, u, v, ud, mass, f: _stage_projection(m, q, u, "jacobian"),
+    "  the same by jvp + vjp (before 2e0792c)": lambda m, t, q, u, v, ud, mass, f: _stage_projection(m, q, u, "jvp+vjp"),
     "impact-rate rates (both joints)": lambda m, t, q, u, v, ud, mass, f: _impact_rate_rates(m, q, u, ud, v),
     "poses": lambda m, t, q, u, v, ud, mass, f: m.poses(q, t),
     "twists": lambda m, t, q, u, v, ud, mass, f: m.twists(q, u, t),
@@ -90,7 +127,18 @@ def pieces(mech, n, only):
     mass, bias = mech.dynamics(q, u, t)
     _, ud, _ = mech.vector_field(t, (q, u, v), None)
     args = (t, q, u, v, ud, mass, -bias)
-    return {k: timed(fn, mech, args, n) for k, fn in PIECES.items() if not only or k in only}
+    stages = all(isinstance(j, _AbstractStageJoint) for j in (mech.azimuth, mech.pitch))
+    out = {}
+    for k, fn in PIECES.items():
+        if only and k not in only:
+            continue
+        if "stages'" in k or "jvp + vjp" in k:
+            out[k] = timed(fn, mech, args, n) if stages else float("nan")  # stage joints only
+        elif "default CPU options" in k:
+            out[k] = timed(fn, mech, args, n, options=None)
+        else:
+            out[k] = timed(fn, mech, args, n)
+    return out
 
 
 def batched(mech, n, batch):
@@ -102,7 +150,7 @@ def batched(mech, n, batch):
     def fn(m, t, qb, ub, vb):
         return jax.vmap(lambda q_, u_, v_: m.vector_field(t, (q_, u_, v_), None))(qb, ub, vb)
 
-    return timed(fn, mech, args, max(n // batch, 20))
+    return timed(fn, mech, args, max(n // batch, 20), options=None)
 
 
 def trajectory(horizon):
@@ -178,7 +226,7 @@ def main():
         "One right-hand-side evaluation, dual-axis antenna: where the time goes",
         _results.command(args),
         ["piece"] + [f"{f} (u: {sizes[f][0]}, contacts: {sizes[f][1]})" for f in fids],
-        [[key] + [f"{rows[f][key]:.1f}" for f in fids] for key in rows[fids[0]]],
+        [[key] + ["—" if rows[f][key] != rows[f][key] else f"{rows[f][key]:.1f}" for f in fids] for key in rows[fids[0]]],
         about=f"Compiled microseconds per call ({args.calls} calls inside one program, best of 3). "
         f"Load average (1, 5, 15 min) at start, after the pieces, after the runs: {'; '.join(', '.join(f'{x:.2f}' for x in l) for l in load)}.",
         notes=notes,

@@ -41,7 +41,14 @@ class _NanSafePID(diffrax.PIDController):
         return super().adapt_step_size(t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state)
 
 
-@eqx.filter_jit
+# XLA's CPU compiler hands some products and reductions to YNNPACK ("ynn fusions"); for one
+# state's right-hand side of these scenes (36 x 36 mass matrices, many kernels of a few
+# microseconds) that costs more than it saves: a single solve runs 12 % faster without them
+# (planetary and lumped dual-axis antenna, same steps and results; vmapped over 64 states they
+# pay, so Monte Carlo's batched programs keep the default). benchmarks/results/rhs_anatomy.md.
+CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
+
+
 def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint):
     if fixed:
         controller = diffrax.ConstantStepSize()
@@ -80,6 +87,10 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, 
     sol = eqx.tree_at(lambda s: (s.ts, s.ys, s.result, s.stats), sol, (ts_saved, ys, result, stats))
     observed = jax.vmap(scene.observe)(sol.ts, sol.ys)
     return sol, observed
+
+
+_solve_jit = eqx.filter_jit(_solve)
+_solve_cpu = eqx.filter_jit(_solve, compiler_options=CPU_COMPILER_OPTIONS)
 
 
 def solve(
@@ -147,7 +158,8 @@ def solve(
             solver = eqx.tree_at(lambda s_: s_.root_finder, solver, diffrax.VeryChord(rtol=rtol, atol=atol))
     f64 = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
     ts = jnp.linspace(0.0, duration, int(n_save))
-    return _solve(
+    run = _solve_cpu if jax.default_backend() == "cpu" else _solve_jit
+    return run(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
     )
