@@ -17,9 +17,9 @@ seconds with both formulations (wall time after compilation, steps): the per-ste
 
 Pieces are compiled with the XLA options `tolerax.simulate` uses for a single solve on a CPU
 (`tolerax._solve.CPU_COMPILER_OPTIONS`: no YNNPACK fusions), and the whole vector field once more
-with XLA's defaults. For planetary joints, the stages' deflection rates and force projection
-both ways: today's Jacobian by forward mode and two products, and the `jvp` + `vjp` pair used
-before commit 2e0792c.
+with XLA's defaults. For planetary joints, the joints' forces also with the stages' deflection rates and force
+projection by a `jvp` + `vjp` pair (before commit 2e0792c; today: the deflections' Jacobian by
+forward mode and two products).
 
 `--batches`: the whole vector field `vmap`ped over that many states at once (what a Monte Carlo
 chunk pays per evaluation), per fidelity: microseconds per batched call and per state. If the
@@ -36,7 +36,6 @@ import time
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jax.flatten_util import ravel_pytree
 
 import tolerax
 from tolerax import _mechanism, _planetary
@@ -72,23 +71,15 @@ def timed(fn, mech, args, n, options=CPU_OPTIONS):
     return best / n * 1e6
 
 
-def _stage_projection(m, q, u, how):
-    """What `_planetary.stage_forces` does with the deflections of both stages (vmapped as in
-    the vector field): their rates and the projection of forces (here the deflections
-    themselves, same shapes) onto the coordinates. `how="jacobian"`: today's, the Jacobian once
-    by forward mode and two products; `"jvp+vjp"`: before commit 2e0792c, a `jvp` and a `vjp`."""
+def _forces_by_jvp_vjp(m, q, u, v, t):
+    """`Mechanism.joint_forces` with the stages' forces projected by a `jvp` and a `vjp`
+    (`_planetary.stage_forces(..., projection="jvp-vjp")`, the formulation before 2e0792c)."""
 
-    def one(joint, qj, uj):
-        stage = joint.stage
-        defl = lambda q_: _planetary.deflections(stage, q_)  # noqa: E731
-        if how == "jacobian":
-            flat, unravel = ravel_pytree(defl(qj))
-            jac = jax.jacfwd(lambda q_: ravel_pytree(defl(q_))[0])(qj)
-            return unravel(jac @ uj), jac.T @ flat
-        values, pullback = jax.vjp(defl, qj)
-        return jax.jvp(defl, (qj,), (uj,))[1], pullback(values)[0]
+    def one(joint, qj, uj, vj):
+        f = _planetary.stage_forces(joint.stage, qj, uj, vj, projection="jvp-vjp")
+        return f.generalised + joint.drive_forces(qj, uj, t), f.contact
 
-    return m.each_joint(one, ("q", q), ("u", u))
+    return m.each_joint(one, ("q", q), ("u", u), ("v", v))
 
 
 def _cholesky(mass, force):
@@ -111,8 +102,7 @@ PIECES = {
         lambda a, b: m.twists(a, u, b), (q, t), (m.qdot(q, u), jnp.ones_like(t))
     ),
     "joint forces (both joints)": lambda m, t, q, u, v, ud, mass, f: m.joint_forces(q, u, v, t),
-    "  stages' deflections, rates and projection: Jacobian once (today)": lambda m, t, q, u, v, ud, mass, f: _stage_projection(m, q, u, "jacobian"),
-    "  the same by jvp + vjp (before 2e0792c)": lambda m, t, q, u, v, ud, mass, f: _stage_projection(m, q, u, "jvp+vjp"),
+    "joint forces, stages projected by jvp + vjp (before 2e0792c)": lambda m, t, q, u, v, ud, mass, f: _forces_by_jvp_vjp(m, q, u, v, t),
     "impact-rate rates (both joints)": lambda m, t, q, u, v, ud, mass, f: _impact_rate_rates(m, q, u, ud, v),
     "poses": lambda m, t, q, u, v, ud, mass, f: m.poses(q, t),
     "twists": lambda m, t, q, u, v, ud, mass, f: m.twists(q, u, t),
@@ -132,7 +122,7 @@ def pieces(mech, n, only):
     for k, fn in PIECES.items():
         if only and k not in only:
             continue
-        if "stages'" in k or "jvp + vjp" in k:
+        if "jvp + vjp" in k:
             out[k] = timed(fn, mech, args, n) if stages else float("nan")  # stage joints only
         elif "default CPU options" in k:
             out[k] = timed(fn, mech, args, n, options=None)

@@ -284,16 +284,30 @@ class StageForces(eqx.Module):
     contact_state: _contact.ContactState | None
 
 
-def stage_forces(stage: PlanetaryStage, q: Array, qd: Array, impact_rates: Array) -> StageForces:
-    """Generalised forces of springs, meshes and contacts, $Q = -\\sum_k F_k\\,\\partial d_k/\\partial q$."""
+def stage_forces(
+    stage: PlanetaryStage, q: Array, qd: Array, impact_rates: Array, *, projection: str = "jacobian"
+) -> StageForces:
+    """Generalised forces of springs, meshes and contacts, $Q = -\\sum_k F_k\\,\\partial d_k/\\partial q$.
+
+    `projection="jacobian"`: the deflections' Jacobian $D$ (n_deflections x n_q) formed once by
+    forward mode over the stage's few coordinates, the rates $D\\dot q$ and the forces $-D^TF$ one
+    product each (the joints' forces in the antenna's right-hand side cost 0.6x the other way,
+    `benchmarks/results/rhs_anatomy.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp` for the
+    projection (the formulation before; same values to rounding, kept for the equivalence test
+    and the benchmark)."""
     width = stage.smoothing_width
-    # The deflections' Jacobian D (n_deflections x n_q) once, by forward mode over the stage's
-    # few coordinates; the rates are D q' and the generalised forces -D^T F, one product each.
-    # On a CPU this costs 0.6x the jvp + vjp pair it replaces (benchmarks/results/rhs_anatomy.md).
-    defl = deflections(stage, q)
-    _, unravel = ravel_pytree(defl)
-    jac = jax.jacfwd(lambda q_: ravel_pytree(deflections(stage, q_))[0])(q)
-    defl_dot = unravel(jac @ qd)
+    if projection == "jacobian":
+        defl = deflections(stage, q)
+        _, unravel = ravel_pytree(defl)
+        jac = jax.jacfwd(lambda q_: ravel_pytree(deflections(stage, q_))[0])(q)
+        defl_dot = unravel(jac @ qd)
+        project = lambda cotangent: jac.T @ ravel_pytree(cotangent)[0]  # noqa: E731
+    elif projection == "jvp-vjp":
+        defl, pullback = jax.vjp(lambda q_: deflections(stage, q_), q)
+        defl_dot = jax.jvp(lambda q_: deflections(stage, q_), (q,), (qd,))[1]
+        project = lambda cotangent: pullback(cotangent)[0]  # noqa: E731
+    else:
+        raise ValueError(f"projection={projection!r} is unknown; use 'jacobian' or 'jvp-vjp'.")
     phase_s, phase_r = mesh_phases(stage, q)
     forces = {}
     tooth = {}
@@ -340,7 +354,7 @@ def stage_forces(stage: PlanetaryStage, q: Array, qd: Array, impact_rates: Array
             forces[key] = part[0] if count is None else part
             start += size
     cotangent = {k: forces.get(k, jnp.zeros_like(v)) for k, v in defl.items()}
-    q_force = jac.T @ ravel_pytree(cotangent)[0]
+    q_force = project(cotangent)
     return StageForces(
         generalised=-q_force,
         sun_mesh=tooth["sun"],

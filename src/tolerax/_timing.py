@@ -20,12 +20,20 @@ COLUMNS = (
 
 
 def fidelity_cost(
-    fidelity: str, duration: float, *, n_save: int = 51, label: str | None = None, repeats: int = 1, **options
+    fidelity: str,
+    duration: float,
+    *,
+    n_save: int = 51,
+    label: str | None = None,
+    repeats: int = 1,
+    rtol: float = 1e-6,
+    **options,
 ) -> dict:
     """Compile and run time of `antenna("dual", fidelity=fidelity, **options)` (free base, 0.98
     deg/s on both joints, 100 um clearances and backlash) over `duration` (s) from a steady start.
     `label` names the row (default: the fidelity); `options` go to `antenna` (for example
-    `mass_scaling=100.0` with `"planetary-scaled"`).
+    `mass_scaling=100.0` with `"planetary-scaled"`); `rtol` is the solver's relative tolerance
+    (Tsit5, atol 1e-9).
 
     The scene is solved `1 + repeats` times: the fastest of the calls after the first is the run
     time (on a shared or virtual machine noise only ever adds time), the first call's time minus
@@ -39,7 +47,7 @@ def fidelity_cost(
     times, res = [], None
     for _ in range(1 + repeats):
         start = time.perf_counter()
-        res = simulate(mech, duration, n_save=n_save, start="steady")
+        res = simulate(mech, duration, n_save=n_save, start="steady", rtol=rtol)
         jax.block_until_ready(res.ts)
         times.append(time.perf_counter() - start)
     first, run = times[0], min(times[1:])
