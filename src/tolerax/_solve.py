@@ -158,7 +158,10 @@ def solve(
             solver = eqx.tree_at(lambda s_: s_.root_finder, solver, diffrax.VeryChord(rtol=rtol, atol=atol))
     f64 = lambda x: jnp.asarray(x, dtype=float)  # noqa: E731
     ts = jnp.linspace(0.0, duration, int(n_save))
-    run = _solve_cpu if jax.default_backend() == "cpu" else _solve_jit
+    # Compiler options are allowed on a top-level jit only: inside a caller's jit (the ops here
+    # are then staged, tracers), or with traced inputs (vmap, grad), the plain jit.
+    traced = any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves((scene, y0, ts)))
+    run = _solve_cpu if jax.default_backend() == "cpu" and not traced else _solve_jit
     return run(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
