@@ -7,7 +7,10 @@ solvers, tolerances, the smoothing width, the paper's fixed 1e-4 s step, and Sci
 
 Writes `benchmarks/results/work_precision_<scene>.{md,json,png}`. Options: `--quick` (fewer
 tolerances), `--methods Tsit5 RK45` (only those methods: a smoke run), `--no-implicit`,
-`--no-scipy`, `--duration`, `--render` (rewrite the .md and .png from the saved .json).
+`--no-scipy`, `--duration`, `--render` (rewrite the .md and .png from the saved .json),
+`--mass-scalings 10 100` (dual-planetary: Tsit5 on the mass-scaled joints, `fidelity=
+"planetary-scaled"`, at each scaling, family `scaled s=N`; their errors are against the full
+planetary reference, so they hold the reduced fidelity's model error as well as the solver's).
 
 **Reference.** Dopri8 at rtol 1e-12 (atol 1e-15) and the default smoothing width (1e-9 m, the
 smallest the project uses); it is accepted only if Tsit5 at rtol 1e-11, a different method, agrees
@@ -86,6 +89,16 @@ def _dual_make(fidelity):
     def make(width):
         stage = tolerax.default_stage(smoothing_width=width)
         return tolerax.antenna("dual", fidelity=fidelity, azimuth_stage=stage, pitch_stage=stage)
+
+    return make
+
+
+def _dual_scaled_make(scaling):
+    def make(width):
+        stage = tolerax.default_stage(smoothing_width=width)
+        return tolerax.antenna(
+            "dual", fidelity="planetary-scaled", mass_scaling=scaling, azimuth_stage=stage, pitch_stage=stage
+        )
 
     return make
 
@@ -265,9 +278,12 @@ def main():
     parser.add_argument("--scipy-rtols", type=float, nargs="+", help="SciPy tolerances (default: 1e-4 ... 1e-8; --quick: 1e-4 1e-6)")
     parser.add_argument("--numpy-rtols", type=float, nargs="+", default=[1e-4, 1e-6], help="tolerances of SciPy on the NumPy right-hand side (RK45, Radau, LSODA)")
     parser.add_argument("--duration", type=float, help="override the scene's simulated time (s)")
+    parser.add_argument("--mass-scalings", type=float, nargs="+", default=[], help="dual-planetary only: Tsit5 rows on mass-scaled joints at these scalings (family 'scaled s=N')")
     parser.add_argument("--render", action="store_true", help="rewrite the .md and .png from the scene's saved .json (no runs)")
     args = parser.parse_args()
     case = CASES[args.scene]
+    if args.mass_scalings and case.name != "dual-planetary":
+        parser.error("--mass-scalings needs --scene dual-planetary (the scaled joints replace planetary ones)")
     if args.render:
         saved = json.loads((_results.results_dir() / f"work_precision_{case.name}.json").read_text())
         case = dataclasses.replace(case, duration=saved["duration"], description=saved["scene"])
@@ -337,6 +353,12 @@ def main():
     for width in (1e-8, 1e-7, 1e-6) if wanted("Tsit5") else ():
         rec, qs = run_diffrax(case, case.make(width), diffrax.Tsit5(), 1e-6)
         log(dict(family="eps", method="Tsit5", rtol=1e-6, eps=width, **rec, errors=errors(qs, reference) if qs else None))
+    # The reduced fidelity: mass-scaled planetary joints (errors against the full reference).
+    for scaling in args.mass_scalings if wanted("Tsit5") else ():
+        scaled = _dual_scaled_make(scaling)(default_width)
+        for rtol in [1e-4, 1e-6] if args.quick else [1e-4, 1e-5, 1e-6, 1e-7, 1e-8]:
+            rec, qs = run_diffrax(case, scaled, diffrax.Tsit5(), rtol)
+            log(dict(family=f"scaled s={scaling:g}", method="Tsit5", rtol=rtol, eps=default_width, **rec, errors=errors(qs, reference) if qs else None))
     # SciPy on the same compiled equations.
     if not args.no_scipy:
         scipy_tols = args.scipy_rtols or ([1e-4, 1e-6] if args.quick else [1e-4, 1e-5, 1e-6, 1e-7, 1e-8])
@@ -413,7 +435,7 @@ def plot(case, rows, keys, path):
     for ax, key in zip(axes, keys):
         for label, rs in groups.items():
             style = "--" if label.startswith("scipy") else "-"
-            marker = "s" if label.startswith(("fixed", "eps")) else "o"
+            marker = "s" if label.startswith(("fixed", "eps")) else "^" if label.startswith("scaled") else "o"
             ax.loglog([max(r["errors"][key], 1e-16) for r in rs], [r["wall_s"] for r in rs], style, marker=marker, label=label)
         ax.set_xlabel(f"relative error: {key}")
         ax.set_ylabel("wall time (s)")
