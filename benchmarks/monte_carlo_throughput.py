@@ -3,7 +3,7 @@ through the public `tolerax.monte_carlo(...)` call, for the azimuth scan scene a
 planetary fidelity.
 
     python benchmarks/monte_carlo_throughput.py [--scenes lumped planetary]
-        [--backends vmap processes dask] [--chunks 1 4 16] [--worker-chunks 1 4] [--workers 2]
+        [--backends vmap processes processes-free dask] [--chunks 1 4 16] [--worker-chunks 1 4] [--workers 2]
 
 Model: `tolerax.PointingObjective` on `tolerax.scan("azimuth", fidelity=(f, "ideal"))`, steady
 start, 101 saves, the objective's solver defaults (Tsit5, rtol 1e-6, atol 1e-9), a short horizon
@@ -18,6 +18,8 @@ Configurations (one timed `monte_carlo` call each, wall clock, progress bar off)
 - `processes`, `--workers` spawned processes, chunk c in `--worker-chunks`: every call starts its
   own pool, so each worker imports tolerax and compiles inside the timed call; its rate after
   start-up comes from the chunk-completion times the driver sees (`_rate_after_start`).
+- `processes-free`: the same with `pin_workers=False`, each worker free to use every core (the
+  engine's default pins each to a core of its own on a CPU, `processes` here).
 - `dask`, a `distributed.LocalCluster(n_workers=--workers, threads_per_worker=1)` started once:
   per chunk size a warm-up call with c + 1 samples (two chunks, one per worker, each compiling),
   then the timed call.
@@ -27,7 +29,8 @@ chunk sizes: a short chunk is padded and pays for the padding. vmap chunk sizes 
 count, and worker chunk sizes that give a worker fewer than two chunks (so no rate after start-up),
 are skipped for that scene. Every configuration's outputs are compared with the vmap run of the same
 chunk size (the engine promises identical results for the same key on every backend) and with
-vmap at the smallest chunk. Writes `benchmarks/results/monte_carlo_throughput.md`, then exits with
+vmap at the smallest chunk. Writes `benchmarks/results/monte_carlo_throughput.md` (or
+`--output`.md), then exits with
 status 1 if a backend disagreed with vmap at the same chunk size.
 """
 
@@ -113,11 +116,13 @@ def measure(label, model, tolerances, n, key, args, client, chunks, worker_chunk
             res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk)
             record("vmap", chunk, warmup, res, wall, done, n / wall)
             refs[chunk] = res
-    if "processes" in args.backends:
-        for chunk in worker_chunks:
+    for chunk in worker_chunks:  # pinned and free alternate, so a slow spell of the machine hits both
+        for backend, pin in (("processes", None), ("processes-free", False)):
+            if backend not in args.backends:
+                continue
             res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk, backend="processes",
-                                          workers=args.workers)
-            record("processes", chunk, None, res, wall, done, _rate_after_start(done, args.workers))
+                                          workers=args.workers, pin_workers=pin)
+            record(backend, chunk, None, res, wall, done, _rate_after_start(done, args.workers))
     if "dask" in args.backends:
         for chunk in worker_chunks:
             start = time.perf_counter()
@@ -180,7 +185,7 @@ def which_backend(rows, cluster_start) -> str:
         # its cluster once and compiles in each worker once per chunk size (its warm-up call).
         if backend == "vmap":
             cold[backend] = r["warmup"]
-        elif backend == "processes":
+        elif backend.startswith("processes"):
             cold[backend] = max(r["wall"] - r["n"] / r["steady"], 0.0)
         else:
             cold[backend] = r["warmup"] + (cluster_start or 0.0)
@@ -197,7 +202,7 @@ def which_backend(rows, cluster_start) -> str:
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--scenes", nargs="+", choices=("lumped", "planetary"), default=["lumped", "planetary"])
-    parser.add_argument("--backends", nargs="+", choices=("vmap", "processes", "dask"),
+    parser.add_argument("--backends", nargs="+", choices=("vmap", "processes", "processes-free", "dask"),
                         default=["vmap", "processes", "dask"])
     parser.add_argument("--chunks", type=int, nargs="+", default=[1, 4, 16], help="vmap chunk sizes")
     parser.add_argument("--worker-chunks", type=int, nargs="+", default=[1, 4],
@@ -209,6 +214,7 @@ def main():
     parser.add_argument("--planetary-samples", type=int, default=8)
     parser.add_argument("--band", type=float, default=10e-6, help="tolerance half-width of every feature (m)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--output", default="monte_carlo_throughput", help="results file name (without .md)")
     args = parser.parse_args()
     load_before = _load()
     key = jax.random.key(args.seed)
@@ -245,6 +251,14 @@ def main():
                 per = first["per_chunk"] / first["chunk"]
                 notes.append(f"vmap at chunk {first['chunk']}, seconds per sample (from chunk-completion times): "
                              f"min {per.min():.2f}, median {np.median(per):.2f}, max {per.max():.2f}.")
+            pairs = [(r, f) for r in rows if r["backend"] == "processes"
+                     for f in rows if f["backend"] == "processes-free" and f["chunk"] == r["chunk"]]
+            if pairs:
+                notes.append("Workers pinned to a core each (`processes`, the default) against free (`processes-free`): "
+                             + "; ".join(f"chunk {r['chunk']}: timed call {r['wall']:.1f} against {f['wall']:.1f} s "
+                                         f"(x{r['wall'] / f['wall']:.2f}), rate after start-up "
+                                         f"{_fmt(r['steady'], '.3f')} against {_fmt(f['steady'], '.3f')} samples/s"
+                                         for r, f in pairs) + ".")
             notes.append(which_backend(rows, cluster_start))
             heading = f'{fidelity}: `scan("azimuth", fidelity=("{fidelity}", "ideal"))`, {duration} s per sample'
             sections.append(_results.Section(heading, COLUMNS, table_rows(rows), notes))
@@ -274,7 +288,7 @@ def main():
             "one GPU, set `XLA_PYTHON_CLIENT_PREALLOCATE=false`, or each worker claims most of its memory."
         )
     _results.write_table(
-        "monte_carlo_throughput",
+        args.output,
         "Monte Carlo throughput by backend and chunk size (azimuth scan scene, `tolerax.monte_carlo`)",
         _results.command(args),
         sections[0].columns, sections[0].rows,

@@ -52,6 +52,17 @@ class Ishigami(eqx.Module):
         return {"y": y, "success": jnp.array(True)}
 
 
+class Affinity(eqx.Module):
+    """Where the evaluating process runs: its process id, how many cores it may use and the first
+    of them, read when the process traces the model (so, per worker, at its first chunk)."""
+
+    def __call__(self, x):
+        cores = sorted(os.sched_getaffinity(0))
+        constant = lambda v: jnp.asarray(float(v)) + 0.0 * x[0]  # noqa: E731
+        return {"pid": constant(os.getpid()), "n_cores": constant(len(cores)), "first_core": constant(cores[0]),
+                "success": jnp.array(True)}
+
+
 _CALLS = 0
 
 

@@ -23,6 +23,7 @@ import multiprocessing
 import os
 import pathlib
 import pickle
+import queue
 import statistics
 import uuid
 from collections.abc import Callable, Mapping
@@ -92,6 +93,35 @@ def _evaluate_payload(payload: bytes, x64: bool, values: np.ndarray, size: int) 
     if digest not in _MODELS:
         _MODELS[digest] = cloudpickle.loads(payload)
     return evaluate(_MODELS[digest], values, size)
+
+
+def _pin_worker(cores) -> None:
+    """Initializer of a `backend="processes"` worker: run on one core of its own, taken from the
+    shared queue `cores`, before JAX starts (its CPU client sizes its thread pool to the process's
+    cores). One solve's right-hand side is hundreds of microsecond kernels, which XLA's runtime
+    hands between threads at a loss: a planetary solve pinned to one core ran 0.87x the time of
+    one free (benchmarks/results/pinning.md), and two free workers on two cores contend for both."""
+    try:
+        core = cores.get(timeout=10.0)
+    except queue.Empty:  # more workers than cores were queued: run free
+        return
+    os.sched_setaffinity(0, {core})
+
+
+def _worker_cores(workers: int | None, pin: bool | None) -> list[int] | None:
+    """The cores to pin `backend="processes"` workers to, one each, or None to leave them free:
+    `pin=None` pins on a CPU backend when there are at least as many cores as workers."""
+    if pin is False or not hasattr(os, "sched_setaffinity"):
+        return None
+    cores = sorted(os.sched_getaffinity(0))
+    n = len(cores) if workers is None else int(workers)  # the pool's default is one per core
+    if n > len(cores):
+        if pin:
+            raise ValueError(f"pin_workers=True needs a core per worker: {n} workers, {len(cores)} cores available.")
+        return None
+    if pin is None and jax.default_backend() != "cpu":  # a GPU's workers: leave the host free
+        return None
+    return cores[:n]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -213,7 +243,7 @@ def _farm(futures: dict, as_completed, cancel, handle, save) -> None:
         raise
 
 
-def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers) -> None:
+def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
     if backend == "vmap":
         for k in todo:
             handle(k, evaluate(model, plan.draw(*plan.span(k)), plan.chunk_size))
@@ -222,7 +252,15 @@ def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers
     x64 = bool(jax.config.read("jax_enable_x64"))
     args = lambda k: (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size)  # noqa: E731
     if backend == "processes":
-        pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+        context = multiprocessing.get_context("spawn")
+        pinning = {}
+        cores = _worker_cores(workers, pin_workers)
+        if cores is not None:
+            shared = context.Queue()
+            for core in cores:
+                shared.put(core)
+            pinning = dict(initializer=_pin_worker, initargs=(shared,))
+        pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, **pinning)
         finished = False
         try:
             futures = {pool.submit(*args(k)): k for k in todo}
@@ -245,7 +283,8 @@ def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers
 
 
 def run_samples(
-    model, plan: _Plan, *, backend, out, progress, client, workers, callback, units: Mapping[str, str] | None
+    model, plan: _Plan, *, backend, out, progress, client, workers, callback, units: Mapping[str, str] | None,
+    pin_workers: bool | None = None,
 ) -> xr.Dataset:
     """Evaluate `model` on every chunk of `plan` not already finished in `out`; return all samples."""
     if backend not in BACKENDS:
@@ -277,7 +316,7 @@ def run_samples(
 
     todo = [k for k in range(plan.n_chunks) if k not in chunks]
     try:
-        _run_chunks(model, plan, backend, todo, handle, save, client, workers)
+        _run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_workers)
     except BaseException as err:
         if folder is not None and hasattr(err, "add_note"):  # Python >= 3.11
             err.add_note(
@@ -329,6 +368,7 @@ def monte_carlo(
     progress: bool = True,
     client=None,
     workers: int | None = None,
+    pin_workers: bool | None = None,
     requirement: float | Mapping[str, float] | None = None,
     units: Mapping[str, str] | None = None,
     callback: Callable[[int, xr.Dataset], object] | None = None,
@@ -355,8 +395,8 @@ def monte_carlo(
       worker) is paid.
     - `"processes"`: chunks farmed to `workers` processes of this machine
       (`concurrent.futures.ProcessPoolExecutor`, spawn start; default one per CPU core), each
-      running `"vmap"`'s evaluation. A script calling it needs the `if __name__ == "__main__":`
-      guard.
+      running `"vmap"`'s evaluation, each pinned to a core of its own on a CPU (`pin_workers`).
+      A script calling it needs the `if __name__ == "__main__":` guard.
     - `"dask"`: chunks as tasks on a Dask cluster; `client` is a `dask.distributed.Client` or a
       scheduler address. On several machines: start `dask-scheduler` on one, `dask-worker
       tcp://SCHEDULER:8786 --nworkers 1 --nthreads 1` on each (or let `dask_jobqueue`'s
@@ -390,6 +430,14 @@ def monte_carlo(
     - `progress`: show a progress bar.
     - `client`: Dask client or scheduler address (for `backend="dask"`).
     - `workers`: processes for `backend="processes"` (default: CPU count).
+    - `pin_workers`: for `backend="processes"`, run each worker on one core of its own
+      (`os.sched_setaffinity`, Linux): `None` (default) does so on a CPU backend when there are
+      at least as many cores as workers, `True` insists (an error otherwise), `False` leaves the
+      workers free. XLA's runtime spreads one solve's small kernels over every core it may use,
+      at a loss (`benchmarks/results/pinning.md`): pinned, two workers' calls took 0.80-0.88x
+      the time of free ones with samples of a second or more, but a pinned worker also
+      compiles on its one core, so for many very short samples `False` starts faster
+      (`benchmarks/results/monte_carlo_pinning.md`).
     - `requirement`: default requirement of `MonteCarloResult.summary` (output units).
     - `units`: units of the outputs, e.g. `{"pointing_error": "arcsec"}` (features are in m).
     - `callback`: called as `callback(k, chunk_dataset)` in the driver after chunk `k` is saved.
@@ -404,7 +452,7 @@ def monte_carlo(
     draw = lambda start, stop: np.asarray(sample(tolerances, key, stop - start, first=start))  # noqa: E731
     plan = _Plan(tolerances.names, int(n), int(chunk_size), draw, settings)
     ds = run_samples(model, plan, backend=backend, out=out, progress=progress, client=client, workers=workers,
-                     callback=callback, units=units)
+                     callback=callback, units=units, pin_workers=pin_workers)
     return MonteCarloResult(ds, requirement=requirement)
 
 
