@@ -139,3 +139,43 @@ def test_demo_and_design_propose(tmp_path):
                       "--inner", "1", "--out", str(tmp_path / "design")]) == 0
     text = (tmp_path / "design" / "design.md").read_text()
     assert "against a requirement of 1000.0 arcsec" in text
+
+
+def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch, capsys):
+    """`tolerax studies backlash` (small: two 0.03 s scenes) at an overridden horizon writes each
+    row with it at the save rate of its size; `--resume` keeps matching rows without
+    solving again, and a different horizon solves again."""
+    from tolerax import _studies as S
+
+    out = tmp_path / "studies"
+    args = ["studies", "backlash", "--duration", "0.04", "--settle", "0.02", "--out", str(out)]
+    assert _cli.main(args) == 0
+    rows = json.loads((out / "backlash-small.json").read_text())
+    assert len(rows) == 2 and all(r["duration_s"] == 0.04 and r["settle_s"] == 0.02 for r in rows)
+    assert S.size_spec("small", 0.04, 0.02).n_save == 81  # small saves every 0.5 ms: 61 over 0.03 s
+
+    calls = []
+    real = S.simulate
+    monkeypatch.setattr(S, "simulate", lambda *a, **k: calls.append(a) or real(*a, **k))
+    assert _cli.main(args + ["--resume"]) == 0
+    assert calls == [] and json.loads((out / "backlash-small.json").read_text()) == rows
+    assert "kept from the earlier run" in capsys.readouterr().out
+    # One row removed: only that scene runs again.
+    (out / "backlash-small.json").write_text(json.dumps(rows[:1]))
+    assert _cli.main(args + ["--resume"]) == 0
+    assert len(calls) == 1
+    again = json.loads((out / "backlash-small.json").read_text())
+    assert again[0] == rows[0] and again[1]["backlash"] == rows[1]["backlash"]
+    # Another horizon is another run; without --resume everything runs.
+    assert _cli.main(["studies", "backlash", "--duration", "0.03", "--out", str(out), "--resume"]) == 0
+    assert len(calls) == 3
+    assert [r["duration_s"] for r in json.loads((out / "backlash-small.json").read_text())] == [0.03, 0.03]
+
+
+@pytest.mark.parametrize("extra", [["--settle", "0.05"], ["--duration", "0"], ["--settle", "-1"]])
+def test_studies_reject_a_bad_horizon(extra, capsys):
+    with pytest.raises(SystemExit) as info:
+        _cli.main(["studies", "backlash", *extra])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "usage: tolerax" in err and ("settle" in err or "duration" in err)

@@ -285,12 +285,26 @@ def _studies(parser, args) -> int:
             parser.error(f"unknown study {name!r}; choose from {', '.join(S.STUDIES)}")
     if args.size not in S.SIZES:
         parser.error(f"--size must be one of {', '.join(S.SIZES)}, got {args.size!r}")
+    try:
+        S.size_spec(args.size, args.duration, args.settle)
+    except ValueError as err:
+        parser.error(str(err))
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for name in names:
-        rows = S.run(name, args.size)
         path = out / f"{name}-{args.size}.json"
-        path.write_text(json.dumps(rows, indent=1))
+        done = json.loads(path.read_text()) if args.resume and path.exists() else []
+
+        def save(rows, path=path, done=done):
+            # Every row so far, and the earlier run's rows this run has not reached yet, so an
+            # interrupted run loses only the scene it was on.
+            later = [r for r in done if not any(r is k for k in rows)]
+            tmp = path.with_suffix(".json.tmp")
+            tmp.write_text(json.dumps(rows + later, indent=1))
+            tmp.replace(path)
+
+        rows = S.run(name, args.size, duration=args.duration, settle=args.settle, done=done, on_row=save)
+        save(rows, done=[])
         print(f"wrote {path}")
     return 0
 
@@ -577,6 +591,12 @@ def main(argv=None) -> int:
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
     studies.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    studies.add_argument("--duration", type=_positive, default=None,
+                         help="simulated time per scene, s (default: the size's, full 3 s)")
+    studies.add_argument("--settle", type=float, default=None,
+                         help="metrics from this time on, s (default: the size's, full 2 s)")
+    studies.add_argument("--resume", action="store_true",
+                         help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
     bench = sub.add_parser(
         "bench", help="compile time and wall time per simulated second of the antenna per joint fidelity",
         description="Time the dual-axis antenna (0.98 deg/s on both joints, 100 um clearances and backlash, free "

@@ -17,6 +17,11 @@ keeps at 100 µm throughout, is `"lumped"` (its output-bearing clearance and bac
 internal gear clearances). Dual-axis scenes have both joints planetary. The `fidelity` study
 runs the 0.98 °/s scenes at lumped/lumped and planetary/planetary to measure what the cheap
 fidelity misses.
+
+A long horizon is `run(..., duration=, settle=)` (`tolerax studies --duration 20 --settle 19`),
+saved after every scene and resumable (`done=`, `--resume`): 46 scenes of 20 s are up to about
+five hours of CPU at ~19 s of wall time per simulated second for two planetary joints
+(`benchmarks/results/mechanism_cost.md`), more than one sitting.
 """
 
 import dataclasses
@@ -171,20 +176,74 @@ def metrics(mech: Mechanism, res: MechanismResult, settle: float, min_frequency:
     return out
 
 
-def run(study: str, size: str = "small", progress: bool = True) -> list[dict]:
-    """Run every scene of `study` at `size`; one dict per scene (labels, metrics, wall time, and
-    for the full size the metrics of the start-up window under `"start_up"`)."""
-    spec = SIZES[size] if size in SIZES else None
+def size_spec(size: str, duration: float | None = None, settle: float | None = None) -> StudySize:
+    """The `StudySize` of `size`, with its horizon `duration` (s) and metrics start `settle` (s)
+    overridden where given; the save rate stays the size's (1 kHz at full size)."""
+    if size not in SIZES:
+        raise ValueError(f"size={size!r} is unknown; use one of {tuple(SIZES)}.")
+    spec = SIZES[size]
+    duration = spec.duration if duration is None else float(duration)
+    settle = spec.settle if settle is None else float(settle)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration={duration!r} s must be positive.")
+    if not (math.isfinite(settle) and 0 <= settle < duration):
+        raise ValueError(f"settle={settle!r} s must satisfy 0 <= settle < duration = {duration:g} s "
+                         "(the metrics are taken over settle <= t <= duration).")
+    if spec.start_up is not None and spec.start_up[1] > duration:
+        raise ValueError(f"duration={duration:g} s is shorter than the start-up window {spec.start_up} s "
+                         f"the {size!r} size records; give at least {spec.start_up[1]:g} s.")
+    rate = (spec.n_save - 1) / spec.duration
+    return dataclasses.replace(spec, duration=duration, settle=settle, n_save=int(round(duration * rate)) + 1)
+
+
+def _same_scene(row: dict, labels: dict, spec: StudySize, size: str) -> bool:
+    """Whether `row` (of an earlier run) is the scene `labels` at the horizon of `spec`. Rows
+    written before horizons could be overridden carry none: theirs is the size's own."""
+    own = SIZES[size]
+    horizon = (row.get("duration_s", own.duration), row.get("settle_s", own.settle))
+    return (all(math.isclose(a, b) for a, b in zip(horizon, (spec.duration, spec.settle)))
+            and all(row.get(k) == v for k, v in labels.items()))
+
+
+def run(
+    study: str,
+    size: str = "small",
+    progress: bool = True,
+    *,
+    duration: float | None = None,
+    settle: float | None = None,
+    done: list[dict] = (),
+    on_row=None,
+) -> list[dict]:
+    """Run every scene of `study` at `size`; one dict per scene (labels, metrics, the horizon
+    `duration_s` and `settle_s`, wall time, and for the full size the metrics of the start-up
+    window under `"start_up"`).
+
+    - `duration`, `settle` (s): override the size's horizon and metrics start (`size_spec`).
+    - `done`: rows of an earlier run (its JSON); a scene with a row there of the same labels and
+      horizon is not run again and its row is kept (a long study resumes where it stopped).
+    - `on_row(rows)`: called with the rows so far after each scene (to save them as they come).
+    """
+    spec = size_spec(size, duration, settle)
     rows = []
     for labels, mech in scenes(study, size):
+        kept = next((r for r in done if r.get("study", study) == study and _same_scene(r, labels, spec, size)), None)
+        if kept is not None:
+            rows.append(kept)
+            if progress:
+                print(f"{study} {labels}: kept from the earlier run", flush=True)
+            continue
         start = time.perf_counter()
         res = simulate(mech, spec.duration, n_save=spec.n_save, start="steady")
         wall = time.perf_counter() - start
-        row = dict(study=study, **labels, **metrics(mech, res, spec.settle), wall_s=wall)
+        row = dict(study=study, **labels, **metrics(mech, res, spec.settle), duration_s=spec.duration,
+                   settle_s=spec.settle, wall_s=wall)
         if spec.start_up is not None:
             early = metrics(mech, res, spec.start_up[0], end=spec.start_up[1])
             row["start_up"] = {k: v for k, v in early.items() if k not in ("steps", "rejected")}
         rows.append(row)
+        if on_row is not None:
+            on_row(rows)
         if progress:
             print(f"{study} {labels}: {wall:.1f} s wall, {row['steps']} steps", flush=True)
     return rows
