@@ -166,7 +166,7 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     assert len(calls) == 1
     again = json.loads((out / "backlash-small.json").read_text())
     assert again[0] == rows[0] and again[1]["backlash"] == rows[1]["backlash"]
-    # Another horizon is another run; without --resume everything runs.
+    # Another horizon is another run, even with --resume: both scenes solve again.
     assert _cli.main(["studies", "backlash", "--duration", "0.03", "--out", str(out), "--resume"]) == 0
     assert len(calls) == 3
     assert [r["duration_s"] for r in json.loads((out / "backlash-small.json").read_text())] == [0.03, 0.03]
