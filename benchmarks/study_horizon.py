@@ -15,6 +15,8 @@ import argparse
 import json
 import pathlib
 
+from tolerax._studies import SIZES
+
 import _results
 
 LABELS = ("mode", "rate", "case", "carrier", "planet", "backlash", "fidelity")
@@ -32,9 +34,10 @@ def _key(row):
     return tuple((k, row[k]) for k in LABELS if k in row)
 
 
-def _window(row, default):
-    settle = row.get("settle_s", default[1])
-    return f"{settle:g}-{row.get('duration_s', default[0]):g} s"
+def _window(row):
+    """The row's metrics window; rows without a horizon have the full size's own."""
+    full = SIZES["full"]
+    return f"{row.get('settle_s', full.settle):g}-{row.get('duration_s', full.duration):g} s"
 
 
 def main():
@@ -58,7 +61,7 @@ def main():
             rows.append([label, "steps (wall s)", f"{s['steps']} ({s['wall_s']:.0f})", f"{r['steps']} ({r['wall_s']:.0f})"])
         if not rows:
             continue
-        windows = (_window(next(iter(short.values())), (3.0, 2.0)), _window(long_rows[0], (3.0, 2.0)))
+        windows = (_window(next(iter(short.values()))), _window(long_rows[0]))
         sections.append(_results.Section(
             f"{study}: {len(long_rows)} scenes at the long horizon",
             ["scene", "metric", f"3 s run, metrics over {windows[0]}", f"long run, metrics over {windows[1]}"],

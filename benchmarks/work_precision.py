@@ -85,20 +85,12 @@ def _bench_quantities(scene, res):
     }
 
 
-def _dual_make(fidelity):
+def _dual_make(fidelity, **options):
+    """Smoothing width (m) -> the dual-axis antenna at `fidelity` (`options` go to `antenna`)."""
+
     def make(width):
         stage = tolerax.default_stage(smoothing_width=width)
-        return tolerax.antenna("dual", fidelity=fidelity, azimuth_stage=stage, pitch_stage=stage)
-
-    return make
-
-
-def _dual_scaled_make(scaling):
-    def make(width):
-        stage = tolerax.default_stage(smoothing_width=width)
-        return tolerax.antenna(
-            "dual", fidelity="planetary-scaled", mass_scaling=scaling, azimuth_stage=stage, pitch_stage=stage
-        )
+        return tolerax.antenna("dual", fidelity=fidelity, azimuth_stage=stage, pitch_stage=stage, **options)
 
     return make
 
@@ -355,7 +347,7 @@ def main():
         log(dict(family="eps", method="Tsit5", rtol=1e-6, eps=width, **rec, errors=errors(qs, reference) if qs else None))
     # The reduced fidelity: mass-scaled planetary joints (errors against the full reference).
     for scaling in args.mass_scalings if wanted("Tsit5") else ():
-        scaled = _dual_scaled_make(scaling)(default_width)
+        scaled = _dual_make("planetary-scaled", mass_scaling=scaling)(default_width)
         for rtol in [1e-4, 1e-6] if args.quick else [1e-4, 1e-5, 1e-6, 1e-7, 1e-8]:
             rec, qs = run_diffrax(case, scaled, diffrax.Tsit5(), rtol)
             log(dict(family=f"scaled s={scaling:g}", method="Tsit5", rtol=rtol, eps=default_width, **rec, errors=errors(qs, reference) if qs else None))

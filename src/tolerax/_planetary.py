@@ -297,10 +297,12 @@ def stage_forces(
     and the benchmark)."""
     width = stage.smoothing_width
     if projection == "jacobian":
-        defl = deflections(stage, q)
-        _, unravel = ravel_pytree(defl)
-        jac = jax.jacfwd(lambda q_: ravel_pytree(deflections(stage, q_))[0])(q)
-        defl_dot = unravel(jac @ qd)
+        def flat(q_):
+            d = deflections(stage, q_)
+            return ravel_pytree(d)[0], d
+
+        jac, defl = jax.jacfwd(flat, has_aux=True)(q)  # the deflections come with their Jacobian
+        defl_dot = ravel_pytree(defl)[1](jac @ qd)
         project = lambda cotangent: jac.T @ ravel_pytree(cotangent)[0]  # noqa: E731
     elif projection == "jvp-vjp":
         defl, pullback = jax.vjp(lambda q_: deflections(stage, q_), q)
