@@ -3,11 +3,13 @@ fidelity (free base, 0.98 deg/s on both joints, 100 um clearances and backlash, 
 Tsit5 rtol 1e-6 atol 1e-9).
 
     python benchmarks/mechanism_cost.py [--duration 0.5] [--fidelities ideal lumped planetary]
-        [--scalings 100] [--rtols 1e-5] [--repeats 3]
+        [--scalings 100] [--rtols 1e-5] [--pid 0.3 0.3] [--repeats 3]
 
 `--scalings` adds a `planetary-scaled` row at each given `mass_scaling` (the fidelity's own row
-uses its default, 10), and `--rtols` one more per scaling at each looser relative tolerance
-(the mass-scaled stage's steps are limited by accuracy more than by stability, fast_modes_scaled.md);
+uses its default, 10), and `--rtols` one more per scaling at each looser relative tolerance, with
+atol 1e-3 rtol (the mass-scaled stage's steps are limited by accuracy more than by stability,
+fast_modes_scaled.md; what the looser tolerances cost in each output: mass_scaling_rtol.md),
+and `--pid` each of those once more with a PI step-size controller;
 a note gives each row's pointing RMS against the full planetary row of the same run. The load average before each scene is recorded: absolute wall times mean
 something only on an otherwise idle machine (on this 2-core VM a second busy process slowed a
 planetary run about 2.5x), and even alone the same solve varies up to ~2.7x from run to run
@@ -35,16 +37,27 @@ def main():
     parser.add_argument("--fidelities", nargs="+", choices=list(tolerax.FIDELITIES), default=list(tolerax.FIDELITIES))
     parser.add_argument("--scalings", nargs="*", type=float, default=[], help="extra planetary-scaled rows at these mass scalings")
     parser.add_argument("--rtols", nargs="*", type=float, default=[], help="extra planetary-scaled rows per scaling at these rtols")
+    parser.add_argument("--pid", nargs=2, type=float, metavar=("PCOEFF", "ICOEFF"), help="each --rtols row again with this step-size controller")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per scene after the compiling one; the fastest is reported")
     args = parser.parse_args()
     rows, loads = [], []
     jobs = [(fid, {}) for fid in args.fidelities]
     jobs += [("planetary-scaled", dict(mass_scaling=s, label=f"planetary-scaled, s = {s:g}")) for s in args.scalings]
     jobs += [
-        ("planetary-scaled", dict(mass_scaling=s, rtol=r, label=f"planetary-scaled, s = {s:g}, rtol {r:g}"))
+        ("planetary-scaled", dict(mass_scaling=s, rtol=r, atol=1e-3 * r, label=f"planetary-scaled, s = {s:g}, rtol {r:g}"))
         for s in args.scalings
         for r in args.rtols
     ]
+    if args.pid:
+        p, i = args.pid
+        jobs += [
+            (
+                "planetary-scaled",
+                dict(mass_scaling=s, rtol=r, atol=1e-3 * r, pid=(p, i), label=f"planetary-scaled, s = {s:g}, rtol {r:g}, PI ({p:g}, {i:g})"),
+            )
+            for s in args.scalings
+            for r in args.rtols
+        ]
     for fid, options in jobs:
         loads.append(os.getloadavg()[0])
         rows.append(fidelity_cost(fid, args.duration, repeats=args.repeats, **options))

@@ -63,6 +63,8 @@ def simulate(
     throw: bool = True,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
+    pcoeff: float = 0.0,
+    icoeff: float = 1.0,
 ):
     """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
 
@@ -86,6 +88,12 @@ def simulate(
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
       below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
     - `max_steps`: step budget.
+    - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
+      (`diffrax.PIDController`). The default (0, 1) is the I-controller; a PI controller
+      (0.3, 0.3) rejects fewer steps in a rattling run (planetary dual-axis antenna in its
+      developed rattle: 0.85x the right-hand-side evaluations, pointing within 5e-6 arcsec of an
+      rtol 1e-9 run, `benchmarks/results/explicit_window.md`). Changing them recompiles (like
+      `solver`).
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
@@ -109,6 +117,7 @@ def simulate(
     sol, observed = solve(
         scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
         dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step, progress=progress, adjoint=adjoint,
+        pcoeff=pcoeff, icoeff=icoeff,
     )
     result = scene.result(sol, observed, duration)
     if throw:

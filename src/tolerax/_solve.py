@@ -49,13 +49,17 @@ class _NanSafePID(diffrax.PIDController):
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
 
 
-def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint):
+def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid):
     if fixed:
         controller = diffrax.ConstantStepSize()
     else:
         # force_dtmin=False: a step the error control wants below dtmin ends the solve with
         # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
-        controller = _NanSafePID(rtol=rtol, atol=atol, dtmin=dtmin, dtmax=dtmax, force_dtmin=False)
+        # `pid` = (pcoeff, icoeff), Python floats: static (the default (0, 1) is diffrax's own).
+        pcoeff, icoeff = pid
+        controller = _NanSafePID(
+            rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dtmin=dtmin, dtmax=dtmax, force_dtmin=False
+        )
     saveat = diffrax.SaveAt(subs=(diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)))
     sol = diffrax.diffeqsolve(
         diffrax.ODETerm(scene.vector_field),
@@ -109,13 +113,16 @@ def solve(
     fixed_step: float | None = None,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
+    pcoeff: float = 0.0,
+    icoeff: float = 1.0,
 ):
     """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times.
 
     Adaptive steps (`diffrax.PIDController` with `rtol`, `atol`, first step `dt0`, largest
     `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13) stops the solve with
     `RESULTS.dt_min_reached`: a journal crossing the 1 nm smoothing zone at 0.2 m/s needs steps of
-    order 5 ns, 5e4 times the default), or, with `fixed_step` (s), constant steps of that size (the paper's
+    order 5 ns, 5e4 times the default; `pcoeff`, `icoeff` its proportional and integral
+    coefficients, default (0, 1): the I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
     multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
     the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
 
@@ -136,6 +143,11 @@ def solve(
     for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+    if not (np.isfinite(pcoeff) and pcoeff >= 0 and np.isfinite(icoeff) and icoeff > 0):
+        raise ValueError(
+            f"The step-size controller needs pcoeff >= 0 and icoeff > 0 (finite), got pcoeff={pcoeff!r}, "
+            f"icoeff={icoeff!r}; the default (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
+        )
     if not dtmin < dt0 <= dtmax:
         raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")
     if not isinstance(solver, diffrax.AbstractSolver):
@@ -165,6 +177,7 @@ def solve(
     return run(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
+        (float(pcoeff), float(icoeff)),
     )
 
 

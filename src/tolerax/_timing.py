@@ -27,13 +27,15 @@ def fidelity_cost(
     label: str | None = None,
     repeats: int = 1,
     rtol: float = 1e-6,
+    atol: float = 1e-9,
+    pid: tuple[float, float] = (0.0, 1.0),
     **options,
 ) -> dict:
     """Compile and run time of `antenna("dual", fidelity=fidelity, **options)` (free base, 0.98
     deg/s on both joints, 100 um clearances and backlash) over `duration` (s) from a steady start.
     `label` names the row (default: the fidelity); `options` go to `antenna` (for example
-    `mass_scaling=100.0` with `"planetary-scaled"`); `rtol` is the solver's relative tolerance
-    (Tsit5, atol 1e-9).
+    `mass_scaling=100.0` with `"planetary-scaled"`); `rtol`, `atol` are the solver's tolerances
+    (Tsit5) and `pid` its step-size controller's `(pcoeff, icoeff)` (`simulate`).
 
     The scene is solved `1 + repeats` times: the fastest of the calls after the first is the run
     time (on a shared or virtual machine noise only ever adds time), the first call's time minus
@@ -47,7 +49,7 @@ def fidelity_cost(
     times, res = [], None
     for _ in range(1 + repeats):
         start = time.perf_counter()
-        res = simulate(mech, duration, n_save=n_save, start="steady", rtol=rtol)
+        res = simulate(mech, duration, n_save=n_save, start="steady", rtol=rtol, atol=atol, pcoeff=pid[0], icoeff=pid[1])
         jax.block_until_ready(res.ts)
         times.append(time.perf_counter() - start)
     first, run = times[0], min(times[1:])
