@@ -9,8 +9,9 @@ run and keep 0.3-1 s under `"start_up"`. `flanks` and `floor` measure that old w
     python benchmarks/claim_causes.py --part floor
     python benchmarks/claim_causes.py --part steady-floor
     python benchmarks/claim_causes.py --part transient --duration 4
+    python benchmarks/claim_causes.py --part quiet --duration 20
 
-Four parts, each its own file `benchmarks/results/claim_causes_<part>.md`, rewritten
+Five parts, each its own file `benchmarks/results/claim_causes_<part>.md`, rewritten
 after every row (so two can run at once, one per core):
 
 - `flanks` (Figs. 10-11, Table 7: backlash changes little): the backlash study's scenes and the
@@ -32,6 +33,12 @@ after every row (so two can run at once, one per core):
   committed rows (`notebooks/results/*-full.json`, rtol 1e-6). `--duration` does not apply.
 - `transient`: why the 1 s studies measured the start-up: the speed error and lag of one study
   scene (and its lumped twin) per 0.25 s over `--duration` seconds.
+- `quiet` (Figs. 19-20 at the long horizon): the speed study's dual-axis 0.98 deg/s scene started
+  in its loaded steady state (`start="loaded"`: no start-up, no rattle) for `--duration` s, with
+  planetary, mass-scaled planetary (s = 100, rtol 1e-3) and lumped joints, and the study's metrics
+  over its second half, against the committed 20 s row (`notebooks/results/horizon-20s/`,
+  the same scene from the steady start). What the quiet run also shows is the loaded state's own
+  offset (servo lag carried through the geometry), not vibration.
 """
 
 import argparse
@@ -173,9 +180,9 @@ STEADY_SCENES = (
 )
 
 
-def _committed(study, labels):
-    """The committed full-size row of a scene (`notebooks/results/<study>-full.json`)."""
-    path = pathlib.Path(__file__).resolve().parent.parent / "notebooks" / "results" / f"{study}-full.json"
+def _committed(study, labels, folder=""):
+    """The committed full-size row of a scene (`notebooks/results/<folder>/<study>-full.json`)."""
+    path = pathlib.Path(__file__).resolve().parent.parent / "notebooks" / "results" / folder / f"{study}-full.json"
     return next(r for r in json.loads(path.read_text()) if all(r.get(k) == v for k, v in labels.items()))
 
 
@@ -198,6 +205,39 @@ def steady_rows():
             ]
 
 
+QUIET_FIDELITIES = (
+    ("planetary", dict(fidelity="planetary"), {}),
+    ("planetary-scaled s = 100, rtol 1e-3", dict(fidelity="planetary-scaled", mass_scaling=100.0), dict(rtol=1e-3, atol=1e-6)),
+    ("lumped", dict(fidelity="lumped"), {}),
+)
+
+
+def quiet_rows(duration):
+    """The dual-axis 0.98 deg/s scene from its loaded steady state, metrics over the second half."""
+    labels = dict(mode="dual", rate=0.98)
+    n_save = int(round(SAVE_RATE * duration)) + 1
+    settle = duration / 2
+
+    def row(what, start, met, steps):
+        return [
+            what, start, f"{met.get('settle_s', settle):g}-{met.get('duration_s', duration):g}",
+            " / ".join(f"{met[f'speed_error_peak_{a}_urad_s']:.1f}" for a in "xyz"),
+            " / ".join(f"{met[f'position_error_peak_{a}_um']:.1f}" for a in "xyz"),
+            f"{met['torsional_vibration_urad']:.3f}", f"{met['pointing_rms_arcsec']:.2f}", steps,
+        ]
+
+    committed = _committed("speed", labels, "horizon-20s")
+    yield row("planetary (committed study row)", "steady", committed, str(committed["steps"]))
+    for what, scene_options, run_options in QUIET_FIDELITIES:
+        mech = tolerax.antenna("dual", rate=math.radians(0.98), **scene_options)
+        res = tolerax.simulate(mech, duration, start="loaded", n_save=n_save, **run_options)
+        yield row(what, "loaded", metrics(mech, res, settle), str(int(res.num_steps)))
+
+
+QUIET_COLUMNS = [
+    "joints", "start", "window (s)", "speed error peak x / y / z (urad/s)", "position error peak x / y / z (um)",
+    "torsional vibration (urad)", "pointing RMS (arcsec)", "accepted steps",
+]
 STEADY_COLUMNS = [
     "study", "scene (um, deg/s)", "rtol", "speed error peak x / y / z (urad/s)", "position error peak x / y / z (um)",
     "torsional vibration (urad)", "radial vibration (um)", "pointing RMS (arcsec)",
@@ -214,7 +254,7 @@ FLOOR_COLUMNS = [
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--part", required=True, choices=["flanks", "floor", "steady-floor", "transient"])
+    parser.add_argument("--part", required=True, choices=["flanks", "floor", "steady-floor", "transient", "quiet"])
     parser.add_argument("--flank-rate", type=float, default=20000.0, help="save rate of the flank runs (Hz)")
     parser.add_argument("--duration", type=float, default=WINDOW[1], help="simulated time per scene (s)")
     args = parser.parse_args()
@@ -229,6 +269,16 @@ def main():
             f"scene with both joints lumped, {args.duration:g} s from the steady start (commanded rate "
             f"{math.radians(0.98) / UM:.0f} urad/s), saved at 2 kHz: the tracking speed error about Z (actual minus "
             "commanded) and the output's lag (commanded minus actual angle) per window."
+        ]
+    elif args.part == "quiet":
+        title = "The dual-axis scene from its loaded steady state: what Figs. 19-20 compare at the long horizon"
+        columns, produce = QUIET_COLUMNS, quiet_rows(args.duration)
+        intro = [
+            f"Speed study, dual-axis, 0.98 deg/s, 100 um clearances and backlash, free base: {args.duration:g} s from "
+            "`start=\"loaded\"` (servo lag, play taken up, meshes and pins deflected: no start-up), metrics as the "
+            f"studies compute them over {args.duration / 2:g}-{args.duration:g} s, saved at {SAVE_RATE:g} per s; first "
+            "row: the committed 20 s study row of the same scene from the steady start (metrics over 10-20 s). "
+            "X is the pitch axis at zero azimuth, Z the azimuth axis; position error: reflector centre."
         ]
     elif args.part == "steady-floor":
         name = f"{NAME}_steady_floor"
@@ -259,8 +309,10 @@ def main():
             "reflector angular velocity relative to the base minus the commanded one, base-frame components, and the "
             "peak of its magnitude; position error: reflector centre. X is the pitch axis at zero azimuth, Z the azimuth axis."
         ]
+    start = "the loaded steady state (the committed row: a steady start)" if args.part == "quiet" else "a steady start"
     about = ("Study scenes at full size (free base, driven joint planetary, the other lumped; dual-axis: both planetary), "
-             f"{FULL.duration if args.part == 'steady-floor' else args.duration:g} s from a steady start, Tsit5 atol 1e-9. Load average (1 min) at start: {os.getloadavg()[0]:.2f}.")
+             f"{FULL.duration if args.part == 'steady-floor' else args.duration:g} s from {start}, Tsit5, rtol 1e-6 atol 1e-9 "
+             f"unless a row says otherwise. Load average (1 min) at start: {os.getloadavg()[0]:.2f}.")
     for row in produce:
         rows.append(row)
         print(row, flush=True)

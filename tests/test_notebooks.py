@@ -11,33 +11,44 @@ from _notebooks import NOTEBOOKS, execute as _execute
 # (Figs. 10-11, speed error and torsional vibration), coupling 2 (Table 7, each joint), coupling
 # grid 1 (Figs. 15-16).
 N_CLAIMS = 15
-_SUMMARY = re.compile(r"^(\d+) of (\d+) claims agree$", re.MULTILINE)
+# One table per horizon of the committed full-size rows: 3 s (metrics over 2-3 s) and 20 s (10-20 s).
+HORIZONS = ("3 s", "20 s")
+_SUMMARY = re.compile(r"^At (\d+ s) \(.*\): (\d+) of (\d+) claims agree$", re.MULTILINE)
 
 
-def _claims_table(text):
-    """("N of M" as (N, M), the claim lines "- [verdict] ...") of a printed conclusions table."""
-    (summary,) = _SUMMARY.findall(text)
-    rows = [line for line in text.splitlines() if line.startswith("- [")]
-    return tuple(map(int, summary)), rows
+def _claims_tables(text):
+    """{horizon: ((N, M) of its "N of M" line, its claim lines "- [verdict] ...")} of printed
+    conclusions: each table is its summary line and the claim lines up to the next summary."""
+    tables, current = {}, None
+    for line in text.splitlines():
+        match = _SUMMARY.match(line)
+        if match:
+            current = match.group(1)
+            assert current not in tables, f"two tables for {current}"
+            tables[current] = ((int(match.group(2)), int(match.group(3))), [])
+        elif line.startswith("- [") and current is not None:
+            tables[current][1].append(line)
+    return tables
 
 
 def test_paper_studies_notebook_executes(monkeypatch):
     cell_outputs = _execute(monkeypatch, "paper_studies.ipynb", "TOLERAX_STUDY_SIZE")
     outputs = "".join(cell_outputs)
     assert "speed: 2 scenes" in outputs  # ran the small size
-    # The conclusions table read the committed full-size results and holds every claim: none
-    # skipped for missing results, one row per claim, and "N of M" counts those rows.
+    # The conclusions read the committed full-size results at each horizon and hold every claim:
+    # none skipped for missing results, one row per claim, and "N of M" counts those rows.
     (conclusions,) = [text for text in cell_outputs if _SUMMARY.search(text)]
-    (n_agree, n_claims), rows = _claims_table(conclusions)
-    assert n_claims == N_CLAIMS
-    assert not any(row.startswith("- [not run]") for row in rows), rows
-    verdicts = [row.split("]")[0] + "]" for row in rows]
-    assert len(rows) == n_claims and set(verdicts) <= {"- [agree]", "- [differ]"}, rows
-    assert verdicts.count("- [agree]") == n_agree
-    # ... and it is the table recorded in results/claims.md (its output, copied verbatim; 3 of 15
-    # agree when this was written): regenerated results must come with their recorded claims.
-    recorded = _claims_table((NOTEBOOKS / "results" / "claims.md").read_text())
-    assert ((n_agree, n_claims), rows) == recorded
+    tables = _claims_tables(conclusions)
+    assert tuple(tables) == HORIZONS
+    for horizon, ((n_agree, n_claims), rows) in tables.items():
+        assert n_claims == N_CLAIMS, horizon
+        assert not any(row.startswith("- [not run]") for row in rows), rows
+        verdicts = [row.split("]")[0] + "]" for row in rows]
+        assert len(rows) == n_claims and set(verdicts) <= {"- [agree]", "- [differ]"}, rows
+        assert verdicts.count("- [agree]") == n_agree
+    # ... and they are the tables recorded in results/claims.md (its output, copied verbatim):
+    # regenerated results must come with their recorded claims.
+    assert tables == _claims_tables((NOTEBOOKS / "results" / "claims.md").read_text())
 
 
 def test_design_and_yield_notebook_executes(monkeypatch):
