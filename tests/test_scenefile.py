@@ -133,6 +133,10 @@ def test_replace_and_objective():
     assert (objective.duration, objective.settle, objective.start, objective.n_save) == (0.1, 0.0, "steady", 101)
     with pytest.raises(tx.SceneFileError, match=r"\[run\] settle: .*settle < duration"):
         scene_file.replace(duration=0.1)
+    # The step-size controller's coefficients reach the objective (and `simulate`, which checks them).
+    pi = short.replace(pcoeff=0.3, icoeff=0.3)
+    assert (pi.objective().pcoeff, pi.objective().icoeff) == (0.3, 0.3)
+    assert (objective.pcoeff, objective.icoeff) == (0.0, 1.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -183,6 +187,7 @@ def test_good_text_parses():
         ('mode = "azimuth"', 'mode = "roll"', 5, "scene", "mode", "mode='roll' is unknown"),
         ('kind = "scan"', 'kind = "robot"', 4, "scene", "kind", "unknown scene kind"),
         ('start = "steady"', 'start = "moving"', 15, "run", "start", "is unknown"),
+        ('start = "steady"', 'start = "steady"\nicoeff = 0.0', 16, "run", "icoeff", "must be a finite number > 0"),
         ("settle = 0.3", "settle = 0.7", 14, "run", "settle", "settle < duration"),
         ('fidelity = ["lumped", "ideal"]', 'fidelity = "ideal"\nbase = "fixed"', 7, "scene", "base", "nothing to integrate"),
     ],

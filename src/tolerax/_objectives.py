@@ -29,7 +29,8 @@ class PointingObjective(eqx.Module):
 
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
-    recompiles; changing the design or the scene's values does not.
+    recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
+    step-size controller's coefficients (`simulate`; default the I-controller).
 
     `adjoint` (optional): how derivatives pass through the solve, a diffrax adjoint handed to
     `simulate` (default `None`: `diffrax.RecursiveCheckpointAdjoint()`, reverse mode;
@@ -44,6 +45,8 @@ class PointingObjective(eqx.Module):
     rtol: float = eqx.field(static=True, default=1e-6)
     atol: float = eqx.field(static=True, default=1e-9)
     max_steps: int = eqx.field(static=True, default=400_000)
+    pcoeff: float = eqx.field(static=True, default=0.0)
+    icoeff: float = eqx.field(static=True, default=1.0)
     peak_order: int = eqx.field(static=True, default=8)
     start: str = eqx.field(static=True, default="rest")
     # Not a static field although it is a run setting: `diffrax.BacksolveAdjoint` holds a dict
@@ -66,7 +69,8 @@ class PointingObjective(eqx.Module):
         """The scene's result for design `values` (`throw=False`: read `success`)."""
         return simulate(
             self.with_width(values, smoothing_width), self.duration, start=self.start, n_save=self.n_save,
-            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, throw=False, adjoint=self.adjoint,
+            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, pcoeff=self.pcoeff, icoeff=self.icoeff,
+            throw=False, adjoint=self.adjoint,
         )
 
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:

@@ -57,6 +57,8 @@ RUN_KEYS = {
     "dtmin": (float, _SIM["dtmin"].default),
     "max_steps": (int, _SIM["max_steps"].default),
     "fixed_step": (float, None),
+    "pcoeff": (float, _SIM["pcoeff"].default),
+    "icoeff": (float, _SIM["icoeff"].default),
     "settle": (float, 0.0),
 }
 
@@ -300,6 +302,11 @@ def _check_run(chk: _Checker, run: dict):
     for key in ("duration", "rtol", "atol", "dt0", "dtmax", "dtmin", "fixed_step"):
         if key in run and not (math.isfinite(run[key]) and run[key] > 0):
             raise chk.error(f"must be a positive finite number, got {run[key]!r}.", table, key)
+    for key, low, rule in (("pcoeff", 0.0, ">= 0"), ("icoeff", None, "> 0")):
+        x = value[key]
+        if not (math.isfinite(x) and (x >= low if low is not None else x > 0)):
+            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
+                            "(0.3, 0.3) a PI controller).", table, key)
     if value["start"] not in STARTS:
         raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
     if value["n_save"] < 2:
@@ -449,7 +456,7 @@ class SceneFile:
 
         run = self.run
         opts = dict(duration=run["duration"], settle=run["settle"], start=run["start"], n_save=run["n_save"],
-                    rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"])
+                    rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"], pcoeff=run["pcoeff"], icoeff=run["icoeff"])
         return PointingObjective(self.build(), **{**opts, **kwargs})
 
     def tolerances(self, scene=None):
