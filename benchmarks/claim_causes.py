@@ -227,6 +227,8 @@ def quiet_rows(duration):
         ]
 
     committed = _committed("speed", labels, "horizon-20s")
+    if committed["duration_s"] != duration:
+        raise SystemExit(f"--part quiet compares with the committed {committed['duration_s']:g} s study row: use --duration {committed['duration_s']:g}")
     yield row("planetary (committed study row)", "steady", committed, str(committed["steps"]))
     for what, scene_options, run_options in QUIET_FIDELITIES:
         mech = tolerax.antenna("dual", rate=math.radians(0.98), **scene_options)

@@ -40,6 +40,8 @@ def main():
     parser.add_argument("--pid", nargs=2, type=float, metavar=("PCOEFF", "ICOEFF"), help="each --rtols row again with this step-size controller")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per scene after the compiling one; the fastest is reported")
     args = parser.parse_args()
+    if args.pid and not (args.scalings and args.rtols):
+        parser.error("--pid repeats the --rtols rows of each --scalings value: give both")
     rows, loads = [], []
     jobs = [(fid, {}) for fid in args.fidelities]
     jobs += [("planetary-scaled", dict(mass_scaling=s, label=f"planetary-scaled, s = {s:g}")) for s in args.scalings]

@@ -48,7 +48,10 @@ def test_paper_studies_notebook_executes(monkeypatch):
         assert verdicts.count("- [agree]") == n_agree
     # ... and they are the tables recorded in results/claims.md (its output, copied verbatim):
     # regenerated results must come with their recorded claims.
-    assert tables == _claims_tables((NOTEBOOKS / "results" / "claims.md").read_text())
+    recorded = (NOTEBOOKS / "results" / "claims.md").read_text()
+    assert tables == _claims_tables(recorded)
+    (changed,) = re.findall(r"^Verdicts that change between 3 s and 20 s: \d+ of \d+$", conclusions, re.MULTILINE)
+    assert changed in recorded.splitlines()
 
 
 def test_design_and_yield_notebook_executes(monkeypatch):

@@ -188,6 +188,7 @@ def test_good_text_parses():
         ('kind = "scan"', 'kind = "robot"', 4, "scene", "kind", "unknown scene kind"),
         ('start = "steady"', 'start = "moving"', 15, "run", "start", "is unknown"),
         ('start = "steady"', 'start = "steady"\nicoeff = 0.0', 16, "run", "icoeff", "must be a finite number > 0"),
+        ('start = "steady"', 'start = "steady"\npcoeff = -0.1', 16, "run", "pcoeff", "must be a finite number >= 0"),
         ("settle = 0.3", "settle = 0.7", 14, "run", "settle", "settle < duration"),
         ('fidelity = ["lumped", "ideal"]', 'fidelity = "ideal"\nbase = "fixed"', 7, "scene", "base", "nothing to integrate"),
     ],

@@ -527,11 +527,12 @@ class MassScaledPlanetaryJoint(_AbstractStageJoint):
     $s = 100$ over 1 s (17 095 against 13 451) and moved the pointing RMS by 5 %; over 2.5 s,
     adding `"carrier_translation"` at 100 took 12 % more accepted steps, the sun's rotation at
     10 alone 21 %, both 26 % (probes, not committed). Those steps are bound by accuracy, not stability:
-    at rtol 1e-3 (atol 1e-6) the scaled joints take 2.3-2.4x fewer steps than at 1e-6 with every
-    output where rtol 1e-6 put it (`benchmarks/results/mass_scaling_rtol.md`; rtol 1e-2 breaks
-    down), though in a quiet run (loaded start, 10-20 s) the tracking speed error about X and Z
-    is then about twice the full stage's at rtol 1e-6 (74 and 31 against 32 and 14 µrad/s,
-    `claim_causes_quiet.md`). So: a faster stand-in for pointing
+    at rtol 1e-3 (atol 1e-6) the scaled joints take 2.3-2.4x fewer steps than at 1e-6 with the
+    pointing error, tracking speed error and mean pin loads where rtol 1e-6 put them
+    (`benchmarks/results/mass_scaling_rtol.md`; rtol 1e-2 breaks down), though in a quiet run
+    (loaded start, 10-20 s) the joints at s = 100 and rtol 1e-3 show about twice the full
+    stage's tracking speed error at rtol 1e-6 about X and Z (74 and 30.5 against 32 and 14
+    µrad/s, `claim_causes_quiet.md`; scaling and tolerance not separated). So: a faster stand-in for pointing
     error and mean bearing loads; not for vibration amplitude or contact-force peaks; verify a
     result at full fidelity.
     **`mass_scaling`**: $s \\ge 1$ (1: the full stage).

@@ -45,13 +45,14 @@ class PointingObjective(eqx.Module):
     rtol: float = eqx.field(static=True, default=1e-6)
     atol: float = eqx.field(static=True, default=1e-9)
     max_steps: int = eqx.field(static=True, default=400_000)
-    pcoeff: float = eqx.field(static=True, default=0.0)
-    icoeff: float = eqx.field(static=True, default=1.0)
     peak_order: int = eqx.field(static=True, default=8)
     start: str = eqx.field(static=True, default="rest")
     # Not a static field although it is a run setting: `diffrax.BacksolveAdjoint` holds a dict
     # and cannot be hashed. It holds no arrays, so `eqx.filter_jit` still treats it as static.
     adjoint: diffrax.AbstractAdjoint | None = None
+    # Appended after the older fields, so positional construction keeps its meaning.
+    pcoeff: float = eqx.field(static=True, default=0.0)
+    icoeff: float = eqx.field(static=True, default=1.0)
 
     def __check_init__(self):
         if not (0.0 <= self.settle < self.duration):

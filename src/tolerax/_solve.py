@@ -122,7 +122,7 @@ def solve(
     `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13) stops the solve with
     `RESULTS.dt_min_reached`: a journal crossing the 1 nm smoothing zone at 0.2 m/s needs steps of
     order 5 ns, 5e4 times the default; `pcoeff`, `icoeff` its proportional and integral
-    coefficients, default (0, 1): the I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
+    coefficients, Python numbers, default (0, 1): the I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
     multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
     the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
 
@@ -143,11 +143,12 @@ def solve(
     for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
-    if not (np.isfinite(pcoeff) and pcoeff >= 0 and np.isfinite(icoeff) and icoeff > 0):
-        raise ValueError(
-            f"The step-size controller needs pcoeff >= 0 and icoeff > 0 (finite), got pcoeff={pcoeff!r}, "
-            f"icoeff={icoeff!r}; the default (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
-        )
+    for name, value, ok, rule in (("pcoeff", pcoeff, lambda x: x >= 0, ">= 0"), ("icoeff", icoeff, lambda x: x > 0, "> 0")):
+        if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
+            raise ValueError(
+                f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "
+                "the default (pcoeff, icoeff) = (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
+            )
     if not dtmin < dt0 <= dtmax:
         raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")
     if not isinstance(solver, diffrax.AbstractSolver):
@@ -177,7 +178,7 @@ def solve(
     return run(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
-        (float(pcoeff), float(icoeff)),
+        (0.0, 1.0) if fixed else (float(pcoeff), float(icoeff)),  # no controller with a fixed step
     )
 
 
