@@ -45,21 +45,16 @@ def main():
     rows, loads = [], []
     jobs = [(fid, {}) for fid in args.fidelities]
     jobs += [("planetary-scaled", dict(mass_scaling=s, label=f"planetary-scaled, s = {s:g}")) for s in args.scalings]
+    controllers = [((0.0, 1.0), "")] + ([(tuple(args.pid), ", PI ({:g}, {:g})".format(*args.pid))] if args.pid else [])
     jobs += [
-        ("planetary-scaled", dict(mass_scaling=s, rtol=r, atol=1e-3 * r, label=f"planetary-scaled, s = {s:g}, rtol {r:g}"))
+        (
+            "planetary-scaled",
+            dict(mass_scaling=s, rtol=r, atol=1e-3 * r, pid=pid, label=f"planetary-scaled, s = {s:g}, rtol {r:g}{suffix}"),
+        )
+        for pid, suffix in controllers
         for s in args.scalings
         for r in args.rtols
     ]
-    if args.pid:
-        p, i = args.pid
-        jobs += [
-            (
-                "planetary-scaled",
-                dict(mass_scaling=s, rtol=r, atol=1e-3 * r, pid=(p, i), label=f"planetary-scaled, s = {s:g}, rtol {r:g}, PI ({p:g}, {i:g})"),
-            )
-            for s in args.scalings
-            for r in args.rtols
-        ]
     for fid, options in jobs:
         loads.append(os.getloadavg()[0])
         rows.append(fidelity_cost(fid, args.duration, repeats=args.repeats, **options))

@@ -35,6 +35,7 @@ import numpy as np
 
 from . import _contact, _design, _gears, _scenes
 from ._scene import STARTS, simulate as _simulate
+from ._solve import PID_RULES
 
 # ---------------------------------------------------------------------------------------------
 # The schema
@@ -302,9 +303,9 @@ def _check_run(chk: _Checker, run: dict):
     for key in ("duration", "rtol", "atol", "dt0", "dtmax", "dtmin", "fixed_step"):
         if key in run and not (math.isfinite(run[key]) and run[key] > 0):
             raise chk.error(f"must be a positive finite number, got {run[key]!r}.", table, key)
-    for key, low, rule in (("pcoeff", 0.0, ">= 0"), ("icoeff", None, "> 0")):
+    for key, (ok, rule) in PID_RULES.items():
         x = value[key]
-        if not (math.isfinite(x) and (x >= low if low is not None else x > 0)):
+        if not (math.isfinite(x) and ok(x)):
             raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
                             "(0.3, 0.3) a PI controller).", table, key)
     if value["start"] not in STARTS:

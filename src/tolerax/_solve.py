@@ -16,6 +16,9 @@ from jaxtyping import Array
 from . import _validate
 
 DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
+# The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
+# scene files' `[run]` check (which names the key and line) both read it.
+PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
 
 
 class SimulationError(RuntimeError):
@@ -143,7 +146,7 @@ def solve(
     for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
-    for name, value, ok, rule in (("pcoeff", pcoeff, lambda x: x >= 0, ">= 0"), ("icoeff", icoeff, lambda x: x > 0, "> 0")):
+    for (name, (ok, rule)), value in zip(PID_RULES.items(), (pcoeff, icoeff)):
         if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
             raise ValueError(
                 f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "

@@ -19,9 +19,8 @@ runs the 0.98 °/s scenes at lumped/lumped and planetary/planetary to measure wh
 fidelity misses.
 
 A long horizon is `run(..., duration=, settle=)` (`tolerax studies --duration 20 --settle 19`),
-saved after every scene and resumable (`done=`, `--resume`): 46 scenes of 20 s are about four
-hours of CPU (21 of them, `notebooks/results/horizon-20s/`, took ~100 min), more than one
-sitting.
+saved after every scene and resumable (`done=`, `--resume`): the 46 scenes of 20 s
+(`notebooks/results/horizon-20s/`) took about four hours of CPU, more than one sitting.
 """
 
 import dataclasses
