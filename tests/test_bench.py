@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _cli
+from tolerax import cli
 
 
 @pytest.fixture(scope="module")
@@ -110,11 +110,11 @@ def test_bad_duration_rejected():
 
 
 def test_cli_demo_bench(tmp_path, capsys):
-    code = _cli.main(["demo", "--bench", "--duration", "0.02", "--out", str(tmp_path)])
+    code = cli.main(["demo", "--bench", "--duration", "0.02", "--out", str(tmp_path)])
     assert code == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["result"] == "successful"
     assert (tmp_path / "bench.png").stat().st_size > 10_000
     with pytest.raises(SystemExit):
-        _cli.main(["demo", "--bench", "--clearance", "-5"])
+        cli.main(["demo", "--bench", "--clearance", "-5"])
     assert "--clearance must be" in capsys.readouterr().err

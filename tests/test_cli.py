@@ -1,4 +1,4 @@
-"""The command line (src/tolerax/_cli.py): `design` and `montecarlo` on scene files, `demo` (the
+"""The command line (src/tolerax/cli.py): `design` and `montecarlo` on scene files, `demo` (the
 antenna), `bench`, and bad input. `run` is tested with the scene files (tests/test_scenefile.py),
 `demo --bench` with the bench (tests/test_bench.py). Sizes are tiny: these check the wiring, not
 the numbers, which the modules' own tests check."""
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _cli
+from tolerax import cli
 
 
 def _malformed(tmp_path):
@@ -25,14 +25,14 @@ def _malformed(tmp_path):
 def test_design_and_montecarlo_reject_a_malformed_scene(command, tmp_path, capsys):
     path, line = _malformed(tmp_path)
     out = tmp_path / "out"
-    assert _cli.main([command, str(path), "--requirement", "500", "--out", str(out)]) == 2
+    assert cli.main([command, str(path), "--requirement", "500", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert f"tolerax {command}: {path}:{line}: [run] setle: unknown key 'setle'" in err
     assert not out.exists()
     # A value the scene's own checks reject after an override: named, exit 2, nothing written.
-    assert _cli.main([command, "scan-azimuth", "--settle", "2", "--requirement", "500", "--out", str(out)]) == 2
+    assert cli.main([command, "scan-azimuth", "--settle", "2", "--requirement", "500", "--out", str(out)]) == 2
     assert "[run] settle: must satisfy 0 <= settle < duration" in capsys.readouterr().err
-    assert _cli.main([command, "no-such-scene", "--requirement", "500"]) == 2
+    assert cli.main([command, "no-such-scene", "--requirement", "500"]) == 2
     assert "no built-in scene 'no-such-scene'" in capsys.readouterr().err
     assert not out.exists()
 
@@ -58,20 +58,20 @@ def test_design_and_montecarlo_reject_a_malformed_scene(command, tmp_path, capsy
 )
 def test_bad_options_print_usage_and_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as info:
-        _cli.main(argv)
+        cli.main(argv)
     assert info.value.code == 2
     assert "usage: tolerax" in capsys.readouterr().err
 
 
 def test_help_names_every_command_and_option(capsys):
     with pytest.raises(SystemExit) as info:
-        _cli.main(["--help"])
+        cli.main(["--help"])
     assert info.value.code == 0
     text = capsys.readouterr().out
     for command in ("demo", "run", "design", "montecarlo", "studies", "bench"):
         assert f"tolerax {command}" in text
     with pytest.raises(SystemExit):
-        _cli.main(["montecarlo", "--help"])
+        cli.main(["montecarlo", "--help"])
     text = capsys.readouterr().out
     for option in ("--duration", "--settle", "--band", "--distribution", "--requirement", "--n ", "scan-azimuth"):
         assert option in text
@@ -85,7 +85,7 @@ def test_montecarlo_writes_netcdf_and_resumes(tmp_path):
 
     args = ["montecarlo", "scan-azimuth", "--n", "2", "--chunk", "2", "--duration", "0.3", "--settle", "0.1",
             "--requirement", "1000", "--out", str(tmp_path)]
-    assert _cli.main(args) == 0
+    assert cli.main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
     assert (tmp_path / "histogram.png").exists()
@@ -98,14 +98,14 @@ def test_montecarlo_writes_netcdf_and_resumes(tmp_path):
         for k, name in enumerate(tx.design_names(ran.build())):
             # the scene's [tolerances] band = 10 um (features are in m)
             assert np.all(np.abs(ds[name].values - nominal[k]) <= 10e-6 * (1 + 1e-12))
-    assert _cli.main(args) == 0  # the second run only reloads the finished chunk
+    assert cli.main(args) == 0  # the second run only reloads the finished chunk
     # Other tolerances in the same folder: the checkpoints are refused, not mixed.
-    assert _cli.main([*args, "--band", "20"]) == 2
+    assert cli.main([*args, "--band", "20"]) == 2
 
 
 def test_demo_at_a_tiny_size(tmp_path, capsys):
     """`tolerax demo` without the proposal (`--steps 0`) on 50 ms of the scan scene."""
-    assert _cli.main(["demo", "--duration", "0.05", "--steps", "0", "--out", str(tmp_path)]) == 0
+    assert cli.main(["demo", "--duration", "0.05", "--steps", "0", "--out", str(tmp_path)]) == 0
     assert "RMS pointing error" in capsys.readouterr().out
     assert (tmp_path / "demo.png").stat().st_size > 10_000
     summary = json.loads((tmp_path / "scan" / "summary.json").read_text())
@@ -117,7 +117,7 @@ def test_demo_at_a_tiny_size(tmp_path, capsys):
 
 
 def test_bench_at_a_tiny_size(tmp_path, capsys):
-    assert _cli.main(["bench", "--duration", "0.002", "--fidelities", "ideal", "--out", str(tmp_path)]) == 0
+    assert cli.main(["bench", "--duration", "0.002", "--fidelities", "ideal", "--out", str(tmp_path)]) == 0
     table = (tmp_path / "bench.md").read_text()
     assert table in capsys.readouterr().out
     assert "| ideal | 6 | 0 |" in table and "load average" in table
@@ -131,11 +131,11 @@ def test_bench_at_a_tiny_size(tmp_path, capsys):
 def test_demo_and_design_propose(tmp_path):
     """The proposal paths at their smallest: one optimiser step over two units (minutes of
     compilation for the forward-mode gradient)."""
-    assert _cli.main(["demo", "--duration", "0.05", "--steps", "1", "--outer", "1", "--out", str(tmp_path / "demo")]) == 0
+    assert cli.main(["demo", "--duration", "0.05", "--steps", "1", "--outer", "1", "--out", str(tmp_path / "demo")]) == 0
     assert "IT" in (tmp_path / "demo" / "design" / "design.md").read_text()
     scene = tmp_path / "req.toml"
     scene.write_text(tx.load_scene("scan-azimuth").to_toml() + "requirement = 1000.0\n")  # [tolerances] is the last table
-    assert _cli.main(["design", str(scene), "--duration", "0.1", "--settle", "0", "--draws", "2", "--outer", "1",
+    assert cli.main(["design", str(scene), "--duration", "0.1", "--settle", "0", "--draws", "2", "--outer", "1",
                       "--inner", "1", "--out", str(tmp_path / "design")]) == 0
     text = (tmp_path / "design" / "design.md").read_text()
     assert "against a requirement of 1000.0 arcsec" in text
@@ -145,11 +145,11 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     """`tolerax studies backlash` (small: two 0.03 s scenes) at an overridden horizon writes each
     row with it at the save rate of its size; `--resume` keeps matching rows without
     solving again, and a different horizon solves again."""
-    from tolerax import _studies as S
+    from tolerax import studies as S
 
     out = tmp_path / "studies"
     args = ["studies", "backlash", "--duration", "0.04", "--settle", "0.02", "--out", str(out)]
-    assert _cli.main(args) == 0
+    assert cli.main(args) == 0
     rows = json.loads((out / "backlash-small.json").read_text())
     assert len(rows) == 2 and all(r["duration_s"] == 0.04 and r["settle_s"] == 0.02 for r in rows)
     assert S.size_spec("small", 0.04, 0.02).n_save == 81  # small saves every 0.5 ms: 61 over 0.03 s
@@ -157,17 +157,17 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     calls = []
     real = S.simulate
     monkeypatch.setattr(S, "simulate", lambda *a, **k: calls.append(a) or real(*a, **k))
-    assert _cli.main(args + ["--resume"]) == 0
+    assert cli.main(args + ["--resume"]) == 0
     assert calls == [] and json.loads((out / "backlash-small.json").read_text()) == rows
     assert "kept from the earlier run" in capsys.readouterr().out
     # One row removed: only that scene runs again.
     (out / "backlash-small.json").write_text(json.dumps(rows[:1]))
-    assert _cli.main(args + ["--resume"]) == 0
+    assert cli.main(args + ["--resume"]) == 0
     assert len(calls) == 1
     again = json.loads((out / "backlash-small.json").read_text())
     assert again[0] == rows[0] and again[1]["backlash"] == rows[1]["backlash"]
     # Another horizon is another run, even with --resume: both scenes solve again.
-    assert _cli.main(["studies", "backlash", "--duration", "0.03", "--out", str(out), "--resume"]) == 0
+    assert cli.main(["studies", "backlash", "--duration", "0.03", "--out", str(out), "--resume"]) == 0
     assert len(calls) == 3
     assert [r["duration_s"] for r in json.loads((out / "backlash-small.json").read_text())] == [0.03, 0.03]
 
@@ -175,7 +175,7 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
 @pytest.mark.parametrize("extra", [["--settle", "0.05"], ["--duration", "0"], ["--settle", "-1"]])
 def test_studies_reject_a_bad_horizon(extra, capsys):
     with pytest.raises(SystemExit) as info:
-        _cli.main(["studies", "backlash", *extra])
+        cli.main(["studies", "backlash", *extra])
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert "usage: tolerax" in err and ("settle" in err or "duration" in err)

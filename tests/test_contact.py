@@ -38,7 +38,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import tolerax
-from tolerax._contact import CLIP_WIDTH, FORCE_FLOOR
+from tolerax.physics.contact import CLIP_WIDTH, FORCE_FLOOR
 
 from _strategies import EPS, SETTINGS, finite, positive, scalar, signed, widths
 

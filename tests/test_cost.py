@@ -1,4 +1,4 @@
-"""The tolerance-cost layer (`tolerax._cost`): ISO 286-1 grades against the published table, and
+"""The tolerance-cost layer (`tolerax.design.cost`): ISO 286-1 grades against the published table, and
 the cost models against their closed forms (numpy) and central finite differences."""
 
 import math
@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from tolerax._cost import (
+from tolerax.design.cost import (
     GRADE_RATIO,
     AbstractCostModel,
     Exponential,

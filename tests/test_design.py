@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _propose
+from tolerax.design import propose as _propose
 
 
 def _leaves(tree):

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _contact as C, _mesh, planetary as P
+from tolerax import contact as C, mesh as _mesh, planetary as P
 
 DURATION = 5e-3  # s: long enough for every journal to cross its clearance and hit
 NOMINAL = np.array([100e-6, 100e-6, 100e-6, 100e-6, 100e-6])  # design vector, tx.design_names(bench) order

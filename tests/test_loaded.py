@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax._drives import drag
+from tolerax.mechanism.drives import drag
 
 
 def _servo_lag(joint):

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _contact as C, _modes, planetary as P
-from tolerax._rigid import world_inertia
+from tolerax import contact as C, planetary as P
+from tolerax.physics import modes as _modes
+from tolerax.physics.rigid import world_inertia
 
 
 def _momentum_scale(mech, res):
@@ -271,17 +272,17 @@ def _random_state(mech, key):
 @pytest.mark.parametrize("fidelity", ["ideal", "lumped", "planetary"])
 @pytest.mark.parametrize("base", ["free", "fixed"])
 def test_kane_by_frames_equals_autodiff_reference(fidelity, base):
-    # Independent: `_kane_by_autodiff` differentiates the poses (jacfwd over all speeds, jvp over
+    # Independent: `kane_by_autodiff` differentiates the poses (jacfwd over all speeds, jvp over
     # q and t); `Mechanism.dynamics` propagates Jacobians and accelerations down the chain by
     # hand. Equal to rounding (1e-12 of each quantity's scale) at random states, the whole
     # vector field included (Cholesky against LU on the same equations). Ideal joints with a
     # torque drive on a fixed base give the chain with one coordinate per joint.
     drive = "torque" if (fidelity, base) == ("ideal", "fixed") else "speed"
     mech = tx.antenna("dual", fidelity=fidelity, base=base, drive=drive)
-    from tolerax._mechanism import _kane_by_autodiff, _vector_field_by_autodiff
+    from _kane_reference import kane_by_autodiff, vector_field_by_autodiff
 
     new = eqx.filter_jit(lambda m, t, y: (m.dynamics(y[0], y[1], t), m.vector_field(t, y, None)))
-    ref = eqx.filter_jit(lambda m, t, y: (_kane_by_autodiff(m, y[0], y[1], t), _vector_field_by_autodiff(m, t, y)))
+    ref = eqx.filter_jit(lambda m, t, y: (kane_by_autodiff(m, y[0], y[1], t), vector_field_by_autodiff(m, t, y)))
     for k, t in enumerate((0.0, 0.37, 1.91)):
         y = _random_state(mech, jax.random.key(k))
         got, want = new(mech, jnp.asarray(t), y), ref(mech, jnp.asarray(t), y)
@@ -298,11 +299,11 @@ def test_kane_by_frames_trajectory_equals_reference():
     # 0.05 s of the planetary dual-axis antenna from a steady start (meshes engaged, bearings
     # free to rattle): the same accepted and rejected steps, the same outputs to 1e-9 of their
     # scale (rounding differences of the two formulations, grown by the adaptive solve).
-    from tolerax._mechanism import _KaneByAutodiff
+    from _kane_reference import KaneByAutodiff
 
     mech = tx.antenna("dual", fidelity="planetary")
     new = tx.simulate(mech, 0.05, start="steady", n_save=11)
-    ref = tx.simulate(_KaneByAutodiff(mech), 0.05, start="steady", n_save=11)
+    ref = tx.simulate(KaneByAutodiff(mech), 0.05, start="steady", n_save=11)
     assert int(new.num_steps) == int(ref.num_steps) and int(new.num_rejected) == int(ref.num_rejected)
     for name in ("pointing_error", "joint_angle", "position_error", "tracking_speed_error", "runout", "azimuth_contact"):
         a, b = np.asarray(getattr(new, name)), np.asarray(getattr(ref, name))

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from tolerax._montecarlo import MonteCarloResult, monte_carlo, wilson_interval
-from tolerax._sampling import Tolerances, apply_draws, sample, unit_draws
-from tolerax._sensitivity import sobol_indices
+from tolerax.uncertainty.montecarlo import MonteCarloResult, monte_carlo, wilson_interval
+from tolerax.uncertainty.sampling import Tolerances, apply_draws, sample, unit_draws
+from tolerax.uncertainty.sensitivity import sobol_indices
 
 import _mc_helpers as helpers
 
@@ -177,8 +177,8 @@ def test_sharded_over_four_devices_equals_one(tmp_path):
     script = textwrap.dedent(
         f"""
         import jax, numpy as np
-        from tolerax._montecarlo import monte_carlo
-        from tolerax._sampling import Tolerances
+        from tolerax.uncertainty.montecarlo import monte_carlo
+        from tolerax.uncertainty.sampling import Tolerances
         import _mc_helpers
         assert jax.local_device_count() == 4, jax.devices()
         t = Tolerances(("carrier_clearance", "backlash"), [50e-6, 30e-6], [20e-6, 40e-6])

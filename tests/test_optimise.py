@@ -1,4 +1,4 @@
-"""The constrained tolerance optimiser (`tolerax._optimise`) on problems with known optima: closed
+"""The constrained tolerance optimiser (`tolerax.design.optimise`) on problems with known optima: closed
 Lagrange solutions, an active bound, an inactive requirement, and SciPy's SLSQP as a second
 method; the robust statistics against SciPy; no retrace; bad input."""
 
@@ -12,8 +12,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.stats.mstats
 
-from tolerax._cost import IsoGrade, ReciprocalPower
-from tolerax._optimise import Design, Features, optimise_design, realise, robust
+from tolerax.design.cost import IsoGrade, ReciprocalPower
+from tolerax.design.optimise import Design, Features, optimise_design, realise, robust
 
 
 UM = 1e-6  # the objectives below read bands in µm as "arcsec"
@@ -267,7 +267,7 @@ def test_result_is_the_cheapest_iterate_that_met_the_requirement(monkeypatch, co
     """The augmented Lagrangian's iterates oscillate about the requirement when the objective is
     rough (the pointing scenes); `optimise_design` returns the cheapest iterate that met the
     requirement at the final continuation value. The outer iteration is scripted here."""
-    from tolerax import _optimise
+    from tolerax.design import optimise as _optimise
 
     calls = iter(range(len(script)))
 

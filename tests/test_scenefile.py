@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import tolerax as tx
-from tolerax import _cli, _scenefile as F, _studies as S
+from tolerax import cli, studies as S
+from tolerax.io import scenefile as F
 
 
 def _same_model(a, b, rtol=0.0):
@@ -52,7 +53,7 @@ def test_builtins_cover_the_paper_and_design_scenes():
         assert sum(n.startswith(f"paper-{table}-") for n in names) == 6
 
 
-_STUDY_FILES = {  # study of tolerax._studies -> (label -> built-in name)
+_STUDY_FILES = {  # study of tolerax.studies -> (label -> built-in name)
     "radial_clearance": lambda lab: f"paper-table3-{lab['mode']}-{lab['case']}",
     "backlash": lambda lab: f"paper-table6-{lab['mode']}-b{lab['backlash']}",
     "coupling": lambda lab: f"paper-table7-{lab['mode']}-{lab['case']}",
@@ -255,23 +256,23 @@ def test_load_errors():
 def test_cli_rejects_bad_input(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text(GOOD.replace("sun_teeth = 20", "sun_teeth = 20\nsun_teth = 20"))
-    assert _cli.main(["run", str(bad), "--out", str(tmp_path / "o")]) == 2
+    assert cli.main(["run", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert f"{bad}:10: [scene.azimuth_stage] sun_teth: unknown key" in err
     assert not (tmp_path / "o").exists()
-    assert _cli.main(["run", "no-such-scene"]) == 2
+    assert cli.main(["run", "no-such-scene"]) == 2
     for argv in (["run", "scan", "--duration", "-1"], ["run", "scan", "--n-save", "1"], ["run", "scan", "--bogus"],
                  ["run"], ["run", "scan-azimuth", "--duration", "0.1"]):
         with pytest.raises(SystemExit) as info:
-            _cli.main(argv)
+            cli.main(argv)
         assert info.value.code == 2, argv
         assert "usage: tolerax" in capsys.readouterr().err  # unknown options: the top-level usage (argparse)
     with pytest.raises(SystemExit) as info:
-        _cli.main(["run", "--help"])
+        cli.main(["run", "--help"])
     assert info.value.code == 0
     out = capsys.readouterr().out
     assert "--duration" in out and "Exit codes" in out
-    assert _cli.main(["run", "--list"]) == 0
+    assert cli.main(["run", "--list"]) == 0
     assert "paper-table3-azimuth-a" in capsys.readouterr().out
 
 
@@ -280,7 +281,7 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
 
     out = tmp_path / "run"
     argv = ["run", "scan-azimuth", "--duration", "0.05", "--settle", "0", "--n-save", "11", "--out", str(out)]
-    assert _cli.main(argv) == 0
+    assert cli.main(argv) == 0
     capsys.readouterr()
     files = {p.name for p in out.iterdir()}
     assert {"scene.toml", "timeseries.nc", "pointing_error.png", "joint_angle.png", "summary.json", "summary.md"} <= files
@@ -304,7 +305,7 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     # change, so the compiled program is reused.
     failing = tmp_path / "failing.toml"
     failing.write_text(ran.replace(rtol=1e-14, atol=1e-17, dtmin=1e-4, dt0=2e-4).to_toml())
-    assert _cli.main(["run", str(failing), "--out", str(tmp_path / "fail")]) == 3
+    assert cli.main(["run", str(failing), "--out", str(tmp_path / "fail")]) == 3
     assert "dt_min_reached" in capsys.readouterr().err
     summary = json.loads((tmp_path / "fail" / "summary.json").read_text())
     assert summary["result"] == "failed" and summary["t_reached_s"] < 0.05

@@ -11,8 +11,11 @@ import jax as _jax
 # SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
 _jax.config.update("jax_enable_x64", True)
 
-from . import _contact as contact, _mesh as mesh, _planetary as planetary, _smooth as smooth
-from ._contact import (
+from .physics import contact
+from .physics import mesh
+from .physics import planetary
+from .physics import smooth
+from .physics.contact import (
     AbstractContactLaw as AbstractContactLaw,
     AdamsImpact as AdamsImpact,
     BaiZhao as BaiZhao,
@@ -20,17 +23,17 @@ from ._contact import (
     HertzLN as HertzLN,
     JournalBearing as JournalBearing,
 )
-from ._stage import Mesh as Mesh, PlanetaryStage as PlanetaryStage, Support as Support
-from ._gears import default_stage as default_stage
-from ._planetary import AddedInertia as AddedInertia
-from ._modes import Modes as Modes, natural_frequencies as natural_frequencies
-from ._drives import (
+from .physics.stage import Mesh as Mesh, PlanetaryStage as PlanetaryStage, Support as Support
+from .physics.gears import default_stage as default_stage
+from .physics.planetary import AddedInertia as AddedInertia
+from .physics.modes import Modes as Modes, natural_frequencies as natural_frequencies
+from .mechanism.drives import (
     AbstractServo as AbstractServo,
     ScanServo as ScanServo,
     SpeedServo as SpeedServo,
     TorqueDrive as TorqueDrive,
 )
-from ._joint import (
+from .mechanism.joints import (
     FIDELITIES as FIDELITIES,
     AbstractJoint as AbstractJoint,
     IdealJoint as IdealJoint,
@@ -40,13 +43,13 @@ from ._joint import (
     PlanetaryJoint as PlanetaryJoint,
     lumped_mesh as lumped_mesh,
 )
-from ._solve import SimulationError as SimulationError, SolverReport as SolverReport
-from ._scene import AbstractScene as AbstractScene, simulate as simulate
-from ._bench import BenchResult as BenchResult, TestBench as TestBench
-from ._mechanism import Geometry as Geometry, Inertias as Inertias, Mechanism as Mechanism
-from ._outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
-from ._scenes import antenna as antenna, scan as scan
-from ._scenefile import (
+from .solve import SimulationError as SimulationError, SolverReport as SolverReport
+from .mechanism.scene import AbstractScene as AbstractScene, simulate as simulate
+from .mechanism.bench import BenchResult as BenchResult, TestBench as TestBench
+from .mechanism.mechanism import Geometry as Geometry, Inertias as Inertias, Mechanism as Mechanism
+from .mechanism.outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
+from .mechanism.scenes import antenna as antenna, scan as scan
+from .io.scenefile import (
     SceneFile as SceneFile,
     SceneFileError as SceneFileError,
     builtin_scenes as builtin_scenes,
@@ -54,18 +57,18 @@ from ._scenefile import (
     parse_scene as parse_scene,
     save_scene as save_scene,
 )
-from ._design import (
+from .design.features import (
     design_names as design_names,
     design_of as design_of,
     tolerances_of as tolerances_of,
     with_design as with_design,
 )
-from ._objectives import PointingObjective as PointingObjective
-from ._propose import DesignReport as DesignReport, propose_design as propose_design
-from ._sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
-from ._montecarlo import MonteCarloResult as MonteCarloResult, monte_carlo as monte_carlo, wilson_interval as wilson_interval
-from ._sensitivity import SobolResult as SobolResult, sobol_indices as sobol_indices
-from ._cost import (
+from .design.objectives import PointingObjective as PointingObjective
+from .design.propose import DesignReport as DesignReport, propose_design as propose_design
+from .uncertainty.sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
+from .uncertainty.montecarlo import MonteCarloResult as MonteCarloResult, monte_carlo as monte_carlo, wilson_interval as wilson_interval
+from .uncertainty.sensitivity import SobolResult as SobolResult, sobol_indices as sobol_indices
+from .design.cost import (
     AbstractCostModel as AbstractCostModel,
     Exponential as Exponential,
     IsoGrade as IsoGrade,
@@ -73,7 +76,7 @@ from ._cost import (
     grade_of as grade_of,
     it_tolerance as it_tolerance,
 )
-from ._optimise import (
+from .design.optimise import (
     Design as Design,
     Features as Features,
     OptimisationResult as OptimisationResult,

@@ -28,11 +28,15 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-
-from . import _contact, _gears, _mesh, _planetary, _smooth, _validate as V
-from ._drives import AbstractServo, SpeedServo, TorqueDrive, drag
-from ._planetary import AddedInertia
-from ._stage import PlanetaryStage
+from ..physics import contact as _contact
+from ..physics import gears as _gears
+from ..physics import mesh as _mesh
+from ..physics import planetary as _planetary
+from ..physics import smooth as _smooth
+from .. import _validate as V
+from .drives import AbstractServo, SpeedServo, TorqueDrive, drag
+from ..physics.planetary import AddedInertia
+from ..physics.stage import PlanetaryStage
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,8 +13,8 @@ import diffrax
 import equinox as eqx
 import jax
 
-from . import _validate as V
-from ._solve import DTMIN, SolverReport, raise_on_failure, solve
+from .. import _validate as V
+from ..solve import DTMIN, SolverReport, raise_on_failure, solve
 
 STARTS = ("rest", "steady", "loaded")
 

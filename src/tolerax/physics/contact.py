@@ -23,8 +23,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
-
-from . import _smooth, _validate as V
+from . import smooth as _smooth
+from .. import _validate as V
 
 
 def composite_modulus(

@@ -5,9 +5,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array
-
-from ._planetary import AddedInertia, mass_matrix, stage_forces
-from ._stage import PlanetaryStage
+from .planetary import AddedInertia, mass_matrix, stage_forces
+from .stage import PlanetaryStage
 
 class Modes(eqx.Module):
     """Undamped natural frequencies (Hz, ascending) and mass-normalised mode shapes (columns),

@@ -16,12 +16,11 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from jaxtyping import Array
-
-from ._cost import AbstractCostModel, IsoGrade, grade_of
-from ._design import design_names, design_of
-from ._objectives import UNITS, PointingObjective
-from ._optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
-from ._sampling import unit_draws
+from .cost import AbstractCostModel, IsoGrade, grade_of
+from .features import design_names, design_of
+from .objectives import UNITS, PointingObjective
+from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
+from ..uncertainty.sampling import unit_draws
 
 
 def feature_sizes(scene) -> np.ndarray:

@@ -5,8 +5,9 @@ import math
 import equinox as eqx
 import numpy as np
 
-from . import _contact, _validate as V
-from ._stage import MESH_KINDS, SUPPORT_KINDS, Mesh, PlanetaryStage, Support, as_float
+from . import contact as _contact
+from .. import _validate as V
+from .stage import MESH_KINDS, SUPPORT_KINDS, Mesh, PlanetaryStage, Support, as_float
 
 STEEL = dict(young=206e9, poisson=0.3, density=7850.0)
 

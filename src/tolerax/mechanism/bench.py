@@ -6,13 +6,14 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-
-from . import _gears, _planetary, _validate as V
-from ._drives import AbstractServo, SpeedServo, drag
-from ._planetary import AddedInertia
-from ._scene import AbstractScene
-from ._solve import SolverReport
-from ._stage import PlanetaryStage
+from ..physics import gears as _gears
+from ..physics import planetary as _planetary
+from .. import _validate as V
+from .drives import AbstractServo, SpeedServo, drag
+from ..physics.planetary import AddedInertia
+from .scene import AbstractScene
+from ..solve import SolverReport
+from ..physics.stage import PlanetaryStage
 
 
 class TestBench(AbstractScene):

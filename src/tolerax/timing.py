@@ -9,9 +9,9 @@ import time
 
 import jax
 
-from ._outputs import ARCSEC
-from ._scene import simulate
-from ._scenes import antenna
+from .mechanism.outputs import ARCSEC
+from .mechanism.scene import simulate
+from .mechanism.scenes import antenna
 
 COLUMNS = (
     "fidelity", "DOFs (u)", "contacts", "compile (s)", "wall s per simulated s", "x {base}",

@@ -7,10 +7,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 from jaxtyping import Array
-
-from . import _smooth
-from ._rigid import vee
-from ._solve import SolverReport
+from ..physics import smooth as _smooth
+from ..physics.rigid import vee
+from ..solve import SolverReport
 
 ARCSEC = math.pi / (180.0 * 3600.0)
 """One arcsecond in radians: `angle_rad / ARCSEC` is the angle in arcsec."""

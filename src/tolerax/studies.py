@@ -29,11 +29,11 @@ import time
 
 import numpy as np
 
-from ._gears import default_stage
-from ._mechanism import Mechanism
-from ._outputs import ARCSEC, MechanismResult, vibration_amplitude
-from ._scene import simulate
-from ._scenes import antenna
+from .physics.gears import default_stage
+from .mechanism.mechanism import Mechanism
+from .mechanism.outputs import ARCSEC, MechanismResult, vibration_amplitude
+from .mechanism.scene import simulate
+from .mechanism.scenes import antenna
 
 UM = 1e-6
 

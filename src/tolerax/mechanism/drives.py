@@ -13,8 +13,7 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-
-from . import _validate as V
+from .. import _validate as V
 
 DRAG_SPEED = 1e-3  # rad/s: drag torque T tanh(omega / DRAG_SPEED), smooth through zero speed
 

@@ -33,9 +33,12 @@ import typing
 
 import numpy as np
 
-from . import _contact, _design, _gears, _scenes
-from ._scene import STARTS, simulate as _simulate
-from ._solve import PID_RULES
+from ..physics import contact as _contact
+from ..design import features as _design
+from ..physics import gears as _gears
+from ..mechanism import scenes as _scenes
+from ..mechanism.scene import STARTS, simulate as _simulate
+from ..solve import PID_RULES
 
 # ---------------------------------------------------------------------------------------------
 # The schema
@@ -453,7 +456,7 @@ class SceneFile:
     def objective(self, **kwargs):
         """A `PointingObjective` on this scene over the window `[settle, duration]` (s), with the
         `[run]` settings (keyword arguments override them)."""
-        from ._objectives import PointingObjective
+        from ..design.objectives import PointingObjective
 
         run = self.run
         opts = dict(duration=run["duration"], settle=run["settle"], start=run["start"], n_save=run["n_save"],
@@ -653,7 +656,7 @@ def timeseries(scene_file: SceneFile, result, series=None):
 
 def _window_stats(scene_file: SceneFile, result) -> dict:
     """Summary numbers over the window `t >= settle` (units in the key names)."""
-    from ._outputs import ARCSEC
+    from ..mechanism.outputs import ARCSEC
 
     ts = np.asarray(result.ts)
     finite = np.isfinite(ts) & np.all(np.isfinite(np.asarray(result.joint_angle)), axis=1)
@@ -681,7 +684,7 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
 def _plot(name: str, result, settle: float, title: str):
     import matplotlib.pyplot as plt
 
-    from ._outputs import ARCSEC
+    from ..mechanism.outputs import ARCSEC
 
     ts = np.asarray(result.ts)
     fig, ax = plt.subplots(figsize=(7, 3.6))

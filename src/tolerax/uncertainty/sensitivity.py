@@ -13,9 +13,8 @@ import xarray as xr
 from jaxtyping import PRNGKeyArray
 from SALib.analyze import sobol as sobol_analyze
 from SALib.sample import sobol as sobol_sample
-
-from ._montecarlo import MonteCarloResult, _Plan, _typed_key, check_run, key_settings, run_samples
-from ._sampling import Tolerances
+from .montecarlo import MonteCarloResult, _Plan, _typed_key, check_run, key_settings, run_samples
+from .sampling import Tolerances
 
 
 @dataclasses.dataclass(frozen=True)

@@ -19,8 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, PRNGKeyArray
-
-from ._validate import is_traced
+from .._validate import is_traced
 
 
 DISTRIBUTIONS = ("uniform", "normal")

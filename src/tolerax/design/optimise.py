@@ -38,9 +38,9 @@ import numpy as np
 import optax
 import tqdm
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
-
-from . import _smooth, _validate as V
-from ._cost import AbstractCostModel, IsoGrade
+from ..physics import smooth as _smooth
+from .. import _validate as V
+from .cost import AbstractCostModel, IsoGrade
 
 
 class Design(eqx.Module):

@@ -45,7 +45,7 @@ def _scene_file(parser, args, **run):
     """`args.scene` (a built-in name or a .toml path) with `--duration`/`--settle` and `run`
     overriding its `[run]` keys; `None` when the file cannot be read or is invalid (the message,
     naming the file, line, table and key, is printed)."""
-    from . import _scenefile as F
+    from .io import scenefile as F
 
     try:
         scene_file = F.load_scene(args.scene)
@@ -62,7 +62,7 @@ def _scene_file(parser, args, **run):
 def _with_tolerances(scene_file, band_um=None, distribution=None):
     """`scene_file` with `[tolerances] band` (given in um; replaces the per-feature `bands` too)
     and `distribution` overridden where given."""
-    from . import _scenefile as F
+    from .io import scenefile as F
 
     if band_um is None and distribution is None:
         return scene_file
@@ -77,7 +77,7 @@ def _with_tolerances(scene_file, band_um=None, distribution=None):
 
 
 def _has_features(scene_file, command) -> bool:
-    from ._design import design_names
+    from .design.features import design_names
 
     if design_names(scene_file.build()):
         return True
@@ -101,7 +101,8 @@ def _demo(parser, args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from . import _propose, _scenefile as F
+    from .design import propose as _propose
+    from .io import scenefile as F
 
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -169,7 +170,7 @@ def _demo_figure(result, scene_file, report):
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from ._outputs import ARCSEC
+    from .mechanism.outputs import ARCSEC
 
     rows = 2 if report is not None else 1
     fig, axes = plt.subplots(rows, 1, figsize=(7, 2.9 * rows + 0.4), squeeze=False)
@@ -217,7 +218,10 @@ def _demo_bench(parser, args) -> int:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from . import _bench, _drives, _gears, _scene
+    from .mechanism import bench as _bench
+    from .mechanism import drives as _drives
+    from .physics import gears as _gears
+    from .mechanism import scene as _scene
 
     rate = 0.98 if args.rate is None else args.rate
     clearance = 100.0 if args.clearance is None else args.clearance
@@ -277,7 +281,7 @@ def _demo_bench(parser, args) -> int:
 
 
 def _studies(parser, args) -> int:
-    from . import _studies as S
+    from . import studies as S
 
     names = args.names or list(S.STUDIES)
     for name in names:
@@ -316,8 +320,9 @@ def _montecarlo(parser, args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from . import _montecarlo as MC, _scenefile as F
-    from ._objectives import UNITS
+    from .uncertainty import montecarlo as MC
+    from .io import scenefile as F
+    from .design.objectives import UNITS
 
     scene_file = _scene_file(parser, args)
     if scene_file is None:
@@ -359,7 +364,8 @@ def _design_cmd(parser, args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from . import _propose, _scenefile as F
+    from .design import propose as _propose
+    from .io import scenefile as F
 
     scene_file = _scene_file(parser, args)
     if scene_file is None:
@@ -404,7 +410,7 @@ def _design_cmd(parser, args) -> int:
 
 
 def _run(parser, args) -> int:
-    from . import _scenefile as F
+    from .io import scenefile as F
 
     if args.list:
         for name, title in F.builtin_titles().items():
@@ -433,8 +439,9 @@ def _run(parser, args) -> int:
 
 
 def _bench_cmd(parser, args) -> int:
-    from . import __version__, _timing
-    from ._joint import FIDELITIES
+    from . import __version__
+    from . import timing as _timing
+    from .mechanism.joints import FIDELITIES
 
     fidelities = args.fidelities or list(FIDELITIES)
     for fid in fidelities:

@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from ._drives import ScanServo, SpeedServo, TorqueDrive
-from ._joint import FIDELITIES
-from ._mechanism import Mechanism
-from ._stage import PlanetaryStage
+from .drives import ScanServo, SpeedServo, TorqueDrive
+from .joints import FIDELITIES
+from .mechanism import Mechanism
+from ..physics.stage import PlanetaryStage
 
 
 DRIVE_MODES = ("azimuth", "pitch", "dual")

@@ -16,10 +16,9 @@ names are prefixed by the joint: `azimuth.planet_clearance`.
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-
-from ._bench import TestBench
-from ._mechanism import Mechanism
-from ._sampling import Tolerances
+from ..mechanism.bench import TestBench
+from ..mechanism.mechanism import Mechanism
+from ..uncertainty.sampling import Tolerances
 
 # feature -> (does the stage model it?, where its value lives in the stage)
 STAGE_FEATURES = {

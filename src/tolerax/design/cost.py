@@ -42,8 +42,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
-
-from . import _validate as V
+from .. import _validate as V
 
 
 # Upper limits (mm) of ISO 286-1's main nominal size steps up to 500 mm; the first step starts at 1.

@@ -12,7 +12,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
-
 from . import _validate
 
 DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)

@@ -8,10 +8,9 @@ import diffrax
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-
-from ._design import with_design
-from ._outputs import ARCSEC
-from ._scene import simulate
+from .features import with_design
+from ..mechanism.outputs import ARCSEC
+from ..mechanism.scene import simulate
 
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
 UNITS = {"pointing_rms": "arcsec", "pointing_peak": "arcsec", "pointing_smooth_peak": "arcsec", "tracking_speed_rms": "arcsec/s"}

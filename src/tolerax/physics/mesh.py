@@ -10,8 +10,7 @@ radial projection), which is why the two flanks are kept apart rather than lumpe
 
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
-
-from . import _smooth
+from . import smooth as _smooth
 
 
 def involute(angle: ArrayLike) -> Array:

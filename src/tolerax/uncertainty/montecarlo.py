@@ -36,8 +36,7 @@ import xarray as xr
 from jax.sharding import Mesh, PartitionSpec
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
-
-from ._sampling import Tolerances, sample
+from .sampling import Tolerances, sample
 
 
 BACKENDS = ("vmap", "processes", "dask")

@@ -44,10 +44,11 @@ import jax
 import jax.numpy as jnp
 from jax.flatten_util import ravel_pytree
 from jaxtyping import Array
-
-from . import _contact, _mesh, _smooth
-from ._rigid import rot2
-from ._stage import Mesh, PlanetaryStage, as_float
+from . import contact as _contact
+from . import mesh as _mesh
+from . import smooth as _smooth
+from .rigid import rot2
+from .stage import Mesh, PlanetaryStage, as_float
 
 def _xy(q, sl):
     return jnp.zeros(2) if sl is None else q[sl]

@@ -15,8 +15,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
-
-from . import _contact, _validate as V
+from . import contact as _contact
+from .. import _validate as V
 
 SUPPORT_KINDS = ("rigid", "spring", "clearance")
 MESH_KINDS = ("linear", "nonlinear")
