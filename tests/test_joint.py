@@ -101,7 +101,7 @@ def test_mass_scaling_adds_inertia_only_to_relative_motion():
     # the carrier) to the full joint's kinetic energy, and s/2 times it where only those bodies
     # move (the carrier's translation also moves everything the output carries); (3) s = 1
     # gives the planetary joint's vector field to rounding; (4) bad input is refused.
-    from tolerax.mechanism.joints import SCALED_FAMILIES
+    from tolerax.mechanism.stage_joints import SCALED_FAMILIES
 
     s = 37.0
     full = tx.antenna("dual", fidelity="planetary")

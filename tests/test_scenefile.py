@@ -14,7 +14,7 @@ import pytest
 
 import tolerax as tx
 from tolerax import cli, studies as S
-from tolerax.io import scenefile as F
+from tolerax.io import schema
 
 
 def _same_model(a, b, rtol=0.0):
@@ -88,13 +88,13 @@ def test_table2_and_design_scenes_are_the_builder_calls():
 
 def test_every_key_is_documented():
     doc = (pathlib.Path(__file__).parents[1] / "docs" / "scene_files.md").read_text()
-    keys = set(F.TOP_KEYS) | set(F.RUN_KEYS) | set(F.OUTPUT_KEYS) | set(F.TOLERANCE_KEYS) | set(F.SERIES) | set(F.PLOTS)
-    for builder in F.BUILDERS.values():
+    keys = set(schema.TOP_KEYS) | set(schema.RUN_KEYS) | set(schema.OUTPUT_KEYS) | set(schema.TOLERANCE_KEYS) | set(schema.SERIES) | set(schema.PLOTS)
+    for builder in schema.BUILDERS.values():
         keys |= set(inspect.signature(builder).parameters)
     keys |= set(inspect.signature(tx.default_stage).parameters)
-    for cls in F.CONTACT_LAWS.values():
+    for cls in schema.CONTACT_LAWS.values():
         keys |= set(inspect.signature(cls.__init__).parameters) - {"self"}
-    keys |= set(F.CONTACT_LAWS) | {"kind", "law"}
+    keys |= set(schema.CONTACT_LAWS) | {"kind", "law"}
     missing = sorted(k for k in keys if f"`{k}`" not in doc)
     assert not missing, f"undocumented scene-file keys: {missing}"
     for name in tx.builtin_scenes():

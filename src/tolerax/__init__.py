@@ -11,10 +11,7 @@ import jax as _jax
 # SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
 _jax.config.update("jax_enable_x64", True)
 
-from .physics import contact
-from .physics import mesh
-from .physics import planetary
-from .physics import smooth
+from .physics import contact as contact, mesh as mesh, planetary as planetary, smooth as smooth
 from .physics.contact import (
     AbstractContactLaw as AbstractContactLaw,
     AdamsImpact as AdamsImpact,
@@ -33,15 +30,17 @@ from .mechanism.drives import (
     SpeedServo as SpeedServo,
     TorqueDrive as TorqueDrive,
 )
+from .mechanism import FIDELITIES as FIDELITIES
 from .mechanism.joints import (
-    FIDELITIES as FIDELITIES,
     AbstractJoint as AbstractJoint,
     IdealJoint as IdealJoint,
     LumpedJoint as LumpedJoint,
     LumpedMesh as LumpedMesh,
+    lumped_mesh as lumped_mesh,
+)
+from .mechanism.stage_joints import (
     MassScaledPlanetaryJoint as MassScaledPlanetaryJoint,
     PlanetaryJoint as PlanetaryJoint,
-    lumped_mesh as lumped_mesh,
 )
 from .solve import SimulationError as SimulationError, SolverReport as SolverReport
 from .mechanism.scene import AbstractScene as AbstractScene, simulate as simulate

@@ -21,6 +21,7 @@ names the file, line and key), 3 a simulation or optimisation failed.
 """
 
 import argparse
+import copy
 import json
 import math
 import os
@@ -66,7 +67,7 @@ def _with_tolerances(scene_file, band_um=None, distribution=None):
 
     if band_um is None and distribution is None:
         return scene_file
-    data = F._copy(scene_file.data)
+    data = copy.deepcopy(scene_file.data)
     tol = data.setdefault("tolerances", {})
     if band_um is not None:
         tol["band"] = band_um * 1e-6
@@ -102,7 +103,7 @@ def _demo(parser, args) -> int:
     import matplotlib.pyplot as plt
 
     from .design import propose as _propose
-    from .io import scenefile as F
+    from .io import results as R, scenefile as F
 
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -116,7 +117,7 @@ def _demo(parser, args) -> int:
     start = time.perf_counter()
     result = scene_file.simulate(throw=False, progress=args.progress)
     sim_wall = time.perf_counter() - start
-    summary = F.write_results(scene_file, result, out / "scan", wall_s=sim_wall, command=command)
+    summary = R.write_results(scene_file, result, out / "scan", wall_s=sim_wall, command=command)
     metrics = summary["metrics"]
     lines = [
         "# tolerax demo", "", "```", command, "```", "",
@@ -410,7 +411,7 @@ def _design_cmd(parser, args) -> int:
 
 
 def _run(parser, args) -> int:
-    from .io import scenefile as F
+    from .io import results as R, scenefile as F
 
     if args.list:
         for name, title in F.builtin_titles().items():
@@ -430,8 +431,8 @@ def _run(parser, args) -> int:
         print(f"tolerax run: {err}", file=sys.stderr)
         return 2
     wall = time.perf_counter() - start
-    summary = F.write_results(scene_file, result, out, wall_s=wall, command=_command(args))
-    print(F._summary_md(summary))
+    summary = R.write_results(scene_file, result, out, wall_s=wall, command=_command(args))
+    print(R.summary_md(summary))
     if not result.success:
         print("tolerax run: " + "\n".join(result.failures()), file=sys.stderr)
         return 3
@@ -441,7 +442,7 @@ def _run(parser, args) -> int:
 def _bench_cmd(parser, args) -> int:
     from . import __version__
     from . import timing as _timing
-    from .mechanism.joints import FIDELITIES
+    from .mechanism import FIDELITIES
 
     fidelities = args.fidelities or list(FIDELITIES)
     for fid in fidelities:

@@ -192,7 +192,7 @@ class AbstractJoint(eqx.Module):
         return None
 
 
-def _planet_spin_ratio(stage):
+def planet_spin_ratio(stage):
     """Planet spin per carrier turn when the planets roll on the fixed ring without deflection."""
     return -stage.carrier_radius * jnp.cos(stage.ring_pressure_angle) / stage.planet_base_radius
 
@@ -207,17 +207,17 @@ class _RigidTrainJoint(AbstractJoint):
         p_c = jnp.zeros(2) if lay.carrier_xy is None else qj[lay.carrier_xy]
         psi = stage.planet_angles + theta_c
         planets = p_c + stage.carrier_radius * jnp.stack([jnp.cos(psi), jnp.sin(psi)], axis=-1)
-        theta_p = jnp.broadcast_to(_planet_spin_ratio(stage) * theta_c, psi.shape)
+        theta_p = jnp.broadcast_to(planet_spin_ratio(stage) * theta_c, psi.shape)
         centres = jnp.concatenate([jnp.zeros((1, 2)), p_c[None], planets])
         angles = jnp.concatenate([jnp.stack([theta_s, theta_c]), theta_p])
         return centres, angles, p_c, theta_c
 
     def body_inertia(self):
         # The ring, if spring-mounted in the stage data, is fixed in these fidelities.
-        return _disc_tensors(self.stage, self.motor_inertia, 2 + self.stage.n_planets)
+        return disc_tensors(self.stage, self.motor_inertia, 2 + self.stage.n_planets)
 
 
-def _disc_tensors(stage, motor_inertia, n_bodies):
+def disc_tensors(stage, motor_inertia, n_bodies):
     masses, inertias = _planetary.body_inertia(stage, AddedInertia(sun_inertia=motor_inertia))
     masses, inertias = masses[:n_bodies], inertias[:n_bodies]
     # Thin discs: transverse inertia half the polar inertia.
@@ -390,216 +390,3 @@ class LumpedJoint(_RigidTrainJoint):
             penetration = self._contact_state(qj, jnp.zeros_like(qj)).penetration
             energy += jnp.sum(self.stage.contact_law.potential(self._bearing(), penetration))
         return energy
-
-
-class _AbstractStageJoint(AbstractJoint):
-    """The full planetary stage (`_planetary`) as a joint: coordinates, forces and contacts."""
-
-    design_features = ("sun_clearance", "carrier_clearance", "planet_clearance", "sun_backlash", "ring_backlash")
-
-    @property
-    def layout(self):
-        lay = self.stage.layout
-        return JointLayout(lay.size, lay.sun_theta, lay.carrier_theta, lay.carrier_xy, lay.names)
-
-    @property
-    def contact_names(self):
-        return self.stage.contact_names
-
-    def planar(self, qj, t):
-        centres, angles = _planetary.body_positions(self.stage, qj)
-        return centres, angles, centres[1], angles[1]
-
-    def body_inertia(self):
-        n_bodies = 2 + self.stage.n_planets + (self.stage.layout.ring_theta is not None)
-        return _disc_tensors(self.stage, self.motor_inertia, n_bodies)
-
-    def steady_speeds(self, t=0.0):
-        uj = super().steady_speeds(t)
-        if isinstance(self.drive, AbstractServo):
-            planets = self.stage.layout.planet_theta
-            uj = uj.at[planets].set(_planet_spin_ratio(self.stage) * self.drive.rate(t))
-        return uj
-
-    def loaded_coordinates(self, t=0.0):
-        """Sun at the servo lag (`_loaded_sun`); the train rolled rigidly with it; then, turning
-        forwards, each planet against its pin on the trailing side ($\\eta_n = c$, the smallest
-        pin clearance) with the carrier behind by $c/r_c$, which leaves both meshes of every
-        planet at zero deflection (the lumped joint's play $c(\\cos\\alpha_s+\\cos\\alpha_r)$ on
-        the lever $i r_{bs} = r_c(\\cos\\alpha_s+\\cos\\alpha_r)$). Turning backwards the same
-        mirrored, and the carrier and planets turned further until both back flanks touch:
-        $\\Delta\\theta_c = \\min_n(b_{s,n} + b_{r,n})/(r_c(\\cos\\alpha_s+\\cos\\alpha_r))$,
-        $\\Delta\\theta_n = (r_c\\cos\\alpha_s\\Delta\\theta_c - b_s)/r_{bp}$. Translations of sun
-        and carrier zero; mesh deflections under load left to the polish."""
-        stage, lay = self.stage, self.stage.layout
-        torque, theta_s = self._loaded_sun(t)
-        ahead = jnp.where(torque >= 0, 1.0, -1.0)
-        theta_c = theta_s / stage.ratio
-        theta_p = _planet_spin_ratio(stage) * theta_c
-        if stage.planet_support.kind == "clearance" and lay.planet_xy is not None:
-            c = jnp.min(jnp.broadcast_to(stage.planet_support.bearing.clearance, (stage.n_planets,)))
-            theta_c = theta_c - ahead * c / stage.carrier_radius
-            eta = ahead * c
-        else:
-            eta = 0.0
-        if stage.sun_mesh.kind == "nonlinear":
-            n = stage.n_planets
-            b_s, b_r = (jnp.broadcast_to(m.backlash, (n,)) for m in (stage.sun_mesh, stage.ring_mesh))
-            kappa = jnp.cos(stage.sun_pressure_angle) + jnp.cos(stage.ring_pressure_angle)
-            # The first planet whose two back flanks close carries the load (backlash per planet).
-            d_c = jnp.min(b_s + b_r) / (stage.carrier_radius * kappa)
-            d_p = (stage.carrier_radius * jnp.cos(stage.sun_pressure_angle) * d_c - b_s) / stage.planet_base_radius
-            backwards = torque < 0
-            theta_c = theta_c + jnp.where(backwards, d_c, 0.0)
-            theta_p = theta_p + jnp.where(backwards, d_p, 0.0)
-        qj = jnp.zeros(lay.size).at[lay.sun_theta].set(theta_s).at[lay.carrier_theta].set(theta_c)
-        qj = qj.at[lay.planet_theta].set(theta_p)
-        if lay.planet_xy is not None:
-            qj = qj.at[lay.planet_xy.start + 1 : lay.planet_xy.stop : 2].set(eta)
-        return qj
-
-    def forces(self, qj, uj, vj, t):
-        f = _planetary.stage_forces(self.stage, qj, uj, vj)
-        return f.generalised + self.drive_forces(qj, uj, t), f.contact
-
-    def impact_rate_rates(self, qj, uj, udj, vj):
-        if not self.contact_names:
-            return jnp.zeros(0)
-        return _planetary.impact_rate_rates(self.stage, qj, uj, udj, vj)
-
-    def initial_impact_rates(self, qj, uj):
-        return _planetary.initial_impact_rates(self.stage, qj, uj)
-
-    def potential_energy(self, qj):
-        return _planetary.potential_energy(self.stage, qj)
-
-
-class PlanetaryJoint(_AbstractStageJoint):
-    """The full planetary stage (`_planetary`) as a joint."""
-
-
-SCALED_FAMILIES = ("sun_translation", "planet_translation", "planet_spin", "sun_rotation", "carrier_translation")
-
-
-class MassScaledPlanetaryJoint(_AbstractStageJoint):
-    """The full planetary stage with selective mass scaling: its fastest modes made slower.
-
-    Same coordinates, meshes, supports and clearance contacts as `PlanetaryJoint`; the only
-    change is a constant inertia added to motion *relative* to the rigid gear train,
-    `mass_scaling` $s \\ge 1$ times what the bodies concerned carry, for each family in
-    `families` (static; default: the sun's and planets' translations and the planets' spin):
-
-    $$T_{add} = \\tfrac{s-1}{2}\\Big[m_s(\\dot x_s^2 + \\dot y_s^2)
-      + \\sum_n m_p(\\dot\\zeta_n^2 + \\dot\\eta_n^2)
-      + \\sum_n I_p(\\dot\\theta_{p,n} - \\rho\\,\\dot\\theta_c)^2
-      + (I_s + I_m)(\\dot\\theta_s - i\\,\\dot\\theta_c)^2 + (m_c + N m_p)(\\dot x_c^2 + \\dot y_c^2)\\Big],$$
-
-    the terms being `"sun_translation"`, `"planet_translation"`, `"planet_spin"`,
-    `"sun_rotation"` (the sun and motor turning against the train: $i$ the ratio) and
-    `"carrier_translation"` (the carrier with its $N$ planets; not what the output carries
-    downstream); $\\rho$ the planets' spin per carrier turn when rolling on the fixed ring.
-    Terms whose coordinates the stage does not have (a rigid support) are absent.
-    Rigid rolling ($\\dot\\theta_s = i\\dot\\theta_c$, $\\dot\\theta_{p,n} = \\rho\\dot\\theta_c$, no
-    translation) carries no added inertia, so the joint's motion as a gear train, its reflected
-    inertia and the output's dynamics below the scaled modes are unchanged; and every added force
-    is internal (between a gear and the housing or carrier), so momentum is conserved.
-
-    **Why.** The planetary antenna's explicit steps are held to ~22 us by its 18-19 kHz modes
-    (the sun translating on its three meshes with the planets spinning) and the 12-15 kHz
-    planet-pin modes (`benchmarks/results/fast_modes.md`): pure stability limits, not accuracy.
-    Scaling their inertia by $s$ lowers them by $\\sqrt s$. Making them quasi-static instead
-    (the singular-perturbation limit) needs the force balance of the floating sun and planets
-    solved inside every right-hand side, and it is badly posed: a sun or planet floating in its
-    clearance with its teeth in backlash has no unique position (though the forces it transmits
-    are unique); solved with `optimistix.LevenbergMarquardt` it took 49 iterations, 185x a
-    right-hand side of the whole antenna (`benchmarks/results/quasi_static_solve.md`). With the
-    default families at $s = 100$ the next limit is the sun's torsional mode on its meshes (~2.3 kHz,
-    `results/fast_modes_scaled.md`), which `"sun_rotation"` scales too.
-    This is explicit dynamics' *selective mass scaling* (Olovsson, Simonsson & Unosson, IJNME
-    63 (2005) 1436): added mass that leaves rigid-body motion alone.
-
-    **What it changes, measured** (`benchmarks/results/mass_scaling.md`: dual-axis antenna, 5 s,
-    outputs over 1-5 s against the full stage; in brackets the full stage's own chaotic spread,
-    the same model at rtol 1e-7): at $s = 10$ (the default) 2.1x faster, pointing RMS and peak
-    within 0.5 % (0.0 %), mean planet-pin force 0.3 % (0.1 %), mean sun-bearing force 6 % (3 %),
-    tracking speed error RMS 2 % (1.2 %), but the pointing error's largest line above 1 Hz 17 %
-    lower (0.4 %) and sun and pin impact peaks up to 2.4x higher (7 %). At $s = 100$: 4.3x faster,
-    pointing within 0.1 %, speed error 11 %, vibration line 38 %, impact peaks 4-14x. Beyond
-    $s = 100$ little more is gained (4.5x at $s = 1000$): the steps (mean 104-120 us, a third
-    rejected) are then near the 148 us stability limit of the unscaled sun-torsion mode and
-    among the rattle's impacts; scaling `"sun_rotation"` as well took *more* steps at
-    $s = 100$ over 1 s (17 095 against 13 451) and moved the pointing RMS by 5 %; over 2.5 s,
-    adding `"carrier_translation"` at 100 took 12 % more accepted steps, the sun's rotation at
-    10 alone 21 %, both 26 % (probes, not committed). Those steps are bound by accuracy, not stability:
-    at rtol 1e-3 (atol 1e-6) the scaled joints take 2.3-2.4x fewer steps than at 1e-6 with the
-    pointing error, tracking speed error and mean pin loads where rtol 1e-6 put them
-    (`benchmarks/results/mass_scaling_rtol.md`; rtol 1e-2 breaks down), though in a quiet run
-    (loaded start, 10-20 s) the joints at s = 100 and rtol 1e-3 show about twice the full
-    stage's tracking speed error at rtol 1e-6 about X and Z (74 and 30.5 against 32 and 14
-    µrad/s, `claim_causes_quiet.md`; scaling and tolerance not separated). So: a faster stand-in for pointing
-    error and mean bearing loads; not for vibration amplitude or contact-force peaks; verify a
-    result at full fidelity.
-    **`mass_scaling`**: $s \\ge 1$ (1: the full stage).
-    **`families`**: which relative motions are scaled (static), from `SCALED_FAMILIES`.
-    """
-
-    mass_scaling: Float[Array, ""]
-    families: tuple[str, ...] = eqx.field(static=True)
-
-    def __init__(
-        self,
-        stage=None,
-        drive=None,
-        motor_inertia=2e-4,
-        drag_torque=0.05,
-        mass_scaling=10.0,
-        families=("sun_translation", "planet_translation", "planet_spin"),
-    ):
-        super().__init__(stage, drive, motor_inertia, drag_torque)
-        self.mass_scaling = V.real(type(self).__name__, "mass_scaling", mass_scaling, "-")
-        self.families = tuple(families)
-
-    def __check_init__(self):
-        unknown = [f for f in self.families if f not in SCALED_FAMILIES]
-        if unknown:
-            raise ValueError(f"MassScaledPlanetaryJoint.families: {unknown} unknown; choose from {SCALED_FAMILIES}.")
-        V.check(self, mass_scaling=V.Rule("-", low=1.0))
-
-    def added_inertia(self):
-        stage, lay = self.stage, self.stage.layout
-        extra = self.mass_scaling - 1.0
-        added = jnp.zeros((lay.size, lay.size))
-
-        def translation(block, mass):
-            if block is None:
-                return jnp.zeros_like(added)
-            width = block.stop - block.start
-            return jnp.zeros_like(added).at[block, block].set(mass * jnp.eye(width))
-
-        def against_train(rows, ratio, inertia):
-            # Rotation relative to rigid rolling: d = e_row - ratio e_c, inertia d d^T.
-            d = jnp.zeros((len(rows), lay.size)).at[jnp.arange(len(rows)), jnp.asarray(rows)].set(1.0)
-            d = d.at[:, lay.carrier_theta].add(-ratio)
-            return inertia * d.T @ d
-
-        terms = {
-            "sun_translation": lambda: translation(lay.sun_xy, stage.sun_mass),
-            "planet_translation": lambda: translation(lay.planet_xy, stage.planet_mass),
-            # The carrier's translation carries its planets along.
-            "carrier_translation": lambda: translation(lay.carrier_xy, stage.carrier_mass + stage.n_planets * stage.planet_mass),
-            "planet_spin": lambda: against_train(
-                list(range(lay.planet_theta.start, lay.planet_theta.stop)), _planet_spin_ratio(stage), stage.planet_inertia
-            ),
-            "sun_rotation": lambda: against_train([lay.sun_theta], stage.ratio, stage.sun_inertia + self.motor_inertia),
-        }
-        for family in self.families:
-            added = added + extra * terms[family]()
-        return added
-
-
-FIDELITIES: dict[str, type[AbstractJoint]] = {
-    "ideal": IdealJoint,
-    "lumped": LumpedJoint,
-    "planetary": PlanetaryJoint,
-    "planetary-scaled": MassScaledPlanetaryJoint,
-}

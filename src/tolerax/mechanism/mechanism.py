@@ -62,7 +62,8 @@ from jaxtyping import Array, Float
 from . import outputs as _outputs
 from .. import _validate as V
 from .drives import SpeedServo
-from .joints import AbstractJoint, PlanetaryJoint
+from .joints import AbstractJoint
+from .stage_joints import PlanetaryJoint
 from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, vee, world_inertia
 from .scene import AbstractScene
 

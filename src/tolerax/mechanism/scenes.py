@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .drives import ScanServo, SpeedServo, TorqueDrive
-from .joints import FIDELITIES
+from . import FIDELITIES
 from .mechanism import Mechanism
 from ..physics.stage import PlanetaryStage
 

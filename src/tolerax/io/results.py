@@ -1,0 +1,191 @@
+"""The results of a scene-file run: the time series as an `xarray.Dataset` with units, the
+pointing statistics over the window, the plots, and `summary.json` / `summary.md`."""
+
+import json
+import os
+import pathlib
+
+import numpy as np
+
+from .schema import SERIES
+from ..design import features as _design
+from .scenefile import SceneFile, save_scene
+
+def timeseries(scene_file: SceneFile, result, series=None):
+    """The time series of a `MechanismResult` as an `xarray.Dataset` (SI units in each
+    variable's `units` attribute; the scene file's TOML and the solver report in the global
+    attributes). `series`: names from `SERIES` (default `[outputs] series`). Contact series of
+    a joint without clearances (no columns) are left out."""
+    import xarray as xr
+
+    from .. import __version__
+
+    series = scene_file.outputs["series"] if series is None else series
+    coords = {
+        "time": ("time", np.asarray(result.ts), {"units": "s", "long_name": "simulated time"}),
+        "joint": ("joint", ["azimuth", "pitch"]),
+        "axis": ("axis", ["x", "y", "z"], {"long_name": "base (spacecraft) frame axis"}),
+        "azimuth_contact_name": ("azimuth_contact_name", list(result.azimuth_contact_names)),
+        "pitch_contact_name": ("pitch_contact_name", list(result.pitch_contact_names)),
+    }
+    variables = {}
+    for name in series:
+        dims, unit, long_name = SERIES[name]
+        values = np.asarray(getattr(result, name))
+        if values.size == 0:
+            continue
+        variables[name] = (("time", *dims), values, {"units": unit, "long_name": long_name})
+    used = {d for dims, _, _ in variables.values() for d in dims}
+    ds = xr.Dataset(variables, coords={k: v for k, v in coords.items() if k in used})
+    ds.attrs.update(
+        scene=scene_file.name,
+        title=scene_file.title,
+        scene_toml=scene_file.to_toml(),
+        tolerax_version=__version__,
+        solver_result="successful" if result.success else "; ".join(result.failures()),
+        t_reached_s=float(result.t_reached),
+        steps_accepted=int(result.num_steps),
+        steps_rejected=int(result.num_rejected),
+    )
+    return ds
+
+
+def _window_stats(scene_file: SceneFile, result) -> dict:
+    """Summary numbers over the window `t >= settle` (units in the key names)."""
+    from ..mechanism.outputs import ARCSEC
+
+    ts = np.asarray(result.ts)
+    finite = np.isfinite(ts) & np.all(np.isfinite(np.asarray(result.joint_angle)), axis=1)
+    w = finite & (ts >= scene_file.run["settle"])
+    if not np.any(w):
+        return {}
+    e = np.asarray(result.pointing_error)[w] / ARCSEC
+    speed = np.linalg.norm(np.asarray(result.tracking_speed_error)[w], axis=1) / ARCSEC
+    force = np.asarray(result.output_force)[w]
+    runout = np.asarray(result.runout)[w]
+    angle = np.degrees(np.asarray(result.joint_angle)[w])
+    out = dict(
+        window_s=[float(ts[w][0]), float(ts[w][-1])],
+        pointing_rms_arcsec=float(np.sqrt(np.mean(e**2))),
+        pointing_peak_arcsec=float(e.max()),
+        tracking_speed_error_rms_arcsec_s=float(np.sqrt(np.mean(speed**2))),
+    )
+    for k, joint in enumerate(("azimuth", "pitch")):
+        out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
+        out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
+        out[f"{joint}_angle_range_deg"] = [float(angle[:, k].min()), float(angle[:, k].max())]
+    return out
+
+
+def _plot(name: str, result, settle: float, title: str):
+    import matplotlib.pyplot as plt
+
+    from ..mechanism.outputs import ARCSEC
+
+    ts = np.asarray(result.ts)
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    if name == "pointing_error":
+        ax.plot(ts, np.asarray(result.pointing_error) / ARCSEC, lw=0.8)
+        ax.set_ylabel("pointing error (arcsec)")
+    elif name == "joint_angle":
+        for k, joint in enumerate(("azimuth", "pitch")):
+            line, = ax.plot(ts, np.degrees(np.asarray(result.joint_angle[:, k])), lw=0.8, label=f"{joint}")
+            ax.plot(ts, np.degrees(np.asarray(result.commanded_angle[:, k])), lw=0.8, ls="--", color=line.get_color(), label=f"{joint} commanded")
+        ax.set_ylabel("output angle (deg)")
+        ax.legend(fontsize=8)
+    elif name == "output_force":
+        for k, joint in enumerate(("azimuth", "pitch")):
+            ax.plot(ts, np.asarray(result.output_force[:, k]), lw=0.8, label=joint)
+        ax.set_ylabel("output-bearing radial contact force (N)")
+        ax.legend(fontsize=8)
+    elif name == "tracking_speed_error":
+        for k, axis in enumerate("xyz"):
+            ax.plot(ts, np.asarray(result.tracking_speed_error[:, k]) / ARCSEC, lw=0.8, label=axis)
+        ax.set_ylabel("tracking speed error (arcsec/s)")
+        ax.legend(fontsize=8, title="base frame")
+    if settle > 0:
+        ax.axvline(settle, color="0.6", lw=0.8, ls=":", label="window start")
+    ax.set_xlabel("time (s)")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig
+
+
+def write_results(scene_file: SceneFile, result, out: str | os.PathLike, *, wall_s: float | None = None, command: str | None = None) -> dict:
+    """Write a run's results into the folder `out`: `scene.toml` (the scene as run),
+    `timeseries.nc` (netCDF, h5netcdf engine; `timeseries`), one PNG per `[outputs] plots`,
+    `summary.json` and `summary.md`. Returns the summary dict."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    save_scene(scene_file, out / "scene.toml")
+    ds = timeseries(scene_file, result)
+    ds.to_netcdf(out / "timeseries.nc", engine="h5netcdf")
+    settings = scene_file.outputs
+    plots = []
+    for name in settings["plots"]:
+        fig = _plot(name, result, scene_file.run["settle"], f"{scene_file.name}: {name.replace('_', ' ')}")
+        fig.savefig(out / f"{name}.png", dpi=settings["dpi"])
+        plt.close(fig)
+        plots.append(f"{name}.png")
+    model = scene_file.build()
+    summary = dict(
+        scene=scene_file.name,
+        title=scene_file.title,
+        source=scene_file.source,
+        run={k: v for k, v in scene_file.run.items() if v is not None},
+        result="successful" if result.success else "failed",
+        failures=result.failures(),
+        t_reached_s=float(result.t_reached),
+        steps_accepted=int(result.num_steps),
+        steps_rejected=int(result.num_rejected),
+        wall_s_including_compile=None if wall_s is None else round(wall_s, 2),
+        design_um={n: float(v) * 1e6 for n, v in zip(_design.design_names(model), np.asarray(_design.design_of(model)))},
+        metrics=_window_stats(scene_file, result),
+        files=["scene.toml", "timeseries.nc", *plots, "summary.json", "summary.md"],
+        command=command,
+    )
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.md").write_text(summary_md(summary))
+    return summary
+
+
+def summary_md(s: dict) -> str:
+    lines = [f"# {s['title']}", "", f"Scene `{s['scene']}` ({s['source']}); the scene as run is `scene.toml`.", ""]
+    if s["command"]:
+        lines += ["Reproduce with:", "", "```", s["command"], "```", ""]
+    run = s["run"]
+    lines += [
+        "## Run", "",
+        f"- {run['duration']} s simulated from `start = \"{run['start']}\"`, {run['n_save']} saved times, "
+        f"rtol {run['rtol']:g}, atol {run['atol']:g}; pointing window from {run['settle']} s.",
+        f"- Solver: **{s['result']}**, reached {s['t_reached_s']:.6g} s in {s['steps_accepted']} accepted and "
+        f"{s['steps_rejected']} rejected steps"
+        + (f"; {s['wall_s_including_compile']} s of wall time including compilation." if s["wall_s_including_compile"] is not None else "."),
+    ]
+    lines += [f"- Failure: {line}" for line in s["failures"]]
+    if s["design_um"]:
+        lines += ["", "## Design (clearances and backlash)", "", "| feature | value (µm) |", "|---|---|"]
+        lines += [f"| {n} | {v:.4g} |" for n, v in s["design_um"].items()]
+    m = s["metrics"]
+    if m:
+        lines += ["", f"## Results over {m['window_s'][0]:.4g}-{m['window_s'][1]:.4g} s", "", "| quantity | value |", "|---|---|"]
+        lines += [
+            f"| RMS pointing error | {m['pointing_rms_arcsec']:.4g} arcsec |",
+            f"| peak pointing error | {m['pointing_peak_arcsec']:.4g} arcsec |",
+            f"| RMS tracking speed error | {m['tracking_speed_error_rms_arcsec_s']:.4g} arcsec/s |",
+        ]
+        for joint in ("azimuth", "pitch"):
+            lo, hi = m[f"{joint}_angle_range_deg"]
+            lines += [
+                f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",
+                f"| {joint} peak output-bearing force | {m[f'{joint}_output_force_peak_N']:.4g} N |",
+                f"| {joint} peak runout | {m[f'{joint}_runout_peak_um']:.4g} µm |",
+            ]
+    lines += ["", "## Files", ""] + [f"- `{f}`" for f in s["files"]]
+    return "\n".join(lines) + "\n"

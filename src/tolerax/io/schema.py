@@ -1,0 +1,361 @@
+"""The scene-file schema and its checker: the keys each table accepts (the builders' own keyword
+arguments, read from their signatures, so a builder argument added later is accepted without
+editing this module), types checked against the builders' annotations, ranges by the builders
+themselves, and every error naming the file, line, table and key (`SceneFileError`).
+
+`tomllib` reports no line numbers for valid keys, so `_line_of` finds a key's line by scanning
+the text for it inside its table. The schema is documented in docs/scene_files.md.
+"""
+
+import inspect
+import math
+import re
+import types
+import typing
+
+
+from ..physics import contact as _contact
+from ..design import features as _design
+from ..physics import gears as _gears
+from ..mechanism import scenes as _scenes
+from ..mechanism.scene import STARTS, simulate as _simulate
+from ..solve import PID_RULES
+
+# ---------------------------------------------------------------------------------------------
+# The schema
+
+BUILDERS = {"antenna": _scenes.antenna, "scan": _scenes.scan}
+STAGE_KEYS = ("azimuth_stage", "pitch_stage")
+# Contact laws a stage table may name; their constructor arguments are read from the signatures.
+CONTACT_LAWS = {cls.__name__: cls for cls in (_contact.BaiZhao, _contact.HertzLN, _contact.Flores, _contact.AdamsImpact)}
+
+_SIM = inspect.signature(_simulate).parameters
+# [run]: simulate()'s numeric settings (defaults from its signature), the pointing window `settle`.
+RUN_KEYS = {
+    "duration": (float, None),
+    "start": (str, _SIM["start"].default),
+    "n_save": (int, _SIM["n_save"].default),
+    "rtol": (float, _SIM["rtol"].default),
+    "atol": (float, _SIM["atol"].default),
+    "dt0": (float, _SIM["dt0"].default),
+    "dtmax": (float, _SIM["dtmax"].default),
+    "dtmin": (float, _SIM["dtmin"].default),
+    "max_steps": (int, _SIM["max_steps"].default),
+    "fixed_step": (float, None),
+    "pcoeff": (float, _SIM["pcoeff"].default),
+    "icoeff": (float, _SIM["icoeff"].default),
+    "settle": (float, 0.0),
+}
+
+# name -> (dims after time, unit, long name); what `timeseries` can write.
+SERIES = {
+    "pointing_error": ((), "rad", "angle between the actual and the commanded boresight"),
+    "joint_angle": (("joint",), "rad", "output angle of each joint"),
+    "commanded_angle": (("joint",), "rad", "commanded output angle of each joint"),
+    "position_error": (("axis",), "m", "reflector centre minus its commanded position (base frame)"),
+    "tracking_speed_error": (("axis",), "rad/s", "reflector angular velocity minus the commanded one (base frame)"),
+    "runout": (("joint",), "m", "radial runout of each joint output"),
+    "output_force": (("joint",), "N", "radial contact force of each joint's output (carrier) bearing"),
+    "azimuth_contact": (("azimuth_contact_name",), "N", "normal force of each clearance contact of the azimuth joint"),
+    "pitch_contact": (("pitch_contact_name",), "N", "normal force of each clearance contact of the pitch joint"),
+    "momentum": (("axis",), "kg m/s", "linear momentum"),
+    "angular_momentum": (("axis",), "kg m^2/s", "angular momentum about the world origin"),
+    "kinetic_energy": ((), "J", "kinetic energy"),
+}
+PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error")
+OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
+DISTRIBUTIONS = ("uniform", "normal")
+TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None)}
+TOP_KEYS = {"title": str, "description": str, "scene": dict, "run": dict, "outputs": dict, "tolerances": dict}
+
+
+class SceneFileError(ValueError):
+    """A scene file that cannot be read: bad TOML, an unknown key, a wrong type or value.
+
+    `source`, `line` (1-based, or `None` when it cannot be located), `table` (e.g.
+    `"scene.azimuth_stage"`) and `key` say where; the message says what is allowed."""
+
+    def __init__(self, message: str, source: str = "<string>", line: int | None = None, table: str = "", key: str | None = None):
+        self.message, self.source, self.line, self.table, self.key = message, source, line, table, key
+        where = f"{source}:{line}" if line is not None else source
+        what = f"[{table}] " if table else ""
+        what += f"{key}: " if key is not None else ""
+        super().__init__(f"{where}: {what}{message}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Finding lines
+
+
+def _header(line: str) -> tuple[str, ...] | None:
+    m = re.match(r"^\[\[?\s*([^\]]*?)\s*\]\]?\s*(#.*)?$", line)
+    if m is None:
+        return None
+    return tuple(part.strip().strip("\"'") for part in m.group(1).split("."))
+
+
+def _line_of(text: str, table: tuple[str, ...], key: str | None = None) -> int | None:
+    """The line of `key` inside `[table]` (or of the table's header when `key` is None).
+
+    Scans the text: the current table is the last `[header]` seen; a key line starts with the key
+    (bare or quoted) and `=`. Keys written another way (dotted `a.b.key = `, inline tables
+    `a = { key = ... }`) fall back to the first line where the key is followed by `=`, and
+    then to the table's header line."""
+    lines = text.splitlines()
+    current: tuple[str, ...] = ()
+    header_line = None
+    quoted = re.escape(key) if key is not None else None
+    own = re.compile(rf"^([\"']?){quoted}\1\s*=") if key is not None else None
+    for i, raw in enumerate(lines, 1):
+        line = raw.strip()
+        head = _header(line) if line.startswith("[") else None
+        if head is not None:
+            current = head
+            if current == table:
+                header_line = header_line or i
+                if key is None:
+                    return i
+            continue
+        if key is not None and current == table and own.match(line):
+            return i
+    if key is not None:
+        loose = re.compile(rf"(^|[.\s{{,])([\"']?){quoted}\2\s*=")
+        for i, raw in enumerate(lines, 1):
+            if loose.search(raw.split("#", 1)[0]):
+                return i
+    return header_line
+
+
+# ---------------------------------------------------------------------------------------------
+# Types from annotations
+
+
+def _accepts(value, ann) -> bool:
+    origin = typing.get_origin(ann)
+    if origin in (typing.Union, types.UnionType):
+        return any(_accepts(value, a) for a in typing.get_args(ann) if a is not type(None))
+    if ann is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if ann is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if ann is bool:
+        return isinstance(value, bool)
+    if ann is str:
+        return isinstance(value, str)
+    if ann is list:
+        return isinstance(value, list)
+    if ann is dict:
+        return isinstance(value, dict)
+    if origin is tuple:
+        args = typing.get_args(ann)
+        return isinstance(value, list) and len(value) == len(args) and all(_accepts(v, a) for v, a in zip(value, args))
+    return False
+
+
+def _type_text(ann) -> str:
+    origin = typing.get_origin(ann)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_type_text(a) for a in typing.get_args(ann) if a is not type(None))
+    if origin is tuple:
+        args = typing.get_args(ann)
+        return f"a list of {len(args)} ({', '.join(_type_text(a) for a in args)})"
+    return {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list", dict: "a table"}.get(
+        ann, getattr(ann, "__name__", str(ann))
+    )
+
+
+def _toml_type(value) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a float", str: "a string", list: "an array", dict: "a table"}.get(
+        type(value), type(value).__name__
+    )
+
+
+def _for_call(value):
+    """TOML arrays become tuples for the builders (pairs such as `fidelity`, `torques`)."""
+    return tuple(_for_call(v) for v in value) if isinstance(value, list) else value
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation
+
+
+class Checker:
+    def __init__(self, text: str, source: str):
+        self.text, self.source = text, source
+
+    def error(self, message, table: tuple[str, ...] = (), key=None):
+        line = _line_of(self.text, table, key)
+        return SceneFileError(message, self.source, line, ".".join(table), key)
+
+    def keys(self, data: dict, table: tuple[str, ...], allowed, required=()):
+        for key in data:
+            if key not in allowed:
+                raise self.error(f"unknown key {key!r}; allowed keys: {', '.join(allowed)}.", table, key)
+        for key in required:
+            if key not in data:
+                raise self.error(f"missing key {key!r}.", table)
+
+    def typed(self, data: dict, table: tuple[str, ...], key: str, ann):
+        value = data[key]
+        if not _accepts(value, ann):
+            raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).", table, key)
+
+    def wrap(self, err: Exception, table: tuple[str, ...], data: dict):
+        """A builder's error, located at the first key of `table` its message names."""
+        message = str(err)
+        for key in data:
+            if re.search(rf"\b{re.escape(key)}\b", message):
+                return self.error(message, table, key)
+        return self.error(message, table)
+
+
+def _signature_keys(fn, skip=()):
+    return {name: p for name, p in inspect.signature(fn).parameters.items() if name not in skip}
+
+
+def _build_stage(chk: Checker, data: dict, table: tuple[str, ...]):
+    params = _signature_keys(_gears.default_stage)
+    chk.keys(data, table, list(params))
+    kwargs = {}
+    for key, value in data.items():
+        if key == "contact_law":
+            kwargs[key] = _build_law(chk, value, table + (key,))
+            continue
+        chk.typed(data, table, key, params[key].annotation)
+        kwargs[key] = _for_call(value)
+    try:
+        return _gears.default_stage(**kwargs)
+    except (ValueError, TypeError) as err:
+        raise chk.wrap(err, table, data) from None
+
+
+def _build_law(chk: Checker, data, table):
+    if not isinstance(data, dict):
+        raise chk.error(f"must be a table with `law` = one of {', '.join(CONTACT_LAWS)}, got {data!r}.", table[:-1], table[-1])
+    if "law" not in data:
+        raise chk.error(f"missing key 'law' (one of {', '.join(CONTACT_LAWS)}).", table)
+    if data["law"] not in CONTACT_LAWS:
+        raise chk.error(f"unknown contact law {data['law']!r}; use one of {', '.join(CONTACT_LAWS)}.", table, "law")
+    cls = CONTACT_LAWS[data["law"]]
+    params = _signature_keys(cls.__init__, skip=("self",))
+    chk.keys(data, table, ["law", *params])
+    kwargs = {}
+    for key, value in data.items():
+        if key != "law":
+            chk.typed(data, table, key, float)
+            kwargs[key] = value
+    try:
+        return cls(**kwargs)
+    except (ValueError, TypeError) as err:
+        raise chk.wrap(err, table, data) from None
+
+
+def build(chk: Checker, scene: dict):
+    table = ("scene",)
+    if "kind" not in scene:
+        raise chk.error(f"missing key 'kind' (one of {', '.join(BUILDERS)}).", table)
+    if scene["kind"] not in BUILDERS:
+        raise chk.error(f"unknown scene kind {scene['kind']!r}; use one of {', '.join(BUILDERS)}.", table, "kind")
+    builder = BUILDERS[scene["kind"]]
+    params = _signature_keys(builder)
+    chk.keys(scene, table, ["kind", *params])
+    kwargs = {}
+    for key, value in scene.items():
+        if key == "kind":
+            continue
+        if key in STAGE_KEYS:
+            if not isinstance(value, dict):
+                raise chk.error(f"must be a table of default_stage arguments, got {value!r}.", table, key)
+            kwargs[key] = _build_stage(chk, value, table + (key,))
+            continue
+        chk.typed(scene, table, key, params[key].annotation)
+        kwargs[key] = _for_call(value)
+    try:
+        model = builder(**kwargs)
+        model.check_runnable()  # e.g. nothing to integrate: say so now, not after a compile
+    except (ValueError, TypeError) as err:
+        raise chk.wrap(err, table, scene) from None
+    return model
+
+
+def _check_run(chk: Checker, run: dict):
+    table = ("run",)
+    chk.keys(run, table, list(RUN_KEYS), required=("duration",))
+    for key in run:
+        chk.typed(run, table, key, RUN_KEYS[key][0])
+    value = {key: run.get(key, default) for key, (_, default) in RUN_KEYS.items()}
+    for key in ("duration", "rtol", "atol", "dt0", "dtmax", "dtmin", "fixed_step"):
+        if key in run and not (math.isfinite(run[key]) and run[key] > 0):
+            raise chk.error(f"must be a positive finite number, got {run[key]!r}.", table, key)
+    for key, (ok, rule) in PID_RULES.items():
+        x = value[key]
+        if not (math.isfinite(x) and ok(x)):
+            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
+                            "(0.3, 0.3) a PI controller).", table, key)
+    if value["start"] not in STARTS:
+        raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
+    if value["n_save"] < 2:
+        raise chk.error(f"must be at least 2 (the start and the end), got {value['n_save']!r}.", table, "n_save")
+    if value["max_steps"] < 1:
+        raise chk.error(f"must be at least 1, got {value['max_steps']!r}.", table, "max_steps")
+    if not (math.isfinite(value["settle"]) and 0.0 <= value["settle"] < value["duration"]):
+        raise chk.error(
+            f"must satisfy 0 <= settle < duration = {value['duration']!r} s, got {value['settle']!r}.",
+            table, "settle" if "settle" in run else "duration",
+        )
+    if not value["dtmin"] < value["dt0"] <= value["dtmax"]:
+        raise chk.error(
+            f"steps must satisfy dtmin < dt0 <= dtmax, got dtmin={value['dtmin']!r}, dt0={value['dt0']!r}, dtmax={value['dtmax']!r}.",
+            table, next((k for k in ("dt0", "dtmax", "dtmin") if k in run), None),
+        )
+
+
+def _check_outputs(chk: Checker, outputs: dict):
+    table = ("outputs",)
+    chk.keys(outputs, table, list(OUTPUT_KEYS))
+    for key in outputs:
+        chk.typed(outputs, table, key, OUTPUT_KEYS[key][0])
+    for key, allowed in (("series", SERIES), ("plots", PLOTS)):
+        for name in outputs.get(key, []):
+            if name not in allowed:
+                raise chk.error(f"unknown output {name!r}; choose from {', '.join(allowed)}.", table, key)
+    if "dpi" in outputs and not 10 <= outputs["dpi"] <= 1200:
+        raise chk.error(f"must be between 10 and 1200, got {outputs['dpi']!r}.", table, "dpi")
+
+
+def _check_tolerances(chk: Checker, tol: dict, model):
+    table = ("tolerances",)
+    chk.keys(tol, table, list(TOLERANCE_KEYS))
+    for key in tol:
+        chk.typed(tol, table, key, TOLERANCE_KEYS[key][0])
+    if "band" in tol and not (math.isfinite(tol["band"]) and tol["band"] >= 0):
+        raise chk.error(f"must be a non-negative finite half-width (m), got {tol['band']!r}.", table, "band")
+    if tol.get("distribution", "uniform") not in DISTRIBUTIONS:
+        raise chk.error(f"distribution={tol['distribution']!r} is unknown; use one of {DISTRIBUTIONS}.", table, "distribution")
+    if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
+        raise chk.error(f"must be a positive number of arcsec, got {tol['requirement']!r}.", table, "requirement")
+    names = _design.design_names(model)
+    sub = table + ("bands",)
+    for name, value in tol.get("bands", {}).items():
+        if name not in names:
+            raise chk.error(f"{name!r} is not a design feature of this scene; its features: {', '.join(names) or 'none'}.", sub, name)
+        if not (_accepts(value, float) and math.isfinite(value) and value >= 0):
+            raise chk.error(f"must be a non-negative finite half-width (m), got {value!r}.", sub, name)
+
+
+def validate(data: dict, text: str, source: str):
+    """Check `data` (parsed from `text`); return the model it builds."""
+    chk = Checker(text, source)
+    for key, value in data.items():
+        if key not in TOP_KEYS:
+            raise chk.error(f"unknown key {key!r}; allowed at the top level: {', '.join(TOP_KEYS)}.", (), key)
+        if not _accepts(value, TOP_KEYS[key]):
+            raise chk.error(f"must be {_type_text(TOP_KEYS[key])}, got {_toml_type(value)}.", (), key)
+    for key in ("scene", "run"):
+        if key not in data:
+            raise chk.error(f"missing table [{key}].")
+    _check_run(chk, data["run"])
+    _check_outputs(chk, data.get("outputs", {}))
+    model = build(chk, data["scene"])
+    _check_tolerances(chk, data.get("tolerances", {}), model)
+    return model
