@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from tolerax.uncertainty.montecarlo import MonteCarloResult, monte_carlo, wilson_interval
+from tolerax.uncertainty.montecarlo import monte_carlo
+from tolerax.uncertainty.results import MonteCarloResult, wilson_interval
 from tolerax.uncertainty.sampling import Tolerances, apply_draws, sample, unit_draws
 from tolerax.uncertainty.sensitivity import sobol_indices
 
@@ -384,3 +385,22 @@ def test_bad_input_names_the_field():
     result = monte_carlo(model, TOLERANCES, 10, KEY, **QUIET)
     with pytest.raises(ValueError, match="Unknown output"):
         result.plot_histogram("pointing")
+
+
+def test_drivers_give_tied_values_their_mean_rank():
+    # Spearman's rho with ties: tied values share their mean rank. By hand, x ranks
+    # (1.5, 1.5, 3.5, 3.5) against y ranks (2, 1, 3, 4): rho = 4 / sqrt(4 * 5). Ranking the ties
+    # in sample order instead (0, 1, 2, 3) would give 0.8. A constant feature drives nothing (0).
+    import json
+
+    import xarray as xr
+
+    ds = xr.Dataset(
+        {"y": ("sample", np.array([2.0, 1.0, 3.0, 4.0])), "success": ("sample", np.ones(4, bool))},
+        coords={"sample": np.arange(4), "a": ("sample", np.array([1.0, 1.0, 2.0, 2.0])),
+                "b": ("sample", np.full(4, 5.0))},
+        attrs={"settings": json.dumps({"names": ["a", "b"]})},
+    )
+    drivers = MonteCarloResult(ds).drivers("y")
+    np.testing.assert_allclose(drivers["a"], 4 / np.sqrt(20), rtol=1e-12)
+    assert drivers["b"] == 0.0

@@ -65,7 +65,8 @@ from .design.features import (
 from .design.objectives import PointingObjective as PointingObjective
 from .design.propose import DesignReport as DesignReport, propose_design as propose_design
 from .uncertainty.sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
-from .uncertainty.montecarlo import MonteCarloResult as MonteCarloResult, monte_carlo as monte_carlo, wilson_interval as wilson_interval
+from .uncertainty.montecarlo import monte_carlo as monte_carlo
+from .uncertainty.results import MonteCarloResult as MonteCarloResult, wilson_interval as wilson_interval
 from .uncertainty.sensitivity import SobolResult as SobolResult, sobol_indices as sobol_indices
 from .design.cost import (
     AbstractCostModel as AbstractCostModel,

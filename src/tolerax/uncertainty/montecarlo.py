@@ -9,9 +9,8 @@ writes each finished chunk to disk as it completes, and returns every sample's o
 returning scalar outputs and a `"success"` entry (the solver's success flag): an equinox Module with
 `__call__` is the expected kind. A failed sample is kept and flagged, never averaged in.
 
-(This module is longer than our ~500-line guide, about 370 lines of code: the backends, the
-checkpoint folder and the result type all read the same run plan and chunk format, and are kept
-together until the result type grows enough to stand alone.)
+The checkpoint folder is `tolerax.uncertainty.checkpoint`; the result type, its statistics and
+plots `tolerax.uncertainty.results`.
 """
 
 import concurrent.futures
@@ -21,10 +20,8 @@ import hashlib
 import json
 import multiprocessing
 import os
-import pathlib
 import pickle
 import queue
-import statistics
 import uuid
 from collections.abc import Callable, Mapping
 
@@ -36,11 +33,12 @@ import xarray as xr
 from jax.sharding import Mesh, PartitionSpec
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
+from .checkpoint import atomic_write, chunk_path, open_folder
+from .results import MonteCarloResult
 from .sampling import Tolerances, sample
 
 
 BACKENDS = ("vmap", "processes", "dask")
-QUANTILES = (0.5, 0.9, 0.95, 0.99)
 _FORMAT = "tolerax-samples/1"
 
 
@@ -128,7 +126,7 @@ def _worker_cores(workers: int | None, pin: bool | None) -> list[int] | None:
 
 
 @dataclasses.dataclass(frozen=True)
-class _Plan:
+class Plan:
     names: tuple[str, ...]
     n: int
     chunk_size: int
@@ -150,7 +148,7 @@ def _fingerprint(model) -> str | None:
         return None
 
 
-def _check_outputs(model, plan: _Plan) -> None:
+def _check_outputs(model, plan: Plan) -> None:
     dtype = jax.dtypes.canonicalize_dtype(np.float64)
     spec = jax.eval_shape(model, jax.ShapeDtypeStruct((len(plan.names),), dtype))
     if not isinstance(spec, dict) or "success" not in spec:
@@ -162,54 +160,7 @@ def _check_outputs(model, plan: _Plan) -> None:
             raise ValueError(f"Model output {name!r} clashes with a feature name or 'sample'; rename it.")
 
 
-def _chunk_path(out: pathlib.Path, k: int) -> pathlib.Path:
-    return out / f"chunk-{k:05d}.nc"
-
-
-def _open_folder(out, settings: dict) -> tuple[pathlib.Path, dict[int, xr.Dataset]]:
-    """Create `out` with its manifest, or check that the manifest there matches; load the chunks
-    already finished there."""
-    out = pathlib.Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    manifest = out / "manifest.json"
-    settings = json.loads(json.dumps(settings))  # as it reads back (tuples become lists)
-    if manifest.exists():
-        previous = json.loads(manifest.read_text())
-        if previous != settings:
-            raise ValueError(
-                f"{out} holds a run with other settings ({'; '.join(_differences(previous, settings))}). "
-                "Resume with the same arguments, or give another `out` folder."
-            )
-    else:
-        if any(out.glob("chunk-*.nc")):
-            raise ValueError(f"{out} holds chunk files but no manifest.json; give an empty or new `out` folder.")
-        _atomic(manifest, lambda tmp: tmp.write_text(json.dumps(settings, indent=1)))
-    for stale in out.glob("*.tmp"):
-        stale.unlink()  # written by a run killed mid-write: never renamed, so never counted
-    done = {}
-    for path in sorted(out.glob("chunk-*.nc")):
-        done[int(path.stem.split("-")[1])] = xr.load_dataset(path, engine="h5netcdf")
-    return out, done
-
-
-def _differences(there: dict, now: dict, prefix: str = "") -> list[str]:
-    lines = []
-    for key in sorted(there.keys() | now.keys()):
-        old, new = there.get(key), now.get(key)
-        if isinstance(old, dict) and isinstance(new, dict):
-            lines += _differences(old, new, f"{prefix}{key}.")
-        elif old != new:
-            lines.append(f"{prefix}{key}: {old!r} there, {new!r} now")
-    return lines
-
-
-def _atomic(path: pathlib.Path, write: Callable[[pathlib.Path], object]) -> None:
-    tmp = path.with_name(f"{path.name}.{uuid.uuid4().hex[:8]}.tmp")
-    write(tmp)
-    os.replace(tmp, path)  # atomic: a chunk file exists whole or not at all
-
-
-def _chunk_dataset(plan: _Plan, k: int, values: np.ndarray, outputs: dict[str, np.ndarray]) -> xr.Dataset:
+def _chunk_dataset(plan: Plan, k: int, values: np.ndarray, outputs: dict[str, np.ndarray]) -> xr.Dataset:
     start, stop = plan.span(k)
     coords = {"sample": np.arange(start, stop)}
     coords |= {name: ("sample", values[:, j]) for j, name in enumerate(plan.names)}
@@ -242,7 +193,7 @@ def _farm(futures: dict, as_completed, cancel, handle, save) -> None:
         raise
 
 
-def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
+def _run_chunks(model, plan: Plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
     if backend == "vmap":
         for k in todo:
             handle(k, evaluate(model, plan.draw(*plan.span(k)), plan.chunk_size))
@@ -282,7 +233,7 @@ def _run_chunks(model, plan: _Plan, backend, todo, handle, save, client, workers
 
 
 def run_samples(
-    model, plan: _Plan, *, backend, out, progress, client, workers, callback, units: Mapping[str, str] | None,
+    model, plan: Plan, *, backend, out, progress, client, workers, callback, units: Mapping[str, str] | None,
     pin_workers: bool | None = None,
 ) -> xr.Dataset:
     """Evaluate `model` on every chunk of `plan` not already finished in `out`; return all samples."""
@@ -295,16 +246,16 @@ def run_samples(
     _check_outputs(model, plan)
     settings = dict(plan.settings, format=_FORMAT, names=list(plan.names), n=plan.n, chunk_size=plan.chunk_size)
     settings["model_sha256"] = _fingerprint(model)
-    folder, chunks = (None, {}) if out is None else _open_folder(out, settings)
+    folder, chunks = (None, {}) if out is None else open_folder(out, settings)
     for k, ds in chunks.items():
         if k >= plan.n_chunks or not np.array_equal(ds["sample"].values, np.arange(*plan.span(k))):
-            raise ValueError(f"{_chunk_path(folder, k)} does not hold the samples of chunk {k}; is `out` shared?")
+            raise ValueError(f"{chunk_path(folder, k)} does not hold the samples of chunk {k}; is `out` shared?")
     bar = tqdm(total=plan.n_chunks, initial=len(chunks), disable=not progress, unit="chunk", desc="Monte Carlo")
 
     def save(k: int, outputs: dict[str, np.ndarray]) -> None:
         ds = _chunk_dataset(plan, k, plan.draw(*plan.span(k)), outputs)
         if folder is not None:
-            _atomic(_chunk_path(folder, k), lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
+            atomic_write(chunk_path(folder, k), lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
         chunks[k] = ds
         bar.update()
 
@@ -336,14 +287,14 @@ def run_samples(
     return ds
 
 
-def _typed_key(key) -> PRNGKeyArray:
+def typed_key(key) -> PRNGKeyArray:
     if not isinstance(key, jax.Array):
         raise TypeError(f"key must be a JAX PRNG key such as jax.random.key(0), got {key!r}.")
     return key if jax.dtypes.issubdtype(key.dtype, jax.dtypes.prng_key) else jax.random.wrap_key_data(key)
 
 
 def key_settings(key) -> dict:
-    key = _typed_key(key)
+    key = typed_key(key)
     return {"impl": str(jax.random.key_impl(key)), "data": np.asarray(jax.random.key_data(key)).tolist()}
 
 
@@ -446,190 +397,10 @@ def monte_carlo(
     A `MonteCarloResult`: every sample's outputs, success flag and sampled values.
     """
     check_run(tolerances, n=n, chunk_size=chunk_size)
-    key = _typed_key(key)
+    key = typed_key(key)
     settings = {"kind": "monte_carlo", "key": key_settings(key), "tolerances": tolerances.to_json()}
     draw = lambda start, stop: np.asarray(sample(tolerances, key, stop - start, first=start))  # noqa: E731
-    plan = _Plan(tolerances.names, int(n), int(chunk_size), draw, settings)
+    plan = Plan(tolerances.names, int(n), int(chunk_size), draw, settings)
     ds = run_samples(model, plan, backend=backend, out=out, progress=progress, client=client, workers=workers,
                      callback=callback, units=units, pin_workers=pin_workers)
     return MonteCarloResult(ds, requirement=requirement)
-
-
-# ---------------------------------------------------------------------------------------------
-# Results and statistics.
-
-
-def wilson_interval(successes, trials, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-    """Wilson score interval for a proportion: with $\\hat p = k/n$ and $z$ the normal quantile,
-    $(\\hat p + z^2/2n \\pm z\\sqrt{\\hat p(1-\\hat p)/n + z^2/4n^2}) / (1 + z^2/n)$. Unlike the
-    normal approximation it stays inside [0, 1] and is not empty at $\\hat p \\in \\{0, 1\\}$."""
-    z = statistics.NormalDist().inv_cdf(0.5 + confidence / 2)
-    k, n = np.asarray(successes, dtype=float), np.asarray(trials, dtype=float)
-    p = k / n
-    centre = (p + z**2 / (2 * n)) / (1 + z**2 / n)
-    half = z / (1 + z**2 / n) * np.sqrt(p * (1 - p) / n + z**2 / (4 * n**2))
-    return np.clip(centre - half, 0.0, 1.0), np.clip(centre + half, 0.0, 1.0)
-
-
-class MonteCarloResult:
-    """Every sample of a Monte Carlo run, as `dataset`: an `xarray.Dataset` along `sample` with one
-    variable per model output, `success`, and the sampled values as coordinates named by feature
-    (m); `dataset.attrs["settings"]` is the run's manifest (JSON).
-
-    Statistics use the samples whose `success` is true and whose output is finite; the others
-    are counted (`n_failed`, `n_nonfinite`), never averaged in.
-    """
-
-    def __init__(self, dataset: xr.Dataset, requirement: float | Mapping[str, float] | None = None):
-        self.dataset = dataset
-        self.requirement = requirement
-
-    @property
-    def features(self) -> tuple[str, ...]:
-        return tuple(json.loads(self.dataset.attrs["settings"])["names"])
-
-    @property
-    def outputs(self) -> tuple[str, ...]:
-        return tuple(name for name in self.dataset.data_vars if name != "success")
-
-    @property
-    def success(self) -> np.ndarray:
-        return self.dataset["success"].values
-
-    def save(self, path: str | os.PathLike) -> None:
-        """Write the dataset to netCDF (h5netcdf), atomically."""
-        path = pathlib.Path(path)
-        _atomic(path, lambda tmp: self.dataset.to_netcdf(tmp, engine="h5netcdf"))
-
-    @classmethod
-    def load(cls, path: str | os.PathLike, requirement=None) -> "MonteCarloResult":
-        """Read a result written by `save`."""
-        return cls(xr.load_dataset(path, engine="h5netcdf"), requirement)
-
-    def _used(self, output: str) -> tuple[np.ndarray, np.ndarray]:
-        if output not in self.outputs:
-            raise ValueError(f"Unknown output {output!r}; the outputs are {self.outputs}.")
-        y = self.dataset[output].values
-        used = self.success & np.isfinite(y)
-        if not used.any():
-            raise ValueError(f"No successful sample with a finite {output!r} ({(~self.success).sum()} failed).")
-        return y, used
-
-    def summary(self, requirement: float | Mapping[str, float] | None = None, confidence: float = 0.95) -> dict:
-        """Statistics per output over the successful samples.
-
-        **Arguments:**
-
-        - `requirement`: a threshold (output units) for every output, or a mapping output ->
-          threshold; default the run's `requirement`.
-        - `confidence`: level of the yield's Wilson score interval.
-
-        **Returns:**
-
-        `{output: {...}}` with `n_samples`, `n_failed` (solver failures), `n_nonfinite`
-        (successful but non-finite output), `n_used`, `mean`, `std` (ddof 1), `min`, `max`,
-        `q50`, `q90`, `q95`, `q99`, and with a requirement `requirement`, `yield` (fraction of the
-        used samples with output <= requirement) and `yield_low`, `yield_high`.
-        """
-        requirement = self.requirement if requirement is None else requirement
-        table = {}
-        for output in self.outputs:
-            y, used = self._used(output)
-            values = y[used].astype(float)
-            row = dict(
-                n_samples=y.size, n_failed=int((~self.success).sum()),
-                n_nonfinite=int((self.success & ~np.isfinite(y)).sum()), n_used=int(used.sum()),
-                mean=float(values.mean()), std=float(values.std(ddof=1)) if values.size > 1 else 0.0,
-                min=float(values.min()), max=float(values.max()),
-            )
-            row |= {f"q{round(100 * q)}": float(np.quantile(values, q)) for q in QUANTILES}
-            limit = requirement.get(output) if isinstance(requirement, Mapping) else requirement
-            if limit is not None:
-                passed = int((values <= limit).sum())
-                low, high = wilson_interval(passed, values.size, confidence)
-                row |= {"requirement": float(limit), "yield": passed / values.size,
-                        "yield_low": float(low), "yield_high": float(high)}
-            table[output] = row
-        return table
-
-    def report(self, requirement=None) -> str:
-        """The summary as readable lines."""
-        lines = []
-        for output, row in self.summary(requirement).items():
-            text = (f"{output}: {row['n_used']} of {row['n_samples']} samples used ({row['n_failed']} failed, "
-                    f"{row['n_nonfinite']} non-finite); mean {row['mean']:.6g}, std {row['std']:.6g}, "
-                    f"q50/q90/q95/q99 {row['q50']:.6g}/{row['q90']:.6g}/{row['q95']:.6g}/{row['q99']:.6g}")
-            if "yield" in row:
-                text += (f"; yield at <= {row['requirement']:.6g}: {row['yield']:.4f} "
-                         f"[{row['yield_low']:.4f}, {row['yield_high']:.4f}]")
-            lines.append(text)
-        return "\n".join(lines)
-
-    def drivers(self, output: str) -> dict[str, float]:
-        """Spearman rank correlation of `output` with each feature over the used samples (0 for a
-        feature that does not vary), strongest first."""
-        y, used = self._used(output)
-        rank = lambda x: np.argsort(np.argsort(x, kind="stable"), kind="stable").astype(float)  # noqa: E731
-        ry = rank(y[used])
-        result = {}
-        for name in self.features:
-            rx = rank(self.dataset[name].values[used])
-            spread = rx.std() * ry.std()
-            result[name] = float(np.mean((rx - rx.mean()) * (ry - ry.mean())) / spread) if spread > 0 else 0.0
-        return dict(sorted(result.items(), key=lambda item: -abs(item[1])))
-
-    def _label(self, name: str, units: Mapping[str, str] | None) -> str:
-        unit = (units or {}).get(name, self.dataset[name].attrs.get("units"))
-        return f"{name} ({unit})" if unit else name
-
-    @staticmethod
-    def _axes(ax):
-        import matplotlib.pyplot as plt
-
-        return plt.subplots()[1] if ax is None else ax
-
-    def plot_histogram(self, output: str, *, requirement=None, units=None, bins: int = 50, ax=None):
-        """Histogram of `output` over the used samples, with the requirement as a vertical line."""
-        ax = self._axes(ax)
-        y, used = self._used(output)
-        ax.hist(y[used], bins=bins)
-        requirement = self.requirement if requirement is None else requirement
-        limit = requirement.get(output) if isinstance(requirement, Mapping) else requirement
-        if limit is not None:
-            ax.axvline(limit, color="k", linestyle="--", label="requirement")
-            ax.legend()
-        ax.set_xlabel(self._label(output, units))
-        ax.set_ylabel("samples")
-        ax.set_title(f"{used.sum()} of {y.size} samples ({(~self.success).sum()} failed)")
-        return ax
-
-    def plot_yield_curve(self, output: str, *, units=None, confidence: float = 0.95, ax=None):
-        """Yield (fraction of used samples with output <= requirement) against the requirement,
-        with its Wilson score band."""
-        ax = self._axes(ax)
-        y, used = self._used(output)
-        values = np.sort(y[used])
-        passed = np.arange(1, values.size + 1)
-        low, high = wilson_interval(passed, values.size, confidence)
-        ax.step(values, passed / values.size, where="post", label="yield")
-        ax.fill_between(values, low, high, step="post", alpha=0.3, label=f"{confidence:.0%} interval")
-        ax.set_xlabel("requirement on " + self._label(output, units))
-        ax.set_ylabel("yield")
-        ax.legend()
-        return ax
-
-    def plot_scatter(self, output: str, *, driver: str | None = None, units=None, ax=None):
-        """`output` against `driver` (default: the feature with the strongest rank correlation);
-        the failed samples' driver values are marked along the bottom."""
-        ax = self._axes(ax)
-        y, used = self._used(output)
-        driver = driver or next(iter(self.drivers(output)))
-        x = self.dataset[driver].values
-        ax.plot(x[used], y[used], ".", alpha=0.5, label="samples")
-        failed = ~self.success
-        if failed.any():
-            ax.plot(x[failed], np.full(failed.sum(), y[used].min()), "x", color="red", label="failed")
-        ax.set_xlabel(self._label(driver, units))
-        ax.set_ylabel(self._label(output, units))
-        ax.legend()
-        return ax

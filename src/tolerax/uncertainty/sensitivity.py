@@ -13,7 +13,7 @@ import xarray as xr
 from jaxtyping import PRNGKeyArray
 from SALib.analyze import sobol as sobol_analyze
 from SALib.sample import sobol as sobol_sample
-from .montecarlo import MonteCarloResult, _Plan, _typed_key, check_run, key_settings, run_samples
+from .montecarlo import MonteCarloResult, Plan, typed_key, check_run, key_settings, run_samples
 from .sampling import Tolerances
 
 
@@ -88,7 +88,7 @@ def sobol_indices(
     check_run(tolerances, n_base=n_base, chunk_size=chunk_size)
     if n_base < 2 or n_base & (n_base - 1):
         raise ValueError(f"n_base must be a power of 2 (at least 2) for the Sobol' sequence, got {n_base!r}.")
-    key = _typed_key(key)
+    key = typed_key(key)
     bounds = tolerances.bounds()
     varied = bounds[:, 1] > bounds[:, 0]
     if not varied.any():
@@ -109,7 +109,7 @@ def sobol_indices(
         "kind": "sobol", "key": key_settings(key), "tolerances": tolerances.to_json(), "n_base": n_base,
         "seed": seed, "problem": problem,
     }
-    plan = _Plan(tolerances.names, len(values), int(chunk_size), lambda start, stop: values[start:stop], settings)
+    plan = Plan(tolerances.names, len(values), int(chunk_size), lambda start, stop: values[start:stop], settings)
     ds = run_samples(model, plan, backend=backend, out=out, progress=progress, client=client, workers=workers,
                      callback=None, units=None)
     samples = MonteCarloResult(ds)

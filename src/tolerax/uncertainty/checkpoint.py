@@ -1,0 +1,57 @@
+"""A Monte Carlo run's checkpoint folder: `manifest.json` (the run's settings, checked on
+resume) and one netCDF file per finished chunk, each written atomically."""
+
+import json
+import os
+import pathlib
+import uuid
+from collections.abc import Callable
+
+import xarray as xr
+
+
+def chunk_path(out: pathlib.Path, k: int) -> pathlib.Path:
+    return out / f"chunk-{k:05d}.nc"
+
+
+def open_folder(out, settings: dict) -> tuple[pathlib.Path, dict[int, xr.Dataset]]:
+    """Create `out` with its manifest, or check that the manifest there matches; load the chunks
+    already finished there."""
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    manifest = out / "manifest.json"
+    settings = json.loads(json.dumps(settings))  # as it reads back (tuples become lists)
+    if manifest.exists():
+        previous = json.loads(manifest.read_text())
+        if previous != settings:
+            raise ValueError(
+                f"{out} holds a run with other settings ({'; '.join(_differences(previous, settings))}). "
+                "Resume with the same arguments, or give another `out` folder."
+            )
+    else:
+        if any(out.glob("chunk-*.nc")):
+            raise ValueError(f"{out} holds chunk files but no manifest.json; give an empty or new `out` folder.")
+        atomic_write(manifest, lambda tmp: tmp.write_text(json.dumps(settings, indent=1)))
+    for stale in out.glob("*.tmp"):
+        stale.unlink()  # written by a run killed mid-write: never renamed, so never counted
+    done = {}
+    for path in sorted(out.glob("chunk-*.nc")):
+        done[int(path.stem.split("-")[1])] = xr.load_dataset(path, engine="h5netcdf")
+    return out, done
+
+
+def _differences(there: dict, now: dict, prefix: str = "") -> list[str]:
+    lines = []
+    for key in sorted(there.keys() | now.keys()):
+        old, new = there.get(key), now.get(key)
+        if isinstance(old, dict) and isinstance(new, dict):
+            lines += _differences(old, new, f"{prefix}{key}.")
+        elif old != new:
+            lines.append(f"{prefix}{key}: {old!r} there, {new!r} now")
+    return lines
+
+
+def atomic_write(path: pathlib.Path, write: Callable[[pathlib.Path], object]) -> None:
+    tmp = path.with_name(f"{path.name}.{uuid.uuid4().hex[:8]}.tmp")
+    write(tmp)
+    os.replace(tmp, path)  # atomic: a chunk file exists whole or not at all
