@@ -45,7 +45,8 @@ from .mechanism.stage_joints import (
 from .solve import SimulationError as SimulationError, SolverReport as SolverReport
 from .mechanism.scene import AbstractScene as AbstractScene, simulate as simulate
 from .mechanism.bench import BenchResult as BenchResult, TestBench as TestBench
-from .mechanism.mechanism import Geometry as Geometry, Inertias as Inertias, Mechanism as Mechanism
+from .mechanism.mechanism import Mechanism as Mechanism
+from .mechanism.structure import Geometry as Geometry, Inertias as Inertias
 from .mechanism.outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
 from .mechanism.scenes import antenna as antenna, scan as scan
 from .io.scenefile import (

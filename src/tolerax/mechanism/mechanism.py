@@ -1,4 +1,4 @@
-"""The dual-axis antenna pointing mechanism (docs/MODEL.md §5): spacecraft body → azimuth joint →
+"""The dual-axis antenna pointing mechanism (docs/model.md §5): spacecraft body → azimuth joint →
 link 1 → pitch joint → link 2 → reflector, with a fidelity choice per joint.
 
 **Formulation.** Minimal coordinates and Kane's equations. Every rigid body's pose (centre
@@ -12,8 +12,8 @@ by differentiating the whole chain over all speeds. Then
 $$M(q)\\dot u = Q - \\sum_b J_b^T m_b a_b^0 - \\sum_b J_b^{\\omega T}(I_b\\alpha^0_b + \\omega_b\\times I_b\\omega_b),$$
 $M = \\sum_b m_bJ_b^TJ_b + J^{\\omega T}_bI_bJ^\\omega_b$, and $a^0_b, \\alpha^0_b$ the
 accelerations at $\\dot u = 0$; $M$ is solved by Cholesky. (The earlier formulation, `jacfwd`
-of the twists over $u$ and a `jvp` over $(q, t)$, is kept as `_kane_by_autodiff`, the reference
-the equivalence tests compare against.) Nothing is linearised: the gears spin inside a
+of the twists over $u$ and a `jvp` over $(q, t)$, is kept in tests/_kane_reference.py, the
+reference the equivalence tests compare against.) Nothing is linearised: the gears spin inside a
 housing that turns (gyroscopic terms included), and the base reacts. Internal forces (meshes,
 contacts, servo and drive torques, drag) act on *relative* coordinates, so with a free base and
 no external load linear and angular momentum are conserved exactly by the equations (a test).
@@ -46,112 +46,26 @@ rotating output members: link 1 with its $z$ along the azimuth axis, link 2 with
 the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 0.61 m).
 
 **Joint fidelity** per joint is its class (`IdealJoint`, `LumpedJoint`, `PlanetaryJoint`,
-`MassScaledPlanetaryJoint`, see `_joint`); the mechanism asks each joint for its coordinates,
+`MassScaledPlanetaryJoint`, see `tolerax.mechanism.joints`); the mechanism asks each joint for its coordinates,
 bodies, forces, contacts and any inertia added on its own speeds.
 """
 
 import dataclasses
 from collections.abc import Iterator
-from typing import NamedTuple
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import optimistix as optx
-from jaxtyping import Array, Float
 from . import outputs as _outputs
 from .. import _validate as V
 from .drives import SpeedServo
 from .joints import AbstractJoint
 from .stage_joints import PlanetaryJoint
 from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, vee, world_inertia
+from .structure import Geometry, Inertias
+from .kinematics import Frames, base_frame, offset, planar_frames, planar_motion, take
 from .scene import AbstractScene
-
-
-def _set_checked(module, values: dict, shape_of, unit_of):
-    """Set real numbers of the expected shape as float arrays (ranges: `__check_init__`)."""
-    owner = type(module).__name__
-    for name, value in values.items():
-        setattr(module, name, V.real(owner, name, value, unit_of(name), shape_of(name)))
-
-
-class Geometry(eqx.Module):
-    """Offsets of the chain (m); see the drawing in the module docstring.
-
-    - `azimuth_position`: azimuth joint centre in the base frame.
-    - `link1_centre`: link 1's centre of mass in the azimuth output frame.
-    - `pitch_position`: pitch joint centre in the azimuth output frame.
-    - `link2_centre`: link 2's centre of mass in the pitch output frame.
-    - `reflector_centre`: reflector's centre of mass in the pitch output frame (along the
-      boresight $y$).
-    """
-
-    azimuth_position: Float[Array, "3"]
-    link1_centre: Float[Array, "3"]
-    pitch_position: Float[Array, "3"]
-    link2_centre: Float[Array, "3"]
-    reflector_centre: Float[Array, "3"]
-
-    def __init__(
-        self,
-        azimuth_position=(0.0, 0.0, 1.5),
-        link1_centre=(0.0, 0.0, 0.3),
-        pitch_position=(0.0, 0.0, 0.6),
-        link2_centre=(0.0, 0.0, 0.0),
-        reflector_centre=(0.0, 0.25, 0.0),
-    ):
-        values = dict(
-            azimuth_position=azimuth_position,
-            link1_centre=link1_centre,
-            pitch_position=pitch_position,
-            link2_centre=link2_centre,
-            reflector_centre=reflector_centre,
-        )
-        _set_checked(self, values, lambda name: (3,), lambda name: "m")
-
-    def __check_init__(self):
-        V.check(self, **{f.name: V.FINITE("m") for f in dataclasses.fields(self)})
-
-
-class Inertias(eqx.Module):
-    """Masses (kg) and principal inertias (kg m², about each body's own axes) of the paper's
-    Table 1. Link 1 = the paper's "azimuth joint", link 2 = its "pitch joint"."""
-
-    base_mass: Float[Array, ""]
-    base_inertia: Float[Array, "3"]
-    link1_mass: Float[Array, ""]
-    link1_inertia: Float[Array, "3"]
-    link2_mass: Float[Array, ""]
-    link2_inertia: Float[Array, "3"]
-    reflector_mass: Float[Array, ""]
-    reflector_inertia: Float[Array, "3"]
-
-    def __init__(
-        self,
-        base_mass=1500.0,
-        base_inertia=(2100.0, 1700.0, 2400.0),
-        link1_mass=3.77,
-        link1_inertia=(0.11545, 0.11545, 0.004712),
-        link2_mass=3.77,
-        link2_inertia=(0.11545, 0.11545, 0.004712),
-        reflector_mass=8.005,
-        reflector_inertia=(0.68297, 1.05956, 0.68297),
-    ):
-        values = dict(
-            base_mass=base_mass,
-            base_inertia=base_inertia,
-            link1_mass=link1_mass,
-            link1_inertia=link1_inertia,
-            link2_mass=link2_mass,
-            link2_inertia=link2_inertia,
-            reflector_mass=reflector_mass,
-            reflector_inertia=reflector_inertia,
-        )
-        is_mass = lambda name: name.endswith("mass")  # noqa: E731
-        _set_checked(self, values, lambda n: () if is_mass(n) else (3,), lambda n: "kg" if is_mass(n) else "kg m^2")
-
-    def __check_init__(self):
-        V.check(self, **{f.name: V.POSITIVE("kg" if f.name.endswith("mass") else "kg m^2") for f in dataclasses.fields(self)})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -279,23 +193,23 @@ class Mechanism(AbstractScene):
         (p, r), (pd, rd) = jax.jvp(lambda q_, t_: self.poses(q_, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t)))
         return pd, vee(jnp.einsum("bij,bkj->bik", rd, r))  # skew(omega) = R' R^T
 
-    def kinematics(self, q, u, t) -> "_Frames":
+    def kinematics(self, q, u, t) -> "Frames":
         """Every body's pose, twist Jacobians, twist and acceleration at $\\dot u = 0$, by
-        propagating frames down the chain (see `_Frames`), in the order of `body_inertia`."""
+        propagating frames down the chain (see `Frames`), in the order of `body_inertia`."""
         lay, g = self.layout, self.geometry
-        base = _base_frame(self, q, u)
+        base = base_frame(self, q, u)
         parts = [base]
-        housing = _offset(base, g.azimuth_position)
+        housing = offset(base, g.azimuth_position)
         # The joints' planar motion is independent of their housings: both in one batch.
-        motions = self.each_joint(lambda joint, qj, uj: _planar_motion(joint, qj, uj, t), ("q", q), ("u", u))
+        motions = self.each_joint(lambda joint, qj, uj: planar_motion(joint, qj, uj, t), ("q", q), ("u", u))
         for k, (motion, su) in enumerate(zip(motions, (lay.azimuth_u, lay.pitch_u))):
-            bodies = _planar_frames(housing, motion, su, lay.size_u)
-            gears, out = _take(bodies, slice(0, -1)), _take(bodies, slice(-1, None))
+            bodies = planar_frames(housing, motion, su, lay.size_u)
+            gears, out = take(bodies, slice(0, -1)), take(bodies, slice(-1, None))
             if k == 0:  # azimuth: link 1 and the pitch housing ride on its output
-                parts += [gears, _offset(out, g.link1_centre)]
-                housing = _offset(out, g.pitch_position, PITCH_HOUSING)
+                parts += [gears, offset(out, g.link1_centre)]
+                housing = offset(out, g.pitch_position, PITCH_HOUSING)
             else:  # pitch: link 2 and the reflector
-                parts += [gears, _offset(out, g.link2_centre), _offset(out, g.reflector_centre)]
+                parts += [gears, offset(out, g.link2_centre), offset(out, g.reflector_centre)]
         return jax.tree.map(lambda *xs: jnp.concatenate(xs), *parts)
 
     def dynamics(self, q, u, t):
@@ -539,8 +453,6 @@ class Mechanism(AbstractScene):
         )
 
 
-# -------------------------------------------------------------------------------------------
-# Frame propagation for Kane's equations (`Mechanism.kinematics`)
 
 
 def _loaded_residual(mech: Mechanism, q, u, x):
@@ -563,112 +475,3 @@ def _polish_loaded(mech: Mechanism, q, u, x0, max_steps: int):
     solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
     sol = optx.least_squares(fn, solver, x0, max_steps=max_steps, throw=False)
     return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))
-
-
-class _Frames(NamedTuple):
-    """Kinematics of a stack of bodies (leading axis), world frame.
-
-    Twists are affine in the speeds, $v = J_v u + \\ldots$, $\\omega = J_\\omega u + \\ldots$
-    (the rest from prescribed motion), so each body carries its Jacobians and, at the actual
-    state, its twist and its acceleration at $\\dot u = 0$ (velocity products and prescribed
-    accelerations): exactly the terms of Kane's equations.
-    """
-
-    pos: Array  # (nb, 3) centre, m
-    rot: Array  # (nb, 3, 3) body-to-world rotation
-    jv: Array  # (nb, 3, n_u) d v / d u
-    jw: Array  # (nb, 3, n_u) d omega / d u
-    v: Array  # (nb, 3) velocity, m/s
-    w: Array  # (nb, 3) angular velocity, rad/s
-    a: Array  # (nb, 3) acceleration at u' = 0, m/s^2
-    alpha: Array  # (nb, 3) angular acceleration at u' = 0, rad/s^2
-
-
-def _take(frames: _Frames, index) -> _Frames:
-    return jax.tree.map(lambda x: x[index], frames)
-
-
-def _base_frame(mech: Mechanism, q, u) -> _Frames:
-    """The base: velocity in the world frame and angular velocity in the base frame are its
-    speeds, so its Jacobians are constant blocks and its accelerations at $\\dot u = 0$ vanish
-    ($\\tfrac{d}{dt}(R\\omega_B) = \\omega\\times\\omega = 0$)."""
-    n = mech.layout.size_u
-    pos, rot = mech.base_pose(q)
-    jv, jw = jnp.zeros((3, n)), jnp.zeros((3, n))
-    if mech.base == "free":
-        jv = jv.at[:, :3].set(jnp.eye(3))
-        jw = jw.at[:, 3:6].set(rot)
-    zero = jnp.zeros(3)
-    return _Frames(pos[None], rot[None], jv[None], jw[None], (jv @ u)[None], (jw @ u)[None], zero[None], zero[None])
-
-
-def _offset(frame: _Frames, offset, turn=None) -> _Frames:
-    """Frames rigidly attached to `frame` at `offset` (its axes, m), turned by the constant
-    rotation `turn`: $v' = v + \\omega\\times\\rho$, $a' = a + \\alpha\\times\\rho +
-    \\omega\\times(\\omega\\times\\rho)$ with $\\rho = R\\,$`offset`."""
-    rho = jnp.einsum("bij,j->bi", frame.rot, offset)
-    rot = frame.rot if turn is None else frame.rot @ jnp.asarray(turn)
-    w = frame.w
-    return _Frames(
-        frame.pos + rho,
-        rot,
-        frame.jv + jnp.cross(frame.jw, rho[:, :, None], axisa=1, axisb=1, axisc=1),
-        frame.jw,
-        frame.v + jnp.cross(w, rho),
-        w,
-        frame.a + jnp.cross(frame.alpha, rho) + jnp.cross(w, jnp.cross(w, rho)),
-        frame.alpha,
-    )
-
-
-def _planar_motion(joint: AbstractJoint, qj, uj, t):
-    """The joint's bodies (`planar`: gears, then its output) in its housing plane: centres $c$
-    (nb, 2) and angles $\\theta$ (nb,), their Jacobians over $q_j$, rates, and accelerations at
-    $\\ddot q_j = 0$ (forward-mode autodiff of `planar`: cheap, its inputs are the joint's own
-    few coordinates)."""
-
-    def planar(qj_, t_):
-        centres, angles, out_c, out_a = joint.planar(qj_, t_)
-        return jnp.concatenate([centres, out_c[None]]), jnp.concatenate([angles, out_a[None]])
-
-    def rates(qj_, t_):
-        return jax.jvp(planar, (qj_, t_), (uj, jnp.ones_like(t_)))
-
-    t = jnp.asarray(t, dtype=float)
-    ((c, theta), (cd, thetad)), (_, (cdd, thetadd)) = jax.jvp(rates, (qj, t), (uj, jnp.ones_like(t)))
-    jc, jtheta = jax.jacfwd(planar)(qj, t)  # (nb, 2, nj), (nb, nj)
-    return c, theta, jc, jtheta, cd, thetad, cdd, thetadd
-
-
-def _planar_frames(housing: _Frames, motion, cols: slice, n: int) -> _Frames:
-    """The bodies of one joint (`_planar_motion`) in the housing frame `housing` (one frame),
-    with the joint's speeds at columns `cols` of the `n` speeds.
-
-    A body at housing-plane centre $c(q_j, t)$ and angle $\\theta(q_j, t)$ has
-    $\\rho = R_h c$, $\\omega = \\omega_h + \\dot\\theta R_h e_z$,
-    $v = v_h + \\omega_h\\times\\rho + R_h\\dot c$,
-    $\\dot\\omega = \\alpha_h + \\dot\\theta\\,\\omega_h\\times R_he_z + \\ddot\\theta R_he_z$ and
-    $a = a_h + \\alpha_h\\times\\rho + \\omega_h\\times(\\omega_h\\times\\rho) + 2\\omega_h\\times R_h\\dot c + R_h\\ddot c$.
-    """
-    c, theta, jc, jtheta, cd, thetad, cdd, thetadd = motion
-    nb = c.shape[0]
-    r_h = housing.rot[0]
-    plane, axis = r_h[:, :2], r_h[:, 2]
-    rho = c @ plane.T
-    rho_dot = cd @ plane.T  # R_h c'
-    w_h, alpha_h = housing.w[0], housing.alpha[0]
-    jw_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(axis[None, :, None] * jtheta[:, None, :])
-    jv_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(jnp.einsum("ik,bkn->bin", plane, jc))
-    jw = housing.jw + jw_own
-    jv = housing.jv + jnp.cross(housing.jw, rho[:, :, None], axisa=1, axisb=1, axisc=1) + jv_own
-    w = w_h + thetad[:, None] * axis
-    v = housing.v + jnp.cross(w_h, rho) + rho_dot
-    alpha = alpha_h + thetad[:, None] * jnp.cross(w_h, axis) + thetadd[:, None] * axis
-    a = (
-        housing.a
-        + jnp.cross(alpha_h, rho)
-        + jnp.cross(w_h, jnp.cross(w_h, rho))
-        + 2.0 * jnp.cross(w_h, rho_dot)
-        + cdd @ plane.T
-    )
-    return _Frames(housing.pos + rho, r_h @ rz(theta), jv, jw, v, w, a, alpha)
