@@ -1,5 +1,5 @@
-"""The command line (src/tolerax/cli.py): `design` and `montecarlo` on scene files, `demo` (the
-antenna), `bench`, and bad input. `run` is tested with the scene files (tests/test_scenefile.py),
+"""The command line (src/tolerax/cli/): `design` and `montecarlo` on scene files, `demo` (the
+antenna), and bad input. `run` is tested with the scene files (tests/test_scenefile.py),
 `demo --bench` with the bench (tests/test_bench.py). Sizes are tiny: these check the wiring, not
 the numbers, which the modules' own tests check."""
 
@@ -50,8 +50,7 @@ def test_design_and_montecarlo_reject_a_malformed_scene(command, tmp_path, capsy
         ["montecarlo", "--duration", "0.2"],  # not longer than the scene's settle = 0.3 s
         ["demo", "--steps", "-1"],
         ["demo", "--clearance", "5"],  # a bench option without --bench
-        ["bench", "--duration", "0"],
-        ["bench", "--fidelities", "rigid"],
+        ["bench"],  # gone: the cost per fidelity is benchmarks/mechanism_cost.py
         ["bogus"],
         [],
     ],
@@ -68,7 +67,7 @@ def test_help_names_every_command_and_option(capsys):
         cli.main(["--help"])
     assert info.value.code == 0
     text = capsys.readouterr().out
-    for command in ("demo", "run", "design", "montecarlo", "studies", "bench"):
+    for command in ("demo", "run", "design", "montecarlo", "studies"):
         assert f"tolerax {command}" in text
     with pytest.raises(SystemExit):
         cli.main(["montecarlo", "--help"])
@@ -114,17 +113,6 @@ def test_demo_at_a_tiny_size(tmp_path, capsys):
     text = (tmp_path / "demo.md").read_text()
     assert f"{summary['metrics']['pointing_rms_arcsec']:.1f} arcsec" in text and "load average" in text
     assert not (tmp_path / "design").exists()
-
-
-def test_bench_at_a_tiny_size(tmp_path, capsys):
-    assert cli.main(["bench", "--duration", "0.002", "--fidelities", "ideal", "--out", str(tmp_path)]) == 0
-    table = (tmp_path / "bench.md").read_text()
-    assert table in capsys.readouterr().out
-    assert "| ideal | 6 | 0 |" in table and "load average" in table
-    (row,) = json.loads((tmp_path / "bench.json").read_text())["rows"]
-    assert row["fidelity"] == "ideal" and row["per_sim_s"] > 0
-    # Ideal joints under a speed command follow it exactly (tests/test_mechanism.py: <= 1e-9 rad).
-    assert row["pointing_rms_arcsec"] < 1e-9 / tx.ARCSEC
 
 
 @pytest.mark.slow

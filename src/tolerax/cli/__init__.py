@@ -1,0 +1,3 @@
+"""The `tolerax` command line (`tolerax --help`)."""
+
+from .main import main as main

@@ -1,0 +1,106 @@
+"""What the commands share: the command line that reproduces a run, the machine's load, the scene file with
+its overrides, and the argument types."""
+
+import argparse
+import copy
+import math
+import os
+import shlex
+import sys
+
+DEFAULT_SCENE = "scan-azimuth"
+
+
+def command_line(args) -> str:
+    """The command line that reproduces this run."""
+    return shlex.join(["tolerax", *(sys.argv[1:] if args.argv is None else args.argv)])
+
+
+def load_average() -> str:
+    return "load average (1, 5, 15 min): " + ", ".join(f"{x:.2f}" for x in os.getloadavg()) + f" on {os.cpu_count()} CPUs"
+
+
+def read_scene_file(parser, args, **run):
+    """`args.scene` (a built-in name or a .toml path) with `--duration`/`--settle` and `run`
+    overriding its `[run]` keys; `None` when the file cannot be read or is invalid (the message,
+    naming the file, line, table and key, is printed)."""
+    from ..io import scenefile as F
+
+    try:
+        scene_file = F.load_scene(args.scene)
+        duration = scene_file.run["duration"] if args.duration is None else args.duration
+        settle = scene_file.run["settle"] if args.settle is None else args.settle
+        if args.duration is not None and args.settle is None and settle >= duration:
+            parser.error(f"--duration {duration} s is not longer than the scene's run.settle = {settle} s: give --settle too")
+        return scene_file.replace(duration=args.duration, settle=args.settle, **run)
+    except F.SceneFileError as err:
+        print(f"tolerax {args.command}: {err}", file=sys.stderr)
+        return None
+
+
+def with_tolerances(scene_file, band_um=None, distribution=None):
+    """`scene_file` with `[tolerances] band` (given in um; replaces the per-feature `bands` too)
+    and `distribution` overridden where given."""
+    from ..io import scenefile as F
+
+    if band_um is None and distribution is None:
+        return scene_file
+    data = copy.deepcopy(scene_file.data)
+    tol = data.setdefault("tolerances", {})
+    if band_um is not None:
+        tol["band"] = band_um * 1e-6
+        tol.pop("bands", None)
+    if distribution is not None:
+        tol["distribution"] = distribution
+    return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
+
+
+def has_features(scene_file, command) -> bool:
+    from ..design.features import design_names
+
+    if design_names(scene_file.build()):
+        return True
+    print(f"tolerax {command}: scene {scene_file.name!r} models no clearance or backlash (ideal joints only): "
+          "nothing to tolerance.", file=sys.stderr)
+    return False
+
+
+# ---------------------------------------------------------------------------------------------
+# demo
+
+
+def positive(text):
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def non_negative(text):
+    value = float(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a non-negative number, got {text!r}")
+    return value
+
+
+def count(minimum):
+    def count(text):
+        value = int(text)
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {text!r}")
+        return value
+
+    count.__name__ = f"integer >= {minimum}"  # argparse names it in "invalid ... value"
+    return count
+
+
+def scene_options(parser, what):
+    parser.add_argument("scene", nargs="?", default=DEFAULT_SCENE,
+                        help=f"built-in scene name (`tolerax run --list`) or path to a .toml scene file (default {DEFAULT_SCENE}); "
+                        f"its [run] settings set the {what} horizon and window, its [tolerances] the bands and requirement")
+    parser.add_argument("--duration", type=positive, default=None, help="override run.duration (simulated time per unit), s")
+    parser.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
+    parser.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+
+
+EPILOG = "Exit codes: 0 done, 2 bad input (the message names the scene file's key and line), 3 a simulation failed."

@@ -1,0 +1,125 @@
+"""Command line of tolerax.
+
+- `tolerax demo`: the paper's dual-axis antenna scanning +-0.5 deg on both axes (built-in scene
+  `scan`): its pointing error over time, then a short tolerance proposal on the azimuth scan
+  (`--bench`: the default joint on its test bench instead).
+- `tolerax run SCENE`: simulate a scene file: netCDF time series, plots and a markdown summary.
+- `tolerax design [SCENE]`: propose clearances, backlash and tolerance bands that meet an RMS
+  pointing requirement at the lowest cost.
+- `tolerax montecarlo [SCENE]`: pointing-error distribution and yield over manufacturing errors
+  (netCDF, summary JSON, histogram; resumable).
+- `tolerax studies`: the reference paper's studies (a JSON table per study).
+
+SCENE is a built-in scene name (`tolerax run --list`) or a path to a .toml scene file (schema:
+docs/scene_files.md); design and montecarlo default to `scan-azimuth`. `tolerax COMMAND --help`
+lists a command's options.
+
+Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
+names the file, line and key), 3 a simulation or optimisation failed.
+"""
+
+import argparse
+import sys
+
+from .commands import design_command, montecarlo_command, run_command, studies_command
+from .common import DEFAULT_SCENE, EPILOG, count, non_negative, positive, scene_options
+from .demo import demo_command
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="tolerax", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+    demo = sub.add_parser(
+        "demo", help="the dual-axis antenna: pointing error over time and a short tolerance proposal",
+        description="Simulate the built-in scene `scan` (the paper's dual-axis antenna, both joints scanning +-0.5 deg "
+        "at 1 Hz, lumped joints with 100 um clearances and backlash) and plot its pointing error over time; then "
+        f"propose tolerances for `{DEFAULT_SCENE}` with a few optimiser steps. Writes demo.png, demo.md, scan/ (as "
+        "`tolerax run`) and design/ into the output folder. --bench runs the default joint on its test bench instead.",
+        epilog=EPILOG,
+    )
+    demo.add_argument("--duration", type=positive, default=None,
+                      help="simulated time, s (default 1, one scan period; with --bench 2); the pointing window starts at 0.3 s "
+                      "when the run is longer")
+    demo.add_argument("--steps", type=count(0), default=6,
+                      help="optimiser steps per outer iteration of the proposal (default 6; 0 skips the proposal)")
+    demo.add_argument("--outer", type=count(1), default=3, help="outer (augmented Lagrangian) iterations (default 3)")
+    demo.add_argument("--draws", type=count(2), default=2,
+                      help="manufactured units in the robust objective, mean + 1 std (default 2, at least 2)")
+    demo.add_argument("--requirement", type=positive, default=700.0,
+                      help="RMS pointing requirement of the proposal, arcsec (default 700)")
+    demo.add_argument("--bench", action="store_true", help="run the default joint on its test bench instead (bench.png, summary.json)")
+    demo.add_argument("--rate", type=float, default=None, help="with --bench: commanded output rate, deg/s (default 0.98)")
+    demo.add_argument("--clearance", type=float, default=None, help="with --bench: every radial clearance, um (default 100)")
+    demo.add_argument("--backlash", type=float, default=None, help="with --bench: every mesh backlash, um (default 100)")
+    demo.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    demo.add_argument("--progress", action="store_true", help="show the integrator's progress")
+    run = sub.add_parser(
+        "run", help="simulate a scene file: netCDF time series, plots and a markdown summary",
+        description="Simulate a scene file (a built-in scene name or a path to a .toml file; schema in "
+        "docs/scene_files.md) and write scene.toml, timeseries.nc, PNG plots, summary.json and summary.md "
+        "into the output folder. Exit codes: 0 done, 2 bad input (the message names the key and line), "
+        "3 the solver failed (the partial results are still written).",
+    )
+    run.add_argument("scene", nargs="?", help="built-in scene name (see --list) or path to a .toml scene file")
+    run.add_argument("--list", action="store_true", help="list the built-in scenes and exit")
+    run.add_argument("--out", default=None, help="output folder (default ./tolerax-out/SCENE_NAME)")
+    run.add_argument("--duration", type=positive, default=None, help="override run.duration, s")
+    run.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
+    run.add_argument("--n-save", type=count(2), default=None, help="override run.n_save (saved times)")
+    run.add_argument("--start", choices=("rest", "steady", "loaded"), default=None, help="override run.start")
+    run.add_argument("--progress", action="store_true", help="show the integrator's progress")
+    design = sub.add_parser(
+        "design", help="propose clearances, backlash and tolerance bands for a pointing requirement",
+        description="Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and "
+        "half-width) of lowest cost (ISO 286 grades) whose mean + 1 std of the RMS pointing error over a few "
+        "manufactured units meets the requirement (tolerax.propose_design). Starts from the scene's design and "
+        "its [tolerances] band. Writes scene.toml, design.md and design.png.",
+        epilog=EPILOG,
+    )
+    scene_options(design, "design")
+    design.add_argument("--requirement", type=positive, default=None,
+                        help="RMS pointing requirement, arcsec (default: the scene's [tolerances] requirement)")
+    design.add_argument("--draws", type=count(2), default=4,
+                        help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
+    design.add_argument("--outer", type=count(1), default=6, help="outer (augmented Lagrangian) iterations (default 6)")
+    design.add_argument("--inner", type=count(1), default=10, help="optimiser steps per outer iteration (default 10)")
+    mc = sub.add_parser(
+        "montecarlo", help="pointing-error distribution and yield over manufacturing errors",
+        description="Simulate manufactured units of the scene, each clearance and backlash drawn within its "
+        "[tolerances] band, and write their pointing statistics (montecarlo.nc), a summary (summary.json, with "
+        "the yield when a requirement is known) and a histogram. Chunks are checkpointed under OUT/chunks: "
+        "rerun the same command to resume.",
+        epilog=EPILOG,
+    )
+    scene_options(mc, "per-unit")
+    mc.add_argument("--n", type=count(1), default=64, help="manufactured units (default 64)")
+    mc.add_argument("--band", type=non_negative, default=None,
+                    help="override the tolerance half-width of every feature, um (default: the scene's [tolerances])")
+    mc.add_argument("--distribution", default=None, choices=("uniform", "normal"), help="override [tolerances] distribution")
+    mc.add_argument("--requirement", type=positive, default=None,
+                    help="RMS pointing requirement for the yield, arcsec (default: the scene's [tolerances] requirement)")
+    mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
+    mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
+    mc.add_argument("--seed", type=int, default=0)
+    studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
+    studies.add_argument("names", nargs="*", help="studies to run (default: all)")
+    studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
+    studies.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    studies.add_argument("--duration", type=positive, default=None,
+                         help="simulated time per scene, s (default: the size's, full 3 s)")
+    studies.add_argument("--settle", type=float, default=None,
+                         help="metrics from this time on, s (default: the size's, full 2 s)")
+    studies.add_argument("--resume", action="store_true",
+                         help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
+    args = parser.parse_args(argv)
+    args.argv = argv
+    commands = {
+        "demo": (demo, demo_command), "run": (run, run_command), "design": (design, design_command), "montecarlo": (mc, montecarlo_command),
+        "studies": (parser, studies_command),
+    }
+    command_parser, command = commands[args.command]
+    return command(command_parser, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
