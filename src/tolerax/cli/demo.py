@@ -90,6 +90,7 @@ def _demo_figure(result, scene_file, report):
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from ..mechanism.mechanism import Mechanism
     from ..mechanism.outputs import ARCSEC
 
     rows = 2 if report is not None else 1
@@ -107,7 +108,7 @@ def _demo_figure(result, scene_file, report):
     ax2 = ax.twinx()
     command = np.degrees(np.asarray(result.commanded_angle))
     same = np.allclose(command[:, 0], command[:, 1])
-    for k, joint in enumerate(("both joints",) if same else ("azimuth", "pitch")):
+    for k, joint in enumerate(("both joints",) if same else Mechanism.JOINTS):
         ax2.plot(ts, command[:, k], lw=0.7, ls="--", color=f"C{k + 1}", label=f"command, {joint}")
     ax2.set_ylabel("commanded angle (deg)")
     ax2.legend(fontsize=7, loc="upper right")
@@ -121,7 +122,8 @@ def _demo_figure(result, scene_file, report):
         ax.barh(y - 0.2, 2e6 * report.band, left=1e6 * (report.nominal - report.band), height=0.35, color="C0",
                 label=f"proposal: cost {report.cost:.3g}, {report.objective:.0f} arcsec")
         ax.set_xlim(0, 1e6 * max(np.max(report.nominal + report.band), np.max(base_nominal + base_band)) * 1.05)
-        ax.set_yticks(y, [n.replace("azimuth.", "") for n in report.names], fontsize=8)
+        joints = {n.partition(".")[0] for n in report.names}
+        ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in report.names], fontsize=8)
         ax.set_xlabel("tolerance zone (µm)")
         ax.set_title(f"Azimuth scan: tolerance zones for {report.requirement:.0f} arcsec (mean + 1 std of the RMS), "
                      f"{len(report.result.history.cost)} outer iterations", fontsize=9)

@@ -6,7 +6,7 @@ backlash of its nonlinear mesh families (`sun_backlash`, `ring_backlash`, m), al
 A joint lists the features its fidelity reads (`AbstractJoint.design_features`): an ideal joint
 none, a lumped joint its output bearing, pin play and the two backlashes, a planetary joint all.
 Features a scene does not model are absent, never present with zero effect. In a mechanism the
-names are prefixed by the joint: `azimuth.planet_clearance`.
+names are prefixed by the joint's name (`AbstractScene.named_stages`), e.g. `azimuth.planet_clearance`.
 
 `design_of(scene)` reads the vector, `with_design(scene, values)` writes it back (traceable:
 `values` may be a tracer under `grad`/`vmap`), `design_names(scene)` names its entries, and
@@ -16,8 +16,10 @@ names are prefixed by the joint: `azimuth.planet_clearance`.
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
-from ..mechanism.bench import TestBench
-from ..mechanism.mechanism import Mechanism
+from collections.abc import Callable
+
+from ..mechanism.scene import AbstractScene
+from ..physics.stage import PlanetaryStage
 from ..uncertainty.sampling import Tolerances
 
 # feature -> (does the stage model it?, where its value lives in the stage)
@@ -30,27 +32,24 @@ STAGE_FEATURES = {
 }
 
 
-def _stages(scene):
-    """`(prefix, path to the stage, features the holder reads)` for each stage of the scene."""
-    if isinstance(scene, TestBench):
-        return [("", lambda x: x.stage, tuple(STAGE_FEATURES))]
-    if isinstance(scene, Mechanism):
-        return [
-            (f"{name}.", lambda x, name=name: getattr(x, name).stage, getattr(scene, name).design_features)
-            for name in ("azimuth", "pitch")
-        ]
-    raise TypeError(f"A design needs a TestBench or a Mechanism, got {type(scene).__name__}.")
-
-
-def _entries(scene):
+def feature_entries(scene) -> list[tuple[str, str, PlanetaryStage, Callable]]:
+    """`(name, feature, stage, get)` for each design feature of the scene (`named_stages`):
+    `name` is `"joint.feature"` (`feature` for a scene with one stage), `get(scene)` the value."""
+    if not isinstance(scene, AbstractScene) or not scene.named_stages():
+        raise TypeError(f"A design needs a scene with gear stages (a TestBench or a Mechanism), got {type(scene).__name__}.")
     out = []
-    for prefix, stage_of, reads in _stages(scene):
+    for joint, stage_of, reads in scene.named_stages():
         stage = stage_of(scene)
         for feature in reads:
             present, where = STAGE_FEATURES[feature]
             if present(stage):
-                out.append((prefix + feature, lambda x, s=stage_of, w=where: w(s(x))))
+                name = f"{joint}.{feature}" if joint else feature
+                out.append((name, feature, stage, lambda x, s=stage_of, w=where: w(s(x))))
     return out
+
+
+def _entries(scene):
+    return [(name, get) for name, _, _, get in feature_entries(scene)]
 
 
 def design_names(scene) -> tuple[str, ...]:

@@ -91,6 +91,4 @@ class PointingObjective(eqx.Module):
 
 def _widths(scene):
     """Every stage's smoothing width in a scene (a bench's stage, or each joint's)."""
-    if hasattr(scene, "stage"):
-        return [scene.stage.smoothing_width]
-    return [scene.azimuth.stage.smoothing_width, scene.pitch.stage.smoothing_width]
+    return [stage_of(scene).smoothing_width for _, stage_of, _ in scene.named_stages()]

@@ -17,7 +17,7 @@ import numpy as np
 import optax
 from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade, grade_of
-from .features import design_names, design_of
+from .features import design_names, design_of, feature_entries
 from .objectives import UNITS, PointingObjective
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
 from ..uncertainty.sampling import unit_draws
@@ -27,9 +27,7 @@ def feature_sizes(scene) -> np.ndarray:
     """Nominal size (mm) of each design feature for the cost model: the journal diameter of a
     bearing clearance, the pitch diameter of the gear whose mesh has the backlash (sun or ring)."""
     sizes = []
-    for name in design_names(scene):
-        joint, _, feature = name.rpartition(".")
-        stage = getattr(scene, joint).stage if joint else scene.stage
+    for _, feature, stage, _ in feature_entries(scene):
         if feature.endswith("_clearance"):
             support = getattr(stage, feature.replace("_clearance", "_support"))
             radius = float(np.max(np.asarray(support.bearing.journal_radius)))

@@ -9,7 +9,10 @@ import numpy as np
 
 from .schema import SERIES
 from ..design import features as _design
+from ..mechanism.mechanism import Mechanism
 from .scenefile import SceneFile, save_scene
+
+JOINTS = Mechanism.JOINTS
 
 def timeseries(scene_file: SceneFile, result, series=None):
     """The time series of a `MechanismResult` as an `xarray.Dataset` (SI units in each
@@ -23,11 +26,11 @@ def timeseries(scene_file: SceneFile, result, series=None):
     series = scene_file.outputs["series"] if series is None else series
     coords = {
         "time": ("time", np.asarray(result.ts), {"units": "s", "long_name": "simulated time"}),
-        "joint": ("joint", ["azimuth", "pitch"]),
+        "joint": ("joint", list(JOINTS)),
         "axis": ("axis", ["x", "y", "z"], {"long_name": "base (spacecraft) frame axis"}),
-        "azimuth_contact_name": ("azimuth_contact_name", list(result.azimuth_contact_names)),
-        "pitch_contact_name": ("pitch_contact_name", list(result.pitch_contact_names)),
     }
+    for joint in JOINTS:
+        coords[f"{joint}_contact_name"] = (f"{joint}_contact_name", list(getattr(result, f"{joint}_contact_names")))
     variables = {}
     for name in series:
         dims, unit, long_name = SERIES[name]
@@ -70,7 +73,7 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
         pointing_peak_arcsec=float(e.max()),
         tracking_speed_error_rms_arcsec_s=float(np.sqrt(np.mean(speed**2))),
     )
-    for k, joint in enumerate(("azimuth", "pitch")):
+    for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
         out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
         out[f"{joint}_angle_range_deg"] = [float(angle[:, k].min()), float(angle[:, k].max())]
@@ -88,13 +91,13 @@ def _plot(name: str, result, settle: float, title: str):
         ax.plot(ts, np.asarray(result.pointing_error) / ARCSEC, lw=0.8)
         ax.set_ylabel("pointing error (arcsec)")
     elif name == "joint_angle":
-        for k, joint in enumerate(("azimuth", "pitch")):
+        for k, joint in enumerate(JOINTS):
             line, = ax.plot(ts, np.degrees(np.asarray(result.joint_angle[:, k])), lw=0.8, label=f"{joint}")
             ax.plot(ts, np.degrees(np.asarray(result.commanded_angle[:, k])), lw=0.8, ls="--", color=line.get_color(), label=f"{joint} commanded")
         ax.set_ylabel("output angle (deg)")
         ax.legend(fontsize=8)
     elif name == "output_force":
-        for k, joint in enumerate(("azimuth", "pitch")):
+        for k, joint in enumerate(JOINTS):
             ax.plot(ts, np.asarray(result.output_force[:, k]), lw=0.8, label=joint)
         ax.set_ylabel("output-bearing radial contact force (N)")
         ax.legend(fontsize=8)
@@ -180,7 +183,7 @@ def summary_md(s: dict) -> str:
             f"| peak pointing error | {m['pointing_peak_arcsec']:.4g} arcsec |",
             f"| RMS tracking speed error | {m['tracking_speed_error_rms_arcsec_s']:.4g} arcsec/s |",
         ]
-        for joint in ("azimuth", "pitch"):
+        for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             lines += [
                 f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",

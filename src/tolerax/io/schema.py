@@ -18,6 +18,7 @@ from ..physics import contact as _contact
 from ..design import features as _design
 from ..physics import gears as _gears
 from ..mechanism import scenes as _scenes
+from ..mechanism.mechanism import Mechanism
 from ..mechanism.scene import STARTS, simulate as _simulate
 from ..solve import PID_RULES
 
@@ -25,7 +26,7 @@ from ..solve import PID_RULES
 # The schema
 
 BUILDERS = {"antenna": _scenes.antenna, "scan": _scenes.scan}
-STAGE_KEYS = ("azimuth_stage", "pitch_stage")
+STAGE_KEYS = tuple(f"{joint}_stage" for joint in Mechanism.JOINTS)
 # Contact laws a stage table may name; their constructor arguments are read from the signatures.
 CONTACT_LAWS = {cls.__name__: cls for cls in (_contact.BaiZhao, _contact.HertzLN, _contact.Flores, _contact.AdamsImpact)}
 
@@ -56,8 +57,10 @@ SERIES = {
     "tracking_speed_error": (("axis",), "rad/s", "reflector angular velocity minus the commanded one (base frame)"),
     "runout": (("joint",), "m", "radial runout of each joint output"),
     "output_force": (("joint",), "N", "radial contact force of each joint's output (carrier) bearing"),
-    "azimuth_contact": (("azimuth_contact_name",), "N", "normal force of each clearance contact of the azimuth joint"),
-    "pitch_contact": (("pitch_contact_name",), "N", "normal force of each clearance contact of the pitch joint"),
+    **{
+        f"{joint}_contact": ((f"{joint}_contact_name",), "N", f"normal force of each clearance contact of the {joint} joint")
+        for joint in Mechanism.JOINTS
+    },
     "momentum": (("axis",), "kg m/s", "linear momentum"),
     "angular_momentum": (("axis",), "kg m^2/s", "angular momentum about the world origin"),
     "kinetic_energy": ((), "J", "kinetic energy"),

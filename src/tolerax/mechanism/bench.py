@@ -13,7 +13,7 @@ from .drives import AbstractServo, SpeedServo, drag
 from ..physics.planetary import AddedInertia
 from .scene import AbstractScene
 from ..solve import SolverReport
-from ..physics.stage import PlanetaryStage
+from ..physics.stage import DESIGN_FEATURES, PlanetaryStage
 
 
 class TestBench(AbstractScene):
@@ -72,6 +72,9 @@ class TestBench(AbstractScene):
     @property
     def added(self) -> AddedInertia:
         return AddedInertia(self.motor_inertia, self.load_inertia, self.load_mass)
+
+    def named_stages(self):
+        return (("", lambda x: x.stage, DESIGN_FEATURES),)
 
     def initial_state(self, start: str = "rest"):
         """Every component centred, meshes at $g = 0$; at rest (`start="rest"`) or in rigid

@@ -51,6 +51,7 @@ bodies, forces, contacts and any inertia added on its own speeds.
 """
 
 import dataclasses
+from typing import ClassVar
 from collections.abc import Iterator
 
 import equinox as eqx
@@ -99,6 +100,9 @@ class Mechanism(AbstractScene):
     inertias: Inertias
     base: str = eqx.field(static=True)
     _what = "mechanism"
+    # The joints' names (the fields above), base to reflector: what everything outside the
+    # mechanism reads instead of naming them (`named_joints`, `named_stages`).
+    JOINTS: ClassVar[tuple[str, ...]] = ("azimuth", "pitch")
 
     def __init__(self, azimuth=None, pitch=None, geometry=None, inertias=None, base="free"):
         if base not in BASES:
@@ -108,7 +112,7 @@ class Mechanism(AbstractScene):
         self.geometry = Geometry() if geometry is None else geometry
         self.inertias = Inertias() if inertias is None else inertias
         self.base = base
-        for name, cls in (("azimuth", AbstractJoint), ("pitch", AbstractJoint), ("geometry", Geometry), ("inertias", Inertias)):
+        for name, cls in ((self.JOINTS[0], AbstractJoint), (self.JOINTS[1], AbstractJoint), ("geometry", Geometry), ("inertias", Inertias)):
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"Mechanism.{name} must be a {cls.__name__}, got {type(getattr(self, name)).__name__}.")
 
@@ -129,6 +133,15 @@ class Mechanism(AbstractScene):
             size_q=bq + na + npi,
             size_u=bu + na + npi,
             size_v=ca + cp,
+        )
+
+    def named_joints(self) -> tuple[tuple[str, AbstractJoint], ...]:
+        """`(name, joint)` for each joint, base to reflector (`JOINTS`)."""
+        return tuple((name, getattr(self, name)) for name in self.JOINTS)
+
+    def named_stages(self):
+        return tuple(
+            (name, lambda x, name=name: getattr(x, name).stage, joint.design_features) for name, joint in self.named_joints()
         )
 
     def joints(self) -> Iterator[tuple[AbstractJoint, slice, slice, slice]]:

@@ -8,6 +8,7 @@ one diffrax call.
 """
 
 import abc
+from collections.abc import Callable
 
 import diffrax
 import equinox as eqx
@@ -43,6 +44,14 @@ class AbstractScene(eqx.Module):
 
     def check_runnable(self) -> None:
         """Raise a `ValueError` saying what to change if this scene has nothing to integrate."""
+
+    def named_stages(self) -> tuple[tuple[str, Callable, tuple[str, ...]], ...]:
+        """The scene's gear stages, once for everything that reads them by name (design
+        features, smoothing widths, cost sizes, reports): `(name, stage_of, features)` per stage,
+        where `name` is the joint's name (`""` for a scene with one stage), `stage_of(scene)`
+        returns the `PlanetaryStage` (a path `eqx.tree_at` can follow) and `features` are the
+        design features (`DESIGN_FEATURES` names) that the joint's fidelity reads. Default: none."""
+        return ()
 
 
 def simulate(

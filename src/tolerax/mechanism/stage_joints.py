@@ -8,6 +8,7 @@ from jaxtyping import Array, Float
 
 from .. import _validate as V
 from ..physics import planetary as _planetary
+from ..physics.stage import DESIGN_FEATURES
 from .drives import AbstractServo
 from .joints import AbstractJoint, JointLayout, disc_tensors, planet_spin_ratio
 
@@ -15,7 +16,7 @@ from .joints import AbstractJoint, JointLayout, disc_tensors, planet_spin_ratio
 class _AbstractStageJoint(AbstractJoint):
     """The full planetary stage (`_planetary`) as a joint: coordinates, forces and contacts."""
 
-    design_features = ("sun_clearance", "carrier_clearance", "planet_clearance", "sun_backlash", "ring_backlash")
+    design_features = DESIGN_FEATURES
 
     @property
     def layout(self):

@@ -18,6 +18,10 @@ from jaxtyping import Array, Float
 from . import contact as _contact
 from .. import _validate as V
 
+# The clearances and backlash a stage can model (m), in the order a design lists them: the
+# sun, carrier (output) and planet-pin bearing clearances and the sun and ring mesh backlash.
+DESIGN_FEATURES = ("sun_clearance", "carrier_clearance", "planet_clearance", "sun_backlash", "ring_backlash")
+
 SUPPORT_KINDS = ("rigid", "spring", "clearance")
 MESH_KINDS = ("linear", "nonlinear")
 
