@@ -28,19 +28,39 @@ def _all_finite(tree):
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(tree)]))
 
 
-class _NanSafePID(diffrax.PIDController):
-    """`diffrax.PIDController` that treats a non-finite error estimate (the right-hand side
-    returned NaN or inf) as an infinitely large error: the step is rejected and shrunk 5x, so a
-    run that can only produce NaN ends with `dt_min_reached` after ~30 rejections. (diffrax's own
-    controller turns a NaN error into a NaN step size, which neither shrinks below `dtmin` nor
-    stops: the run spins until `max_steps`, and under `vmap` holds the whole batch there.)
-    Finite errors are handled exactly as by `PIDController`."""
+class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
+    """Wraps a `diffrax.PIDController` so that a non-finite error estimate (the right-hand side
+    returned NaN or inf) counts as an infinitely large error: the step is rejected and shrunk 5x,
+    so a run that can only produce NaN ends with `dt_min_reached` after ~30 rejections. (diffrax's
+    own controller turns a NaN error into a NaN step size, which neither shrinks below `dtmin`
+    nor stops: the run spins until `max_steps`, and under `vmap` holds the whole batch there.)
+    Finite errors are handled exactly as by the wrapped controller."""
+
+    controller: diffrax.PIDController
+
+    @property
+    def rtol(self):
+        return self.controller.rtol
+
+    @property
+    def atol(self):
+        return self.controller.atol
+
+    @property
+    def norm(self):
+        return self.controller.norm
+
+    def wrap(self, direction):
+        return _NanSafe(self.controller.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        return self.controller.init(terms, t0, t1, y0, dt0, args, func, error_order)
 
     def adapt_step_size(self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state):
         bad = ~(_all_finite(y_error) & _all_finite(y0))
         y_error = jax.tree.map(lambda e: jnp.where(bad, jnp.inf, e), y_error)
         y0 = jax.tree.map(lambda y: jnp.where(jnp.isfinite(y), y, 0.0), y0)
-        return super().adapt_step_size(t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state)
+        return self.controller.adapt_step_size(t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state)
 
 
 # XLA's CPU compiler hands some products and reductions to YNNPACK ("ynn fusions"); for one
@@ -59,8 +79,10 @@ def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, 
         # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
         # `pid` = (pcoeff, icoeff), Python floats: static (the default (0, 1) is diffrax's own).
         pcoeff, icoeff = pid
-        controller = _NanSafePID(
-            rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dtmin=dtmin, dtmax=dtmax, force_dtmin=False
+        controller = _NanSafe(
+            diffrax.PIDController(
+                rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dtmin=dtmin, dtmax=dtmax, force_dtmin=False
+            )
         )
     saveat = diffrax.SaveAt(subs=(diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)))
     sol = diffrax.diffeqsolve(

@@ -3,11 +3,11 @@ metrics we compare with its figures and tables.
 
 Each study is a list of scenes (a label and a `Mechanism`), run at a *size*: `"small"` (a few
 scenes, a few hundredths of a second: it proves the pipeline in CI) or `"full"` (the paper's
-grids, coarser where noted, 3 s each with metrics over the last 1 s: 109 min of CPU for the 46
-scenes on 2026-11-24). Scenes start in steady rolling at the commanded rate (free base, meshes
+grids, coarser where noted, 3 s each with metrics over the last 1 s: hours of CPU for the 46
+scenes). Scenes start in steady rolling at the commanded rate (free base, meshes
 undeflected). That is not the loaded steady state: the servo then builds its lag against the
 output drag, and the output's speed swings down to nearly a stop and back over the first ~2 s
-(`benchmarks/results/claim_causes_transient.md`). Metrics therefore start at `settle` = 2 s.
+(`benchmarks/results/archive/claim_causes_transient.md`). Metrics therefore start at `settle` = 2 s.
 The full size also records each scene's metrics over 0.3-1 s under `"start_up"`, the window of
 the 1 s studies committed before (which measured the start-up, not the steady state).
 
@@ -19,8 +19,8 @@ runs the 0.98 °/s scenes at lumped/lumped and planetary/planetary to measure wh
 fidelity misses.
 
 A long horizon is `run(..., duration=, settle=)` (`tolerax studies --duration 20 --settle 19`),
-saved after every scene and resumable (`done=`, `--resume`): the 46 scenes of 20 s
-(`notebooks/results/horizon-20s/`) took about four hours of CPU, more than one sitting.
+saved after every scene and resumable (`done=`, `--resume`), so that a long horizon (the 46
+scenes of 20 s in `notebooks/results/horizon-20s/`) can run in several sittings.
 """
 
 import dataclasses
@@ -31,7 +31,7 @@ import numpy as np
 
 from .physics.gears import default_stage
 from .mechanism.mechanism import Mechanism
-from .mechanism.outputs import ARCSEC, MechanismResult, vibration_amplitude
+from .mechanism.outputs import MechanismResult, pointing_metrics, vibration_amplitude
 from .mechanism.scene import simulate
 from .mechanism.scenes import antenna
 
@@ -127,7 +127,7 @@ def scenes(study: str, size: str = "small") -> list[tuple[dict, Mechanism]]:
                 out.append((dict(mode=mode, case=case, planet=cp, backlash=b), _single(mode, st)))
     elif study == "coupling_grid":  # Figs. 15-16, Tables 8-9: pitch joint, cpp x b, 20-100 um
         # The paper's grid is fine; here its corners and centre (an interior peak shows at the
-        # centre), for cost: about 3 min of CPU per scene at the full size.
+        # centre), for cost.
         points = [(20, 20), (20, 100), (100, 20), (100, 100), (60, 60)] if full else [(20, 100), (100, 100)]
         for cp, b in points:
             st = _stage(carrier=10 * UM, sun=10 * UM, planet=cp * UM, backlash=b * UM)
@@ -153,7 +153,7 @@ def metrics(mech: Mechanism, res: MechanismResult, settle: float, min_frequency:
     w = (ts >= settle) & (ts <= (np.inf if end is None else end))
     drive = 1 if mech.azimuth.drive.output_rate == 0 else 0  # pitch-only scenes drive joint 1
     force = np.asarray(res.output_force)[w]
-    pointing = np.asarray(res.pointing_error)[w]
+    pointing = pointing_metrics(res, w)
     speed = np.asarray(res.tracking_speed_error)[w]
     pos = np.asarray(res.position_error)[w]
     angle_err = np.asarray(res.commanded_angle[:, drive] - res.joint_angle[:, drive])[w]
@@ -162,8 +162,8 @@ def metrics(mech: Mechanism, res: MechanismResult, settle: float, min_frequency:
         force_mean_N=float(force[:, drive].mean()),
         force_std_N=float(force[:, drive].std()),
         force_other_peak_N=float(force[:, 1 - drive].max()),
-        pointing_rms_arcsec=float(np.sqrt(np.mean(pointing**2)) / ARCSEC),
-        pointing_peak_arcsec=float(pointing.max() / ARCSEC),
+        pointing_rms_arcsec=float(pointing["pointing_rms"]),
+        pointing_peak_arcsec=float(pointing["pointing_peak"]),
         radial_vibration_um=float(vibration_amplitude(np.linalg.norm(pos, axis=1), ts[w], min_frequency)) / UM,
         torsional_vibration_urad=float(vibration_amplitude(angle_err, ts[w], min_frequency)) / UM,
         steps=int(res.num_steps),

@@ -9,7 +9,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 from .features import with_design
-from ..mechanism.outputs import ARCSEC
+from ..mechanism.outputs import pointing_metrics
 from ..mechanism.scene import simulate
 
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
@@ -75,16 +75,12 @@ class PointingObjective(eqx.Module):
 
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
         res = self.run(values, smoothing_width)
-        window = res.ts >= self.settle
-        weight = window / jnp.sum(window)
-        e = res.pointing_error / ARCSEC
-        speed = jnp.sqrt(jnp.sum(res.tracking_speed_error**2, axis=-1) + 1e-300) / ARCSEC
-        peak_p = jnp.sum(weight * e**self.peak_order) ** (1.0 / self.peak_order)
+        metrics = pointing_metrics(res, res.ts >= self.settle, self.peak_order)
         return dict(
-            pointing_rms=jnp.sqrt(jnp.sum(weight * e**2)),
-            pointing_peak=jnp.max(jnp.where(window, e, 0.0)),
-            pointing_smooth_peak=peak_p,
-            tracking_speed_rms=jnp.sqrt(jnp.sum(weight * speed**2)),
+            pointing_rms=metrics["pointing_rms"],
+            pointing_peak=metrics["pointing_peak"],
+            pointing_smooth_peak=metrics["pointing_smooth_peak"],
+            tracking_speed_rms=metrics["tracking_speed_rms"],
             success=res.result == diffrax.RESULTS.successful,
         )
 

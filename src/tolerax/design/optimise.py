@@ -40,6 +40,7 @@ import tqdm
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 from ..physics import smooth as _smooth
 from .. import _validate as V
+from ..uncertainty.sampling import manufactured
 from .cost import AbstractCostModel, IsoGrade
 
 
@@ -94,7 +95,7 @@ class Features(eqx.Module):
 def realise(x: Design, draws: Float[Array, "n_draws n"]) -> Float[Array, "n_draws n"]:
     """Manufactured values $\\max(0, \\text{nominal} + \\text{band}\\cdot u)$ (m) of standardised
     draws $u \\in [-1, 1]$, one row per manufactured unit (a clearance cannot be negative)."""
-    return jnp.maximum(x.nominal + x.band * draws, 0.0)
+    return manufactured(x.nominal, x.band, draws, 0.0)
 
 
 def _harrell_davis_weights(n: int, q: float) -> Float[Array, " n"]:

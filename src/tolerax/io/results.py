@@ -55,23 +55,22 @@ def timeseries(scene_file: SceneFile, result, series=None):
 
 def _window_stats(scene_file: SceneFile, result) -> dict:
     """Summary numbers over the window `t >= settle` (units in the key names)."""
-    from ..mechanism.outputs import ARCSEC
+    from ..mechanism.outputs import pointing_metrics
 
     ts = np.asarray(result.ts)
     finite = np.isfinite(ts) & np.all(np.isfinite(np.asarray(result.joint_angle)), axis=1)
     w = finite & (ts >= scene_file.run["settle"])
     if not np.any(w):
         return {}
-    e = np.asarray(result.pointing_error)[w] / ARCSEC
-    speed = np.linalg.norm(np.asarray(result.tracking_speed_error)[w], axis=1) / ARCSEC
+    pointing = pointing_metrics(result, w)
     force = np.asarray(result.output_force)[w]
     runout = np.asarray(result.runout)[w]
     angle = np.degrees(np.asarray(result.joint_angle)[w])
     out = dict(
         window_s=[float(ts[w][0]), float(ts[w][-1])],
-        pointing_rms_arcsec=float(np.sqrt(np.mean(e**2))),
-        pointing_peak_arcsec=float(e.max()),
-        tracking_speed_error_rms_arcsec_s=float(np.sqrt(np.mean(speed**2))),
+        pointing_rms_arcsec=float(pointing["pointing_rms"]),
+        pointing_peak_arcsec=float(pointing["pointing_peak"]),
+        tracking_speed_error_rms_arcsec_s=float(pointing["tracking_speed_rms"]),
     )
     for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())

@@ -15,6 +15,29 @@ ARCSEC = math.pi / (180.0 * 3600.0)
 """One arcsecond in radians: `angle_rad / ARCSEC` is the angle in arcsec."""
 
 
+def pointing_metrics(result, window, peak_order: int | None = None) -> dict[str, Array]:
+    """The pointing metrics of a run over the saved times where `window` (bool, per save time)
+    holds: `pointing_rms` $\\sqrt{\\overline{e^2}}$ and `pointing_peak` $\\max e$ of the pointing
+    error (arcsec), `tracking_speed_rms` (arcsec/s, RMS norm of the reflector's angular-velocity
+    error) and, with `peak_order` $p$, `pointing_smooth_peak` $(\\overline{e^p})^{1/p}$ (a smooth
+    surrogate of the peak, $\\le$ the peak, $\\ge$ the RMS). Differentiable (the speed norm is
+    safe at 0) and traceable; values outside the window never enter, non-finite ones included.
+    The one definition read by the design objective, the scene-file summary and the studies."""
+    window = jnp.asarray(window)
+    weight = window / jnp.sum(window)
+    e = jnp.where(window, jnp.asarray(result.pointing_error) / ARCSEC, 0.0)
+    squared_speed = jnp.sum(jnp.where(window[:, None], jnp.asarray(result.tracking_speed_error), 0.0) ** 2, axis=-1)
+    speed = jnp.sqrt(squared_speed + 1e-300) / ARCSEC
+    out = dict(
+        pointing_rms=jnp.sqrt(jnp.sum(weight * e**2)),
+        pointing_peak=jnp.max(e),
+        tracking_speed_rms=jnp.sqrt(jnp.sum(weight * speed**2)),
+    )
+    if peak_order is not None:
+        out["pointing_smooth_peak"] = jnp.sum(weight * e**peak_order) ** (1.0 / peak_order)
+    return out
+
+
 class Observation(eqx.Module):
     """Instantaneous outputs (see `MechanismResult` for definitions)."""
 

@@ -125,41 +125,22 @@ class MassScaledPlanetaryJoint(_AbstractStageJoint):
     inertia and the output's dynamics below the scaled modes are unchanged; and every added force
     is internal (between a gear and the housing or carrier), so momentum is conserved.
 
-    **Why.** The planetary antenna's explicit steps are held to ~22 us by its 18-19 kHz modes
-    (the sun translating on its three meshes with the planets spinning) and the 12-15 kHz
-    planet-pin modes (`benchmarks/results/fast_modes.md`): pure stability limits, not accuracy.
-    Scaling their inertia by $s$ lowers them by $\\sqrt s$. Making them quasi-static instead
-    (the singular-perturbation limit) needs the force balance of the floating sun and planets
-    solved inside every right-hand side, and it is badly posed: a sun or planet floating in its
-    clearance with its teeth in backlash has no unique position (though the forces it transmits
-    are unique); solved with `optimistix.LevenbergMarquardt` it took 49 iterations, 185x a
-    right-hand side of the whole antenna (`benchmarks/results/quasi_static_solve.md`). With the
-    default families at $s = 100$ the next limit is the sun's torsional mode on its meshes (~2.3 kHz,
-    `results/fast_modes_scaled.md`), which `"sun_rotation"` scales too.
-    This is explicit dynamics' *selective mass scaling* (Olovsson, Simonsson & Unosson, IJNME
-    63 (2005) 1436): added mass that leaves rigid-body motion alone.
+    **Why.** The planetary antenna's explicit steps are held by stability, not accuracy, by the
+    stage's fastest modes (the sun translating on its meshes with the planets spinning, and the
+    planet pins). Scaling their inertia by $s$ lowers them by $\\sqrt s$. Making them
+    quasi-static instead (the singular-perturbation limit) needs the force balance of the
+    floating sun and planets solved inside every right-hand side, and it is badly posed: a sun
+    or planet floating in its clearance with its teeth in backlash has no unique position
+    (though the forces it transmits are unique). This is explicit dynamics' *selective mass
+    scaling* (Olovsson, Simonsson & Unosson, IJNME 63 (2005) 1436): added mass that leaves
+    rigid-body motion alone.
 
-    **What it changes, measured** (`benchmarks/results/mass_scaling.md`: dual-axis antenna, 5 s,
-    outputs over 1-5 s against the full stage; in brackets the full stage's own chaotic spread,
-    the same model at rtol 1e-7): at $s = 10$ (the default) 2.1x faster, pointing RMS and peak
-    within 0.5 % (0.0 %), mean planet-pin force 0.3 % (0.1 %), mean sun-bearing force 6 % (3 %),
-    tracking speed error RMS 2 % (1.2 %), but the pointing error's largest line above 1 Hz 17 %
-    lower (0.4 %) and sun and pin impact peaks up to 2.4x higher (7 %). At $s = 100$: 4.3x faster,
-    pointing within 0.1 %, speed error 11 %, vibration line 38 %, impact peaks 4-14x. Beyond
-    $s = 100$ little more is gained (4.5x at $s = 1000$): the steps (mean 104-120 us, a third
-    rejected) are then near the 148 us stability limit of the unscaled sun-torsion mode and
-    among the rattle's impacts; scaling `"sun_rotation"` as well took *more* steps at
-    $s = 100$ over 1 s (17 095 against 13 451) and moved the pointing RMS by 5 %; over 2.5 s,
-    adding `"carrier_translation"` at 100 took 12 % more accepted steps, the sun's rotation at
-    10 alone 21 %, both 26 % (probes, not committed). Those steps are bound by accuracy, not stability:
-    at rtol 1e-3 (atol 1e-6) the scaled joints take 2.3-2.4x fewer steps than at 1e-6 with the
-    pointing error, tracking speed error and mean pin loads where rtol 1e-6 put them
-    (`benchmarks/results/mass_scaling_rtol.md`; rtol 1e-2 breaks down), though in a quiet run
-    (loaded start, 10-20 s) the joints at s = 100 and rtol 1e-3 show about twice the full
-    stage's tracking speed error at rtol 1e-6 about X and Z (74 and 30.5 against 32 and 14
-    µrad/s, `claim_causes_quiet.md`; scaling and tolerance not separated). So: a faster stand-in for pointing
-    error and mean bearing loads; not for vibration amplitude or contact-force peaks; verify a
-    result at full fidelity.
+    **What it keeps.** The pointing error, tracking speed error and mean bearing loads stay
+    close to the full stage's; vibration amplitude and contact-force peaks do not, so verify a
+    result at full fidelity. The measured speed-up and every output's difference against the
+    full stage, by scaling and tolerance, are in `benchmarks/results/mass_scaling.md` and
+    `mass_scaling_rtol.md` (rerun with `benchmarks/mass_scaling.py`); the mode analysis behind
+    the default families in `benchmarks/results/archive/fast_modes.md`.
     **`mass_scaling`**: $s \\ge 1$ (1: the full stage).
     **`families`**: which relative motions are scaled (static), from `SCALED_FAMILIES`.
     """

@@ -115,7 +115,7 @@ class AbstractContactLaw(eqx.Module):
         raise NotImplementedError(f"{type(self).__name__} has no closed-form potential")
 
 
-class _RestitutionLaw(AbstractContactLaw):
+class _AbstractRestitutionLaw(AbstractContactLaw):
     """$F = F_{el}[1 + \\hat\\chi(c_e)\\,\\dot\\delta/\\dot\\delta^-]$."""
 
     restitution: Float[Array, ""]
@@ -134,14 +134,9 @@ class _RestitutionLaw(AbstractContactLaw):
         return elastic * (1.0 + self.chi() * rate / impact_rate)
 
 
-class HertzLN(_RestitutionLaw):
-    """Lankarani–Nikravesh (1990): $F_{el} = K\\delta^{1.5}$, $\\hat\\chi = 3(1-c_e^2)/4$.
-
-    Only accurate for $c_e \\to 1$: at $c_e = 0.5$ its effective restitution is well above nominal.
-    """
-
-    def chi(self):
-        return 0.75 * (1.0 - self.restitution**2)
+class _AbstractHertzLaw(_AbstractRestitutionLaw):
+    """Hertzian elastic force $F_{el} = K\\delta^{1.5}$ with a restitution-based hysteresis
+    factor $\\hat\\chi$ left to the final law."""
 
     def elastic(self, bearing, penetration):
         return bearing.hertz_stiffness() * _smooth.power(penetration, 1.5)
@@ -150,7 +145,17 @@ class HertzLN(_RestitutionLaw):
         return bearing.hertz_stiffness() * _smooth.power(penetration, 2.5) / 2.5
 
 
-class Flores(HertzLN):
+class HertzLN(_AbstractHertzLaw):
+    """Lankarani–Nikravesh (1990): $F_{el} = K\\delta^{1.5}$, $\\hat\\chi = 3(1-c_e^2)/4$.
+
+    Only accurate for $c_e \\to 1$: at $c_e = 0.5$ its effective restitution is well above nominal.
+    """
+
+    def chi(self):
+        return 0.75 * (1.0 - self.restitution**2)
+
+
+class Flores(_AbstractHertzLaw):
     """Flores et al. (2011): $F_{el} = K\\delta^{1.5}$, $\\hat\\chi = 8(1-c_e)/(5c_e)$.
 
     Effective restitution close to nominal over $c_e \\in [0.3, 0.95]$.
@@ -160,7 +165,7 @@ class Flores(HertzLN):
         return 8.0 * (1.0 - self.restitution) / (5.0 * self.restitution)
 
 
-class BaiZhao(_RestitutionLaw):
+class BaiZhao(_AbstractRestitutionLaw):
     """The reference paper's hybrid law (Bai & Zhao), with consistent units.
 
     $F_{el} = L\\,\\tfrac{\\pi E^*}{2}\\,\\delta\\sqrt{\\delta/(2(\\Delta R + \\delta))}$, $\\Delta R = c$,

@@ -96,8 +96,8 @@ def _pin_worker(cores) -> None:
     """Initializer of a `backend="processes"` worker: run on one core of its own, taken from the
     shared queue `cores`, before JAX starts (its CPU client sizes its thread pool to the process's
     cores). One solve's right-hand side is hundreds of microsecond kernels, which XLA's runtime
-    hands between threads at a loss: a planetary solve pinned to one core ran 0.87x the time of
-    one free (benchmarks/results/pinning.md), and two free workers on two cores contend for both."""
+    hands between threads at a loss (a pinned solve is faster: `benchmarks/results/archive/pinning.md`),
+    and two free workers on two cores contend for both."""
     try:
         core = cores.get(timeout=10.0)
     except queue.Empty:  # more workers than cores were queued: run free
@@ -329,18 +329,17 @@ def monte_carlo(
     run's *inputs* do not depend on the backend, the chunk size or on interruptions, and its
     outputs are bitwise identical across backends and resumptions at the same chunk size. The
     chunk size itself changes a solver's outputs at rounding level, which an adaptive solve may
-    amplify (a vmapped batch is one program that rounds differently; measured on the scan scene:
-    up to 1.3e-5 relative, benchmarks/results/monte_carlo_throughput.md); a resumed run keeps
-    the chunk size of its manifest.
+    amplify (a vmapped batch is one program that rounds differently:
+    benchmarks/results/monte_carlo_throughput.md); a resumed run keeps the chunk size of its
+    manifest.
 
     **Backends** (each runs the samples in chunks of `chunk_size`, with a tqdm bar over chunks):
 
     - `"vmap"`: in this process, `jax.vmap(model)` over each chunk, jit-compiled once; with
       several local devices (GPUs, or `XLA_FLAGS=--xla_force_host_platform_device_count=N` on a
       CPU), each chunk is split over them with `jax.shard_map`. On GPUs take large chunks. On CPUs
-      a vmapped adaptive solve steps until its slowest sample is done: on the lumped scan chunks
-      of 16 ran 4x faster than one at a time, on the planetary one (whose samples differ more in
-      cost) batching gained 1.1x (benchmarks/results/monte_carlo_throughput.md). For thousands of
+      a vmapped adaptive solve steps until its slowest sample is done, so batching gains most
+      where samples cost alike (benchmarks/results/monte_carlo_throughput.md). For thousands of
       samples on a many-core machine `"processes"` wins once its start-up (one compile per
       worker) is paid.
     - `"processes"`: chunks farmed to `workers` processes of this machine
@@ -384,10 +383,9 @@ def monte_carlo(
       (`os.sched_setaffinity`, Linux): `None` (default) does so on a CPU backend when there are
       at least as many cores as workers, `True` insists (an error otherwise), `False` leaves the
       workers free. XLA's runtime spreads one solve's small kernels over every core it may use,
-      at a loss (`benchmarks/results/pinning.md`): pinned, two workers' calls took 0.80-0.88x
-      the time of free ones with samples of a second or more, but a pinned worker also
-      compiles on its one core, so for many very short samples `False` starts faster
-      (`benchmarks/results/monte_carlo_pinning.md`).
+      at a loss: pinned workers are faster with samples of a second or more, but a pinned
+      worker also compiles on its one core, so for many very short samples `False` starts
+      faster (`benchmarks/results/archive/monte_carlo_pinning.md`).
     - `requirement`: default requirement of `MonteCarloResult.summary` (output units).
     - `units`: units of the outputs, e.g. `{"pointing_error": "arcsec"}` (features are in m).
     - `callback`: called as `callback(k, chunk_dataset)` in the driver after chunk `k` is saved.

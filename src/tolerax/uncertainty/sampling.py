@@ -195,10 +195,14 @@ def apply_draws(tolerances: Tolerances, u: Float[Array, "n n_features"]) -> Floa
         raise ValueError(
             f"u has {u.shape[-1]} features in its last axis but the tolerances have {tolerances.n_features}."
         )
-    values = tolerances.nominal + tolerances.band * u
-    if tolerances.lower is not None:
-        values = jnp.maximum(values, tolerances.lower)
-    return values
+    return manufactured(tolerances.nominal, tolerances.band, u, tolerances.lower)
+
+
+def manufactured(nominal, band, u, lower=None):
+    """$\\max(\\text{nominal} + \\text{band}\\,u, \\text{lower})$ (m; no floor when `lower` is
+    `None`): the one map from standardised draws to manufactured values."""
+    values = nominal + band * u
+    return values if lower is None else jnp.maximum(values, lower)
 
 
 def sample(tolerances: Tolerances, key: PRNGKeyArray, n: int, *, first: int = 0) -> Float[Array, "n n_features"]:
