@@ -226,7 +226,25 @@ def design_problem(
     cost_model: AbstractCostModel | None = None,
     gradient: str = "forward",
 ) -> DesignProblem:
-    """The `DesignProblem` of `propose_design` (same arguments, same meaning)."""
+    """The `DesignProblem` that `propose_design` solves.
+
+    **Arguments:**
+
+    - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
+      is the starting nominal.
+    - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
+      the current nominal minus `band` (at least `min_clearance`).
+    - `min_clearance`: smallest allowed lower limit (m), a scalar or one value per feature
+      (`design_names(scene)` order). The largest allowed is the starting one.
+    - `band_range`: (smallest, largest) half-width (m).
+    - `n_draws`, `key`: fixed standardised draws (`unit_draws`), the same at every iteration.
+    - `statistic`, `k`: `robust` statistic (`"mean+kstd"` with `k`, or `"quantile"`) of
+      `output` over the draws.
+    - `cost_model`: a cost of the full tolerance width $2b$; default `IsoGrade()` (ISO 286
+      grades, relative cost 1 per feature at IT7).
+    - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
+      (`RobustPointing`).
+    """
     scene = pointing.scene
     names = design_names(scene)
     nominal0 = np.asarray(design_of(scene))
@@ -256,21 +274,12 @@ def propose_design(
     pointing: PointingObjective,
     requirement: float,
     *,
-    band: float = 10e-6,
-    min_clearance=5e-6,
-    band_range: tuple[float, float] = (1e-6, 50e-6),
-    n_draws: int = 4,
-    key=None,
-    statistic: str = "mean+kstd",
-    k: float = 1.0,
-    output: str = "pointing_rms",
     widths=(1e-6, 1e-7),
-    cost_model: AbstractCostModel | None = None,
     max_outer: int = 6,
     inner_steps: int = 10,
     learning_rate: float = 0.1,
-    gradient: str = "forward",
     progress: bool = False,
+    **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
     `requirement` (arcsec, on `statistic` of `output` over `n_draws` manufactured units) at the
@@ -287,29 +296,18 @@ def propose_design(
     - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
       is the starting nominal.
     - `requirement`: arcsec.
-    - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
-      the current nominal minus `band` (at least `min_clearance`).
-    - `min_clearance`: smallest allowed lower limit (m), a scalar or one value per feature
-      (`design_names(scene)` order). The largest allowed is the starting one.
-    - `band_range`: (smallest, largest) half-width (m).
-    - `n_draws`, `key`: fixed standardised draws (`unit_draws`), the same at every iteration.
-    - `statistic`, `k`: `robust` statistic (`"mean+kstd"` with `k`, or `"quantile"`).
     - `widths`: smoothing-width continuation (m), one value per outer iteration, the last
       repeated: wide first (a smoother, less chaotic objective), narrower later.
-    - `cost_model`: a cost of the full tolerance width $2b$; default `IsoGrade()` (ISO 286
-      grades, relative cost 1 per feature at IT7).
     - `max_outer`, `inner_steps`, `learning_rate`: optimiser budget (each inner step is one
       gradient of the objective over all draws: a simulation each).
-    - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
-      (`RobustPointing`).
     - `progress`: a progress bar over the optimiser's outer iterations (`optimise_design`).
+    - `**problem`: the problem's options, as `design_problem` takes them (starting band,
+      functional minima, band range, manufactured units, robust statistic, cost model, gradient
+      mode).
 
     **Returns:** a `DesignReport`.
     """
-    problem = design_problem(
-        pointing, band=band, min_clearance=min_clearance, band_range=band_range, n_draws=n_draws, key=key,
-        statistic=statistic, k=k, output=output, cost_model=cost_model, gradient=gradient,
-    )
+    problem = design_problem(pointing, **problem)
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
