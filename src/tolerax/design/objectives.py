@@ -1,5 +1,5 @@
 """Differentiable objectives on a scene: pointing-error statistics as functions of its design
-vector (`_design`). One `PointingObjective` serves the gradient checks, the tolerance optimiser
+vector (`tolerax.design.features`). One `PointingObjective` serves the gradient checks, the tolerance optimiser
 (`propose_design`) and the Monte Carlo engine (`monte_carlo`: a picklable model returning
 scalar outputs and a `success` flag).
 """

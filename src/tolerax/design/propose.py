@@ -1,9 +1,9 @@
 """Tolerance proposals on a scene: the cheapest nominal clearances/backlash and tolerance bands
 whose robust pointing error meets a requirement.
 
-`propose_design` ties together the scene's design vector (`_design`), a `PointingObjective`,
-fixed manufacturing draws (`_sampling.unit_draws`), the ISO 286-anchored cost model (`_cost`)
-and the augmented-Lagrangian optimiser on optax (`_optimise`), and returns a `DesignReport`.
+`propose_design` ties together the scene's design vector (`tolerax.design.features`), a `PointingObjective`,
+fixed manufacturing draws (`unit_draws`), the ISO 286-anchored cost model (`tolerax.design.cost`)
+and the augmented-Lagrangian optimiser on optax (`tolerax.design.optimise`), and returns a `DesignReport`.
 """
 
 import dataclasses

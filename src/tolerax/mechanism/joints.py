@@ -1,4 +1,4 @@
-"""Joint fidelities of the mechanism (docs/MODEL.md §5): one class per fidelity.
+"""Joint fidelities of the mechanism (docs/model.md §5): one class per fidelity.
 
 Every joint holds the same data (a `PlanetaryStage`, a drive, the motor inertia, the output's
 drag) and differs in which coordinates, forces and contacts it models:
@@ -10,7 +10,7 @@ drag) and differs in which coordinates, forces and contacts it models:
   equivalent mesh derived from the stage (`lumped_mesh`: torsional stiffness, backlash plus
   planet-pin play, damping), plus the output bearing's in-plane translation $(x_c, y_c)$ in its
   radial clearance (or spring, or rigid, per `stage.carrier_support`). Planets roll rigidly.
-- `PlanetaryJoint`: the full stage of `_planetary` (every support and mesh it models).
+- `PlanetaryJoint`: the full stage of `tolerax.physics.planetary` (every support and mesh it models).
 
 A new fidelity is a new final subclass of `AbstractJoint` implementing its abstract methods
 (the mechanism never asks which fidelity a joint is), plus, for the `antenna(fidelity=...)`
@@ -65,7 +65,7 @@ class AbstractJoint(eqx.Module):
     drive: AbstractServo | TorqueDrive
     motor_inertia: Float[Array, ""]
     drag_torque: Float[Array, ""]
-    # The stage's clearances and backlash this fidelity reads (see `_design`).
+    # The stage's clearances and backlash this fidelity reads (see `tolerax.design.features`).
     design_features: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, stage=None, drive=None, motor_inertia=2e-4, drag_torque=0.05):
@@ -171,7 +171,7 @@ class AbstractJoint(eqx.Module):
         return self.drive_forces(qj, uj, t), jnp.zeros(0)
 
     def impact_rate_rates(self, qj, uj, udj, vj):
-        """Time derivatives of the impact-rate states (m/s², see `_contact`)."""
+        """Time derivatives of the impact-rate states (m/s², see `tolerax.physics.contact`)."""
         return jnp.zeros(0)
 
     def initial_impact_rates(self, qj, uj):

@@ -1,4 +1,4 @@
-"""Outputs of the mechanism (docs/MODEL.md §6): what is observed at a state, the result type of a
+"""Outputs of the mechanism (docs/model.md §6): what is observed at a state, the result type of a
 run, and the spectral vibration amplitude. Angles in rad (divide by `ARCSEC` for arcsec)."""
 
 import math

@@ -3,7 +3,7 @@
 A scene provides its initial state (`start="rest"`; `"steady"`: already turning at the
 commanded rate in rigid kinematics; `"loaded"`, mechanisms only: the loaded steady state), its
 equations of motion (`vector_field`), what is observed at a saved state (`observe`), and how
-the saved series become its result type. `simulate` is the one entry point; `_solve.solve` the
+the saved series become its result type. `simulate` is the one entry point; `tolerax.solve.solve` the
 one diffrax call.
 """
 
@@ -40,7 +40,7 @@ class AbstractScene(eqx.Module):
     @abc.abstractmethod
     def result(self, sol: diffrax.Solution, observed, duration: float) -> SolverReport:
         """The scene's result (built with `SolverReport.from_solution`) from the solution of
-        `_solve.solve` and the observations at its save times."""
+        `tolerax.solve.solve` and the observations at its save times."""
 
     def check_runnable(self) -> None:
         """Raise a `ValueError` saying what to change if this scene has nothing to integrate."""

@@ -14,7 +14,7 @@ from .joints import AbstractJoint, JointLayout, disc_tensors, planet_spin_ratio
 
 
 class _AbstractStageJoint(AbstractJoint):
-    """The full planetary stage (`_planetary`) as a joint: coordinates, forces and contacts."""
+    """The full planetary stage (`tolerax.physics.planetary`) as a joint: coordinates, forces and contacts."""
 
     design_features = DESIGN_FEATURES
 
@@ -96,7 +96,7 @@ class _AbstractStageJoint(AbstractJoint):
 
 
 class PlanetaryJoint(_AbstractStageJoint):
-    """The full planetary stage (`_planetary`) as a joint."""
+    """The full planetary stage (`tolerax.physics.planetary`) as a joint."""
 
 
 SCALED_FAMILIES = ("sun_translation", "planet_translation", "planet_spin", "sun_rotation", "carrier_translation")

@@ -1,4 +1,4 @@
-"""Contact force in a radial clearance (journal in bearing), docs/MODEL.md §2.
+"""Contact force in a radial clearance (journal in bearing), docs/model.md §2.
 
 Geometry: journal radius $R_a$, bearing radius $R_b = R_a + c$ (radial clearance $c$), axial length
 $L$. With the journal-centre displacement $e$ relative to the bearing centre (a 2-vector), the

@@ -1,4 +1,4 @@
-"""Construction of a planetary stage from gear data: the default joint of docs/MODEL.md §4."""
+"""Construction of a planetary stage from gear data: the default joint of docs/model.md §4."""
 
 import math
 
@@ -106,7 +106,7 @@ def default_stage(
     impact_memory_time: float = 1e-4,
     planet_spacing: str = "equal",
 ) -> PlanetaryStage:
-    """The default joint of docs/MODEL.md §4 (all values overridable; SI units).
+    """The default joint of docs/model.md §4 (all values overridable; SI units).
 
     Module 1 mm, $z_s, z_p, z_r$ = 20, 30, 80 (ratio 5), $\\alpha_0$ = 20°, face width 10 mm,
     steel; solid-disc masses and inertias of the pitch circles; carrier a solid disc of radius
@@ -121,7 +121,7 @@ def default_stage(
     eigenvalue $-1/\\tau$ bounds an explicit solver's step (3.5e-4 s for Tsit5), so a much shorter
     memory would make it the step limit of the lumped joint.
 
-    `planet_spacing`: `"equal"` puts the planets at $\\psi_n = 2\\pi n/N$ (docs/MODEL.md and the paper),
+    `planet_spacing`: `"equal"` puts the planets at $\\psi_n = 2\\pi n/N$ (docs/model.md and the paper),
     whatever the tooth counts; `"assembled"` also requires that real gears can be assembled that
     way, $(z_s + z_r)/N$ an integer, and raises otherwise. The paper's 20/30/80 with three planets
     is *not* assemblable equally spaced ((20 + 80)/3 is not an integer): the default keeps the
@@ -135,7 +135,7 @@ def default_stage(
             f"{n_planets} planets cannot be equally spaced with sun_teeth={sun_teeth}, "
             f"ring_teeth={ring_teeth}: (sun_teeth + ring_teeth) / n_planets = "
             f"{(sun_teeth + ring_teeth) / n_planets:.4g} must be an integer. Change the tooth counts "
-            f"or use planet_spacing='equal' (the idealisation of docs/MODEL.md)."
+            f"or use planet_spacing='equal' (the idealisation of docs/model.md)."
         )
     r_s, r_p, r_r = (module * z / 2 for z in (sun_teeth, planet_teeth, ring_teeth))
     if carrier_radius is None:

@@ -1,4 +1,4 @@
-"""Gear mesh with backlash, docs/MODEL.md §3.
+"""Gear mesh with backlash, docs/model.md §3.
 
 A mesh between gears $i, j$ has a deflection $g$ along the line of action (m, positive = drive
 flank compressed) and a total backlash $b_t$ (m). The force is carried by two unilateral flanks:
@@ -92,7 +92,7 @@ def flank_forces(
 
     Drive: $K\\,\\mathrm{ramp}(g) + D\\,H(g)\\dot g$ (acts while $g > 0$); back:
     $-K\\,\\mathrm{ramp}(-h) + D\\,H(-h)\\dot h$ (acts while $h < 0$). Their sum along a common
-    line of action is $K_t f_g + D_t\\,\\tfrac{d}{dt}f_g$, docs/MODEL.md §3, with the damping on only
+    line of action is $K_t f_g + D_t\\,\\tfrac{d}{dt}f_g$, docs/model.md §3, with the damping on only
     while a flank is in contact. Sign: a positive force opposes growth of its deflection.
     """
     f_drive = stiffness * _smooth.ramp(drive, width) + damping * _smooth.step(drive, width) * drive_rate

@@ -1,5 +1,5 @@
-"""The physics of the 2K-H planetary stage (one joint), docs/MODEL.md §4: kinematics, inertia,
-deflections and forces. The stage data are in `_stage`, its linearisation in `_modes`.
+"""The physics of the 2K-H planetary stage (one joint), docs/model.md §4: kinematics, inertia,
+deflections and forces. The stage data are in `tolerax.physics.stage`, its linearisation in `tolerax.physics.modes`.
 
 Bodies: sun $s$ (input), carrier $c$ (output), $N$ planets $p_n$ at $\\psi_n$, ring $r$.
 
@@ -370,7 +370,7 @@ def stage_forces(
 def impact_rate_rates(
     stage: PlanetaryStage, q: Array, qd: Array, qdd: Array, impact_rates: Array
 ) -> Array:
-    """Time derivative of the contacts' impact-rate states (m/s²), see `_contact`."""
+    """Time derivative of the contacts' impact-rate states (m/s²), see `tolerax.physics.contact`."""
     bearing = _stacked_bearing(stage)
     if bearing is None:
         return jnp.zeros(0)

@@ -1,6 +1,6 @@
-"""The data of a 2K-H planetary stage (docs/MODEL.md §4): supports, mesh families, the stage itself,
-its checks, and the index map of its coordinates. The physics is in `_planetary`, the
-linearisation in `_modes`, construction from gear data in `_gears`.
+"""The data of a 2K-H planetary stage (docs/model.md §4): supports, mesh families, the stage itself,
+its checks, and the index map of its coordinates. The physics is in `tolerax.physics.planetary`, the
+linearisation in `tolerax.physics.modes`, construction from gear data in `tolerax.physics.gears`.
 
 Structure (static: decides which coordinates and terms exist): tooth and planet counts, each
 support's kind, each mesh family's kind and whether its backlash is dynamic. Values (arrays:
