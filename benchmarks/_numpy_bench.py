@@ -19,8 +19,8 @@ import numpy as np
 
 import tolerax
 
-DRAG_SPEED = 1e-3  # rad/s, tolerax._drives
-CLIP_WIDTH = 1e-3  # tolerax._contact
+DRAG_SPEED = 1e-3  # rad/s, tolerax.mechanism.drives
+CLIP_WIDTH = 1e-3  # tolerax.physics.contact
 FORCE_FLOOR = 1e-100
 
 

@@ -4,7 +4,7 @@
         [--methods baseline gradient gradient-long random grid cma optuna random-compute verify]
         [--long-outer 10] [--long-inner 6] [--mode forward] [--verify-units 10]
 
-The problem is `tolerax.propose_design`'s own (`tolerax._propose.design_problem`): on the azimuth
+The problem is `tolerax.propose_design`'s own (`tolerax.design.propose.design_problem`): on the azimuth
 scan (`tolerax.scan("azimuth", fidelity=("lumped", "ideal"))`, 0.6 s from a steady start, one
 reversal at 0.25 s), choose per feature the lower limit of the tolerance zone (>= 5 um) and the
 band half-width (1-50 um) of the output-bearing and planet-pin clearances and the sun- and
@@ -48,9 +48,9 @@ import jax
 import numpy as np
 
 import tolerax as tx
-from tolerax._propose import design_problem
+from tolerax.design.propose import design_problem
 
-import _results
+import harness
 
 PENALTY = 10.0
 
@@ -131,17 +131,8 @@ def gradient_cost_ratio(problem, f_z, to_x, width):
     """A gradient's wall time in forward solves, measured here, after compilation (best of 2)."""
     z = np.full(2 * len(problem.features.names), 0.5)
     grad = eqx.filter_jit(jax.grad(lambda x: problem.objective(x, problem.draws, width)))
-    x = to_x(z)
-    jax.block_until_ready(grad(x))
-    f_z(z)
-    t_f = t_g = np.inf
-    for _ in range(2):
-        t = time.perf_counter()
-        f_z(z)
-        t_f = min(t_f, time.perf_counter() - t)
-        t = time.perf_counter()
-        jax.block_until_ready(grad(x))
-        t_g = min(t_g, time.perf_counter() - t)
+    _, t_g, _ = harness.timed(grad, to_x(z), repeats=2)
+    _, t_f, _ = harness.timed(f_z, z, repeats=2)
     return t_g / t_f, t_f
 
 
@@ -235,7 +226,7 @@ def main():
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--table-only", action="store_true")
     args = parser.parse_args()
-    out = _results.results_dir() / "design_comparison"
+    out = harness.results_dir() / "design_comparison"
     out.mkdir(exist_ok=True)
     pointing, problem = setup(args)
     budget = args.outer * (args.inner + 1)
@@ -302,10 +293,10 @@ def write(args, problem, out):
             )
         if "table" in o:
             notes.append(f"The `{method}` method's proposal:\n\n" + o["table"])
-    _results.write_table(
+    harness.write_table(
         "design_comparison",
         "Tolerance design: gradients against derivative-free search at the same budget",
-        _results.command(args),
+        harness.command(args),
         ["method", "budget used", "wall (s)", "cost (IT7 = 1 per feature)", f"objective (arcsec, <= {args.requirement:g})", "meets",
          "lower limits (um)", "bands +- (um)", "planetary, fresh units: mean + std (arcsec)", "planetary yield [95 %]"],
         rows,

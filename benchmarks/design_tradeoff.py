@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 import tolerax as tx  # noqa: E402
 
-import _results  # noqa: E402
+import harness  # noqa: E402
 
 
 def main():
@@ -65,13 +65,13 @@ def main():
     ax.set_ylabel("tolerance cost (1 per feature at IT7)")
     ax.legend()
     fig.tight_layout()
-    png = _results.results_dir() / "design_tradeoff.png"
+    png = harness.results_dir() / "design_tradeoff.png"
     fig.savefig(png, dpi=120)
-    (_results.results_dir() / "design_tradeoff.json").write_text(json.dumps(dict(command=_results.command(args), points=curve), indent=1))
-    _results.write_table(
+    (harness.results_dir() / "design_tradeoff.json").write_text(json.dumps(dict(command=harness.command(args), points=curve), indent=1))
+    harness.write_table(
         "design_tradeoff",
         "Tolerance cost against required pointing accuracy",
-        _results.command(args),
+        harness.command(args),
         ["requirement (arcsec)", "objective (arcsec)", "met", "cost", "baseline cost", "bands +- (um)", "ISO grades", "lower limits (um)",
          "multiplier (cost per arcsec)", "wall (s)"],
         rows,

@@ -23,7 +23,6 @@ error). Central differences use h = `--fd-step` (m).
 
 import argparse
 import os
-import time
 
 import diffrax
 import equinox as eqx
@@ -32,20 +31,7 @@ import numpy as np
 
 import tolerax as tx
 
-import _results
-
-
-def _timed(fn, *args, repeats):
-    """First call (compiles), then `repeats` timed calls: (compile s, best s, output)."""
-    start = time.perf_counter()
-    out = jax.block_until_ready(fn(*args))
-    first = time.perf_counter() - start
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
-        out = jax.block_until_ready(fn(*args))
-        best = min(best, time.perf_counter() - start)
-    return first - best, best, out
+import harness
 
 
 def main():
@@ -78,9 +64,9 @@ def main():
         return int(res.num_steps), int(res.num_rejected)
 
     # The reference first: everything else is compared with it.
-    ref_compile, ref_time, reference = _timed(eqx.filter_jit(jax.grad(objective(args.reference_rtol))), p0, repeats=1)
+    ref_compile, ref_time, reference = harness.timed(eqx.filter_jit(jax.grad(objective(args.reference_rtol))), p0, repeats=1)
     reference = np.asarray(reference)
-    _, _, ref_forward = _timed(
+    _, _, ref_forward = harness.timed(
         eqx.filter_jit(jax.jacfwd(objective(args.reference_rtol, diffrax.ForwardMode()))), p0, repeats=0
     )
     ref_check = np.linalg.norm(np.asarray(ref_forward) - reference) / np.linalg.norm(reference)
@@ -88,7 +74,7 @@ def main():
     print("reference", reference * 1e-6, "forward-mode check", ref_check, flush=True)
 
     f = objective(args.rtol)
-    fwd_compile, fwd_time, value = _timed(eqx.filter_jit(f), p0, repeats=args.repeats)
+    fwd_compile, fwd_time, value = harness.timed(eqx.filter_jit(f), p0, repeats=args.repeats)
     rows = []
 
     def row(method, compile_s, time_s, grad, note=""):
@@ -99,17 +85,17 @@ def main():
 
     rows.append(["forward solve (value only)", f"{fwd_compile:.0f}", f"{fwd_time:.3f}", "1.0", "", f"RMS {float(value):.3f} arcsec"])
     for label, adjoint in [("default", None)] + [(f"checkpoints={c}", diffrax.RecursiveCheckpointAdjoint(checkpoints=c)) for c in args.checkpoints]:
-        c, t, g = _timed(eqx.filter_jit(jax.grad(objective(args.rtol, adjoint))), p0, repeats=args.repeats)
+        c, t, g = harness.timed(eqx.filter_jit(jax.grad(objective(args.rtol, adjoint))), p0, repeats=args.repeats)
         row(f"reverse: RecursiveCheckpointAdjoint ({label})", c, t, g)
     if not args.no_backsolve:
         try:
-            c, t, g = _timed(eqx.filter_jit(jax.grad(objective(args.rtol, diffrax.BacksolveAdjoint()))), p0, repeats=args.repeats)
+            c, t, g = harness.timed(eqx.filter_jit(jax.grad(objective(args.rtol, diffrax.BacksolveAdjoint()))), p0, repeats=args.repeats)
             row("reverse: BacksolveAdjoint", c, t, g)
         except Exception as error:  # report what happens, whatever it is
             message = " ".join(str(error).split())[:300]
             rows.append(["reverse: BacksolveAdjoint", "", "", "", "", f"fails: {type(error).__name__}: {message}"])
             print(rows[-1], flush=True)
-    c, t, g = _timed(eqx.filter_jit(jax.jacfwd(objective(args.rtol, diffrax.ForwardMode()))), p0, repeats=args.repeats)
+    c, t, g = harness.timed(eqx.filter_jit(jax.jacfwd(objective(args.rtol, diffrax.ForwardMode()))), p0, repeats=args.repeats)
     row(f"forward: ForwardMode + jacfwd ({n} tangents)", c, t, g)
     jf = eqx.filter_jit(f)
     h = args.fd_step
@@ -117,7 +103,7 @@ def main():
     def central(p):
         return np.array([(jf(p.at[k].add(h)) - jf(p.at[k].add(-h))) / (2 * h) for k in range(n)])
 
-    _, t, g = _timed(central, p0, repeats=args.repeats)
+    _, t, g = harness.timed(central, p0, repeats=args.repeats)
     row(f"central differences ({2 * n} forward solves, h = {h:g} m)", 0.0, t, g, "compiled with the forward solve")
     loads.append(os.getloadavg())
 
@@ -126,10 +112,10 @@ def main():
     names = tx.design_names(scene)
     grad_rows = [[name, f"{r * 1e-6:.6g}", f"{fr * 1e-6:.6g}"] for name, r, fr in zip(names, reference, np.asarray(ref_forward))]
     meets = [r[0] for r in rows[1:] if r[3] and float(r[3]) <= 3.0]
-    _results.write_table(
+    harness.write_table(
         "gradient_methods",
         "Gradient methods: cost as a multiple of a forward solve, and accuracy",
-        _results.command(args),
+        harness.command(args),
         ["method", "compile (s)", "wall (s, best of %d)" % args.repeats, "x forward", "abs(grad - ref) / abs(ref)", "note"],
         rows,
         about=(
@@ -151,7 +137,7 @@ def main():
             "reference is mostly the solver's error, not the method's.",
         ],
         sections=[
-            _results.Section(
+            harness.Section(
                 "Reference gradient (arcsec/um)",
                 ["design variable", f"reverse mode, rtol {args.reference_rtol:g}", f"forward mode, rtol {args.reference_rtol:g}"],
                 grad_rows,

@@ -6,7 +6,7 @@ output a pointing study reads, over a long horizon.
 
 Writes `benchmarks/results/mass_scaling.{md,json,png}` (`--output`: another stem).
 
-Scene: `tolerax.antenna("dual", fidelity=...)` (the `long_horizon.py` / `mechanism_cost.py`
+Scene: `tolerax.antenna("dual", fidelity=...)` (the `mechanism_cost.py`
 scene: free base, 0.98 deg/s on both joints, 100 um clearances and backlash), steady start,
 `simulate`'s defaults (Tsit5, rtol 1e-6, atol 1e-9), saved at 2 kHz. Runs, in one process: the
 full stage (`PlanetaryJoint`), the control (below), then `MassScaledPlanetaryJoint` at each `--scalings` $s$ (the
@@ -35,15 +35,13 @@ control's.
 import argparse
 import json
 import os
-import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 import tolerax
 
-import _results
+import harness
 
 FAMILIES = ("sun", "carrier", "planet")
 
@@ -85,10 +83,10 @@ def run(scaling, args, rtol=1e-6):
     # First a 10 ms solve: the same program (only the save times' values differ), so it times the
     # compilation (plus 10 ms of simulation) without solving the whole horizon twice.
     for duration in (0.01, args.duration):
-        start = time.perf_counter()
-        res = tolerax.simulate(mech, duration, n_save=n_save, start="steady", rtol=rtol, atol=1e-3 * rtol)
-        jax.block_until_ready(res.ts)
-        walls.append(time.perf_counter() - start)
+        _, wall, res = harness.timed(
+            tolerax.simulate, mech, duration, repeats=0, n_save=n_save, start="steady", rtol=rtol, atol=1e-3 * rtol
+        )
+        walls.append(wall)
         if not res.success:
             raise SystemExit(f"mass_scaling={scaling}: " + "\n".join(res.failures()))
     values, pe, ts = outputs(res, args.window_start)
@@ -125,7 +123,7 @@ def render(payload, stem):
             rel = (x - ref) / abs(ref) if ref else float("nan")
             cells.append(f"{x:.4g} ({100 * rel:+.1f} %)")
         out_rows.append(cells)
-    section = _results.Section(
+    section = harness.Section(
         f"Outputs over {payload['window_start']:g}-{payload['duration']:g} s (relative difference to the full stage)",
         ["output", "planetary (full)"] + [_label(r).replace("planetary-scaled, ", "").replace("planetary (full), ", "full, ") for r in runs[1:]],
         out_rows,
@@ -137,7 +135,7 @@ def render(payload, stem):
             "spread of that output, the floor for reading the scaled columns.",
         ],
     )
-    _results.write_table(
+    harness.write_table(
         stem.name,
         "Mass-scaled planetary joints against the full stage",
         payload["command"],
@@ -182,13 +180,13 @@ def main():
     parser.add_argument("--window-start", type=float, default=1.0, help="start of the output window (s)")
     parser.add_argument("--render", action="store_true", help="rewrite the .md from the saved .json (no runs, no figure)")
     args = parser.parse_args()
-    stem = _results.results_dir() / args.output
+    stem = harness.results_dir() / args.output
     if args.render:
         render(json.loads(stem.with_suffix(".json").read_text()), stem)
         return
     if not 0.0 <= args.window_start < args.duration:
         parser.error("--window-start must lie in [0, duration)")
-    payload = dict(command=_results.command(args), duration=args.duration, window_start=args.window_start, runs=[], load=[])
+    payload = dict(command=harness.command(args), duration=args.duration, window_start=args.window_start, runs=[], load=[])
     traces = []
     runs = [(None, 1e-6)] + ([(None, args.control_rtol)] if args.control_rtol else []) + [(s, r) for s in args.scalings for r in args.rtols]
     for scaling, rtol in runs:

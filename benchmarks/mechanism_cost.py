@@ -8,7 +8,7 @@ Tsit5 rtol 1e-6 atol 1e-9).
 `--scalings` adds a `planetary-scaled` row at each given `mass_scaling` (the fidelity's own row
 uses its default, 10), and `--rtols` one more per scaling at each looser relative tolerance, with
 atol 1e-3 rtol (the mass-scaled stage's steps are limited by accuracy more than by stability,
-fast_modes_scaled.md; what the looser tolerances cost in each output: mass_scaling_rtol.md),
+archive/fast_modes_scaled.md; what the looser tolerances cost in each output: mass_scaling_rtol.md),
 and `--pid` each of those once more with a PI step-size controller;
 a note gives each row's pointing RMS against the full planetary row of the same run. The load average before each scene is recorded: absolute wall times mean
 something only on an otherwise idle machine (on this 2-core VM a second busy process slowed a
@@ -16,8 +16,7 @@ planetary run about 2.5x), and even alone the same solve varies up to ~2.7x from
 (host noise), so `--repeats` reports the fastest of several runs. Ratios within one run and step
 counts are the robust figures.
 
-Writes `benchmarks/results/mechanism_cost.md` (the measurement is `tolerax._timing.fidelity_cost`,
-also behind `tolerax bench`). Each scene is solved 1 + `--repeats` times: the first
+Writes `benchmarks/results/mechanism_cost.md` (the measurement is `harness.fidelity_cost`). Each scene is solved 1 + `--repeats` times: the first
 call's time minus the fastest later one is the compile time; the fastest later one is the run time
 (same machine, same run, so the ratios between fidelities are what to read).
 """
@@ -26,9 +25,8 @@ import argparse
 import os
 
 import tolerax
-from tolerax._timing import cost_table, fidelity_cost
-
-import _results
+import harness
+from harness import cost_table, fidelity_cost
 
 
 def main():
@@ -67,14 +65,14 @@ def main():
         ref = full[0]["pointing_rms_arcsec"]
         notes.append(
             "Pointing RMS against the planetary row (Tsit5 rtol 1e-6; itself within 0.011 % of an rtol 1e-8 run over "
-            "1-5 s, long_horizon.md): "
+            "1-5 s, archive/long_horizon.md): "
             + "; ".join(f"{r['fidelity']} {100 * (r['pointing_rms_arcsec'] / ref - 1):+.2f} %" for r in rows if r is not full[0])
             + "."
         )
-    _results.write_table(
+    harness.write_table(
         "mechanism_cost",
         "Dual-axis mechanism: cost per fidelity",
-        _results.command(args),
+        harness.command(args),
         columns,
         cells,
         about=f"{args.duration} s simulated per scene, steady start, 0.98 deg/s both joints. Load average (1 min) "

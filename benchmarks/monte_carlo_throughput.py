@@ -44,7 +44,7 @@ import numpy as np
 
 import tolerax
 
-import _results
+import harness
 
 
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
@@ -261,7 +261,7 @@ def main():
                                          for r, f in pairs) + ".")
             notes.append(which_backend(rows, cluster_start))
             heading = f'{fidelity}: `scan("azimuth", fidelity=("{fidelity}", "ideal"))`, {duration} s per sample'
-            sections.append(_results.Section(heading, COLUMNS, table_rows(rows), notes))
+            sections.append(harness.Section(heading, COLUMNS, table_rows(rows), notes))
     finally:
         if client is not None:
             client.close()
@@ -287,10 +287,10 @@ def main():
             "--chunks 1 16 64 256 --lumped-samples 256 --planetary-samples 64`; for processes or dask workers on "
             "one GPU, set `XLA_PYTHON_CLIENT_PREALLOCATE=false`, or each worker claims most of its memory."
         )
-    _results.write_table(
+    harness.write_table(
         args.output,
         "Monte Carlo throughput by backend and chunk size (azimuth scan scene, `tolerax.monte_carlo`)",
-        _results.command(args),
+        harness.command(args),
         sections[0].columns, sections[0].rows,
         intro=intro + [f"## {sections[0].heading}"],
         notes=list(sections[0].notes),

@@ -15,9 +15,9 @@ import argparse
 import json
 import pathlib
 
-from tolerax._studies import SIZES
+from tolerax.studies import SIZES
 
-import _results
+import harness
 
 LABELS = ("mode", "rate", "case", "carrier", "planet", "backlash", "fidelity")
 METRICS = (
@@ -62,7 +62,7 @@ def main():
         if not rows:
             continue
         windows = (_window(next(iter(short.values()))), _window(long_rows[0]))
-        sections.append(_results.Section(
+        sections.append(harness.Section(
             f"{study}: {len(long_rows)} scenes at the long horizon",
             ["scene", "metric", f"3 s run, metrics over {windows[0]}", f"long run, metrics over {windows[1]}"],
             rows,
@@ -70,10 +70,10 @@ def main():
     if not sections:
         raise SystemExit(f"no study of {args.long} has a row matching {args.short}")
     first = sections[0]
-    _results.write_table(
+    harness.write_table(
         "study_horizon",
         "The paper's studies at 3 s and at a long horizon, scene by scene",
-        _results.command(args),
+        harness.command(args),
         first.columns,
         first.rows,
         about=("Both runs start in steady rolling (`start=\"steady\"`, as every study) with the same scenes "

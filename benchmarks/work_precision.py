@@ -53,7 +53,7 @@ from jax.flatten_util import ravel_pytree
 
 import tolerax
 
-import _results
+import harness
 
 
 # --------------------------------------------------------------------------------------------
@@ -129,23 +129,18 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
     """Solve once to compile, then time; returns (record, quantities)."""
 
     def run():
-        return jax.block_until_ready(
-            tolerax.simulate(
-                scene, case.duration, start=case.start, n_save=case.n_save, solver=solver, rtol=rtol,
-                atol=1e-3 * rtol, max_steps=max_steps, fixed_step=fixed_step, throw=False,
-            )
+        return tolerax.simulate(
+            scene, case.duration, start=case.start, n_save=case.n_save, solver=solver, rtol=rtol,
+            atol=1e-3 * rtol, max_steps=max_steps, fixed_step=fixed_step, throw=False,
         )
 
-    start = time.perf_counter()
-    res = run()
-    first = time.perf_counter() - start
+    _, first, res = harness.timed(run, repeats=0)
     best, repeats = math.inf, 0
     if first > 120.0:  # a slow configuration: one run, compile included (flagged in the table)
         best, repeats = first, 3
     while repeats < 3 and (repeats == 0 or best < 2.0):
-        start = time.perf_counter()
-        res = run()
-        best = min(best, time.perf_counter() - start)
+        _, wall, res = harness.timed(run, repeats=0)
+        best = min(best, wall)
         repeats += 1
     ok = res.success
     record = dict(
@@ -277,7 +272,7 @@ def main():
     if args.mass_scalings and case.name != "dual-planetary":
         parser.error("--mass-scalings needs --scene dual-planetary (the scaled joints replace planetary ones)")
     if args.render:
-        saved = json.loads((_results.results_dir() / f"work_precision_{case.name}.json").read_text())
+        saved = json.loads((harness.results_dir() / f"work_precision_{case.name}.json").read_text())
         case = dataclasses.replace(case, duration=saved["duration"], description=saved["scene"])
         # JSON written before the command was recorded: the default run of this scene.
         command = saved.get("command", f"python benchmarks/work_precision.py --scene {case.name}")
@@ -290,7 +285,7 @@ def main():
     scene = case.make(default_width)
     rows = []
     call = rhs_call_cost(scene, case.start)
-    command = _results.command(args)
+    command = harness.command(args)
     numpy_info = None
     if case.name == "bench" and not (args.no_scipy or args.no_numpy):
         from _numpy_bench import numpy_rhs
@@ -368,7 +363,7 @@ def main():
 
 
 def write(case, command, rows, ref_rec, agreement, call, numpy_info=None):
-    stem = _results.results_dir() / f"work_precision_{case.name}"
+    stem = harness.results_dir() / f"work_precision_{case.name}"
     keys = list(next((r["errors"] for r in rows if r["errors"]), agreement or {}).keys())
     payload = dict(
         scene=case.description, duration=case.duration, command=command, reference=ref_rec,
@@ -383,7 +378,7 @@ def write(case, command, rows, ref_rec, agreement, call, numpy_info=None):
             errs = ["failed: " + (r["result"] or "no result")[:60]] + [""] * (len(keys) - 1)
         steps = f"{r['steps']} ({r['rejected']} rejected)" if not r["family"].startswith("scipy") else f"{r.get('nfev', 0)} f-evals, {r.get('njev', 0)} Jacobians"
         table.append([r["family"], r["method"], f"{r['rtol']:g}", f"{r['eps']:g}", f"{r['wall_s']:.3f}", f"{r['compile_s']:.1f}", steps, *errs])
-    _results.write_table(
+    harness.write_table(
         stem.name,
         f"Work-precision: {case.name}",
         command,

@@ -83,7 +83,7 @@ def test_failure_is_reported_not_hidden():
 
 def test_fixed_step_beyond_stability_is_a_failure_not_nan():
     # The paper's fixed 1e-4 s step is ~3x beyond Tsit5's stability limit for the ~18 kHz
-    # sun/mesh mode (benchmarks/results/bench_profile.md): the states blow up to NaN while
+    # sun/mesh mode (benchmarks/results/archive/bench_profile.md): the states blow up to NaN while
     # diffrax, taking constant steps, has no error estimate to refuse them. That must come back
     # as a failure, not as numbers.
     bench = tx.TestBench()

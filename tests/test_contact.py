@@ -425,7 +425,7 @@ def test_force_gradients_finite_through_contact_onset(kind):
     # design parameters) must be finite everywhere, in particular a fraction of a micrometre
     # before contact, where the smoothing tail makes F_el ~ 1e-283 N and a clip width
     # proportional to F_el once made the ramp's width derivative x / w^2 overflow (NaN gradients
-    # of a whole simulation, found by benchmarks/gradient_cost.py).
+    # of a whole simulation, found by benchmarks/gradient_cost.py, archived: benchmarks/results/archive/gradient_cost.md).
     law = tolerax.AdamsImpact() if kind == "Adams" else LAW_CLASSES[kind](0.5)
 
     def force(bearing, x, v, rate):

@@ -51,7 +51,7 @@ def test_scan_gradients_against_finite_differences(scan_pointing):
     gradient of the RMS pointing error matches central differences, and the forward-mode one
     matches it. At the 1 um smoothing width of the optimiser's continuation the objective is
     nearly smooth at finite-difference scale:
-    benchmarks/gradient_horizon.md measured |AD - FD| / |FD| = 7.1e-4 on this scene, with the
+    benchmarks/results/archive/gradient_horizon.md measured |AD - FD| / |FD| = 7.1e-4 on this scene, with the
     differences at 10 nm and 100 nm steps themselves differing by 4.9e-4; the tolerance, 2e-3,
     is about three times that noise. (At the default 1 nm width the same comparison differs by
     6 %: the output bearing's impacts make the objective rough at that scale.)"""

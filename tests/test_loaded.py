@@ -51,7 +51,7 @@ def test_lumped_loaded_state_is_the_closed_form(mode, base, sign, tol):
 
 def test_lumped_run_from_loaded_state_is_quiet():
     # From "steady" (servo at zero lag) the output's speed swings by ~10 mrad/s within 0.3 s as
-    # the servo builds its lag against the drag (benchmarks/results/loaded_start.md); from
+    # the servo builds its lag against the drag (benchmarks/results/archive/loaded_start.md); from
     # "loaded" the mechanism is already in equilibrium: speed error (X, Z) below 2 urad/s
     # (measured 0.5), pointing error constant. Same compiled program (only y0 differs).
     mech = tx.antenna("dual", fidelity="lumped")

@@ -67,7 +67,7 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 # state's right-hand side of these scenes (36 x 36 mass matrices, many kernels of a few
 # microseconds) that costs more than it saves: a single solve runs 12 % faster without them
 # (planetary and lumped dual-axis antenna, same steps and results; vmapped over 64 states they
-# pay, so Monte Carlo's batched programs keep the default). benchmarks/results/rhs_anatomy.md.
+# pay, so Monte Carlo's batched programs keep the default). benchmarks/results/archive/rhs_anatomy.md.
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
 
 

@@ -379,7 +379,7 @@ class Mechanism(AbstractScene):
           rate in rigid kinematics (sun at $i\\Omega$, planets rolling), meshes undeflected and
           the servo at zero lag. The servo then builds its lag against the output drag: the
           output's speed swings and settles over ~2 s at the default gains
-          (`benchmarks/results/loaded_start.md`).
+          (`benchmarks/results/archive/loaded_start.md`).
         - `"loaded"`: the loaded steady state itself (`loaded_state`): speeds as `"steady"`, and
           each servo lagging its command by what the drag needs, the gear train's play taken up
           on the loaded flanks and every mesh and contact deflected under that load. Needs
@@ -419,7 +419,7 @@ class Mechanism(AbstractScene):
         about the azimuth axis, ~1e-3 N): the carrier floats in its clearance, where that force
         has no gradient to follow, so it drifts to the bearing wall over the first 1-2 s of a
         run (lumped joints: output-bearing peaks of 0.5-3.7 N from 1 s, speed error up to
-        7 urad/s, `benchmarks/results/loaded_start.md`)."""
+        7 urad/s, `benchmarks/results/archive/loaded_start.md`)."""
         lay = self.layout
         for name, joint in (("azimuth", self.azimuth), ("pitch", self.pitch)):
             if joint.layout.size == 0:

@@ -101,7 +101,7 @@ def simulate(
       (`diffrax.PIDController`). The default (0, 1) is the I-controller; a PI controller
       (0.3, 0.3) rejects fewer steps in a rattling run (planetary dual-axis antenna in its
       developed rattle: 0.85x the right-hand-side evaluations, pointing within 5e-6 arcsec of an
-      rtol 1e-9 run, `benchmarks/results/explicit_window.md`). Python numbers: changing them
+      rtol 1e-9 run, `benchmarks/results/archive/explicit_window.md`). Python numbers: changing them
       recompiles (like `solver`); ignored with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).

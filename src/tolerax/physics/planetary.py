@@ -293,7 +293,7 @@ def stage_forces(
     `projection="jacobian"`: the deflections' Jacobian $D$ (n_deflections x n_q) formed once by
     forward mode over the stage's few coordinates, the rates $D\\dot q$ and the forces $-D^TF$ one
     product each (the joints' forces in the antenna's right-hand side cost 0.6x the other way,
-    `benchmarks/results/rhs_anatomy.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp` for the
+    `benchmarks/results/archive/rhs_anatomy.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp` for the
     projection (the formulation before; same values to rounding, kept for the equivalence test
     and the benchmark)."""
     width = stage.smoothing_width
