@@ -1,4 +1,4 @@
-"""One-degree-of-freedom impacts of a journal on each contact law (MODEL.md §2).
+"""One-degree-of-freedom impacts of a journal on each contact law (docs/model.md §2).
 
 A mass $m$ (the journal) moves along $x$ inside a bearing and hits the wall at $x = c$ with speed
 $v_0$. The smoothed tolerax model (force, penetration-rate state, diffrax) is compared with an
@@ -113,7 +113,7 @@ def _exact_elastic(kind, delta):
 
 
 def _exact_force(kind, ce, delta, rate, impact_rate):
-    """Exact clipped normal force (N) of MODEL.md §2; 0 out of contact."""
+    """Exact clipped normal force (N) of docs/model.md §2; 0 out of contact."""
     elastic = _exact_elastic(kind, delta)
     if kind == "Adams":
         s = np.clip(np.maximum(delta, 0.0) / _ADAMS_DMAX, 0.0, 1.0)
@@ -371,7 +371,7 @@ def test_contact_force_along_trajectory(kind):
 @pytest.mark.parametrize("kind", ["HertzLN", "Flores", "BaiZhao", "Adams"])
 @pytest.mark.parametrize("gap_in_widths", [10.0, 100.0, 1000.0])
 def test_no_force_out_of_contact(kind, gap_in_widths):
-    # MODEL.md §1: the smoothed functions' tails are exponentially small. Out of contact at a
+    # docs/model.md §1: the smoothed functions' tails are exponentially small. Out of contact at a
     # distance d from the wall the force must be at most of order F_el(WIDTH) * exp(-d / WIDTH);
     # anything of order F_el(WIDTH) is a force leaking across the whole clearance (it would act
     # during every free flight, doing work F * 2c per crossing).
@@ -548,7 +548,7 @@ def _call_force(case):
 @MORE
 @given(case=contact_cases())
 def test_normal_force_non_negative_and_finite(case):
-    # MODEL.md §2: the contact never pulls, for every law, penetration, penetration rate (a fast
+    # docs/model.md §2: the contact never pulls, for every law, penetration, penetration rate (a fast
     # separation makes 1 + chi rate / v- negative: the clip must act), impact rate (negative,
     # zero: the rate floor), restitution, width (0 included) and clearance (0 included).
     force, _, _ = _call_force(case)
@@ -601,7 +601,7 @@ def test_no_force_out_of_contact_in_exact_limit(case, depth):
 def test_smoothed_force_out_of_contact_decays_exponentially(
     kind, gap_in_widths, width_fraction, clearance, angle, rate, restitution, rate_floor
 ):
-    # MODEL.md §1: the smoothing tails are exponentially small, so the force a distance d outside
+    # docs/model.md §1: the smoothing tails are exponentially small, so the force a distance d outside
     # contact is at most of order F_el(eps) e^(-d/eps) (an algebraic tail, e.g. the sqrt-form
     # ramp, leaks force across the whole clearance). Bound, term by term, with g the smoothed
     # signed gap (<= -k eps): penetration ramp(g) <= eps e^(g/eps); F_el(lambda eps) <= lambda
@@ -668,7 +668,7 @@ def test_normal_force_at_rest_non_decreasing_in_eccentricity(case, r1, r2):
 
 
 def _exact_normal_force(kind, delta, rate, impact_rate, ce, clearance, rate_floor):
-    """MODEL.md §2 in numpy, unsmoothed: 0 out of contact; else max(0, F) with F the law.
+    """docs/model.md §2 in numpy, unsmoothed: 0 out of contact; else max(0, F) with F the law.
     Returns (force, magnitude of the largest term, F_el)."""
     if delta <= 0.0:
         return 0.0, 0.0, 0.0
@@ -699,7 +699,7 @@ def _exact_normal_force(kind, delta, rate, impact_rate, ce, clearance, rate_floo
 @MORE
 @given(case=contact_cases(width=st.just(0.0)))
 def test_exact_limit_is_the_exact_law(case):
-    # Width 0 must give the exact piecewise law (reference solutions): compared with MODEL.md §2
+    # Width 0 must give the exact piecewise law (reference solutions): compared with docs/model.md §2
     # written independently in numpy, for random penetrations, rates, impact rates, restitutions
     # and clearances. The journal moves along x so that |e| - c rounds identically in both.
     radius = float(np.hypot(*case["e"]))

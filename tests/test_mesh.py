@@ -1,4 +1,4 @@
-"""The gear-mesh kernels of `tolerax.mesh` (MODEL.md §3): dynamic backlash (paper eq. 2), mesh
+"""The gear-mesh kernels of `tolerax.mesh` (docs/model.md §3): dynamic backlash (paper eq. 2), mesh
 stiffness and profile error, the equivalent mass of a gear pair, the two flank forces.
 
 Examples against closed forms, and beside them property tests (hypothesis, strategies in
@@ -92,7 +92,7 @@ def centre_distances(draw, geometry):
 @SETTINGS
 @given(geometry=mesh_geometries(), internal=st.booleans(), data=st.data())
 def test_dynamic_backlash_monotone_in_centre_distance(geometry, internal, data):
-    # MODEL.md §3 / paper eq. 2: moving the gears apart opens an external mesh's backlash
+    # docs/model.md §3 / paper eq. 2: moving the gears apart opens an external mesh's backlash
     # (b_t non-decreasing in A') and closes the internal ring-planet one (non-increasing).
     a1 = data.draw(centre_distances(geometry))
     a2 = data.draw(centre_distances(geometry))
@@ -144,7 +144,7 @@ def test_dynamic_backlash_derivative(geometry, internal, data):
 @SETTINGS
 @given(geometry=mesh_geometries(), change=signed(1e-300, 1e-2))
 def test_dynamic_backlash_small_change_for_any_geometry(geometry, change):
-    # MODEL.md §3 small-change check: b_t - b0 - e = +-2 dA sin(alpha0) + O(dA^2), with the
+    # docs/model.md §3 small-change check: b_t - b0 - e = +-2 dA sin(alpha0) + O(dA^2), with the
     # remainder bounded by (dA^2 / 2) max b_t'' and b_t'' = 2 cos^2(alpha') / (A' sin(alpha'))
     # largest at the smallest A'. The internal and external formulas differ only by the sign of
     # the centre-distance term: b_ext + b_int = 2 (b0 + e).
@@ -330,7 +330,7 @@ def test_flank_force_signs_and_exact_contact(drive, back, drive_rate, back_rate,
 @SETTINGS
 @given(drive=X, backlash=BACKLASH, stiffness=STIFFNESS, width=WIDTH)
 def test_flank_forces_sum_to_dead_zone(drive, backlash, stiffness, width):
-    # MODEL.md §3: on a common line of action (h = g + b) the two flanks together are the mesh
+    # docs/model.md §3: on a common line of action (h = g + b) the two flanks together are the mesh
     # force K f_g(g) of the dead zone (damping off).
     f_drive, f_back = _flank_forces(drive, 0.0, drive + backlash, 0.0, stiffness, 0.0, width)
     total = scalar(f_drive) + scalar(f_back)

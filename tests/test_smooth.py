@@ -1,4 +1,4 @@
-"""The smooth primitives of `tolerax.smooth` (MODEL.md §1) against the exact piecewise functions
+"""The smooth primitives of `tolerax.smooth` (docs/model.md §1) against the exact piecewise functions
 (numpy), their documented error bounds, and their gradients (finite at every kink; equal to finite
 differences where smooth).
 
@@ -316,7 +316,7 @@ def test_dead_zone_odd_about_gap_centre(width, backlash):
 @SETTINGS
 @given(g=X, backlash=BACKLASH, width=WIDTH)
 def test_dead_zone_odd_about_gap_centre_for_any_input(g, backlash, width):
-    # MODEL.md §1: the dead zone is odd about the centre of the gap g = -b/2, i.e.
+    # docs/model.md §1: the dead zone is odd about the centre of the gap g = -b/2, i.e.
     # f_g(g) = -f_g(-g - b) (ramp(g) - ramp(-g - b) swaps its two ramps), so a gear centred in
     # its backlash feels no force and the two flanks are symmetric. Zero at mid-gap.
     mirror = -g - backlash
@@ -431,7 +431,7 @@ _primitive_derivatives = jax.jit(_primitive_derivatives_impl)
     backlash=BACKLASH,
 )
 def test_primitive_derivatives_finite(offset, anchor, width, backlash):
-    # MODEL.md §1: gradients finite everywhere, in reverse and forward mode, including exactly at
+    # docs/model.md §1: gradients finite everywhere, in reverse and forward mode, including exactly at
     # each kink (x = 0 and, for the dead zone, g = -b and mid-gap g = -b/2; offset = 0 is drawn
     # often), at width 0, at zero backlash and at zero norm (v = (x, b) = 0), for arguments from
     # 1e-300 to 1e3 and widths from 1e-150 to 1e3. The traps: sqrt at 0, x^1.5 written as
