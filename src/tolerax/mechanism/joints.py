@@ -197,7 +197,7 @@ def planet_spin_ratio(stage):
     return -stage.carrier_radius * jnp.cos(stage.ring_pressure_angle) / stage.planet_base_radius
 
 
-class _RigidTrainJoint(AbstractJoint):
+class _AbstractRigidTrainJoint(AbstractJoint):
     """Shared kinematics of the fidelities whose planets roll rigidly on the fixed ring."""
 
     def planar(self, qj, t):
@@ -224,7 +224,7 @@ def disc_tensors(stage, motor_inertia, n_bodies):
     return masses, jnp.stack([0.5 * inertias, 0.5 * inertias, inertias], axis=-1)
 
 
-class IdealJoint(_RigidTrainJoint):
+class IdealJoint(_AbstractRigidTrainJoint):
     """A rigid joint (see the module docstring)."""
 
     @property
@@ -296,7 +296,7 @@ def lumped_mesh(stage: PlanetaryStage, motor_inertia) -> LumpedMesh:
     )
 
 
-class LumpedJoint(_RigidTrainJoint):
+class LumpedJoint(_AbstractRigidTrainJoint):
     """Sun and output coupled by one equivalent mesh, plus the output bearing (see the module
     docstring and `LumpedMesh`)."""
 
