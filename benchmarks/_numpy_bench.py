@@ -1,7 +1,7 @@
 """The test bench's equations of motion written in plain NumPy, as a Python user without JAX would
 write them for `scipy.integrate.solve_ivp`: the SciPy baseline of `work_precision.py`.
 
-Same model as `tolerax.TestBench.vector_field` (docs/model.md §2-4; `_planetary`): the stage in
+Same model as `tolerax.TestBench.vector_field` (docs/model.md §2-4; `tolerax.physics.planetary`): the stage in
 Lin & Parker's coordinates with a fixed ring, clearance contacts at the sun, carrier and planet
 pins (the paper's BaiZhao law), nonlinear meshes with time-varying stiffness, profile error and
 dynamic backlash, smoothed with the stage's width, a PI speed servo on the sun and a smoothed drag

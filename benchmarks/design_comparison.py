@@ -2,9 +2,10 @@
 
     python benchmarks/design_comparison.py [--requirement 400] [--outer 4] [--inner 6]
         [--methods baseline gradient gradient-long random grid cma optuna random-compute verify]
-        [--long-outer 10] [--long-inner 6] [--mode forward] [--verify-units 10]
+        [--long-outer 10] [--long-inner 6] [--mode forward] [--verify-units 10] [--results DIR]
 
-The problem is `tolerax.propose_design`'s own (`tolerax.design.propose.design_problem`): on the azimuth
+The problem is `tolerax.propose_design`'s own (`tolerax.design.propose.design_problem`; the
+scene, horizon, units and budget options are `_design.py`'s, shared with `design_tradeoff.py`): on the azimuth
 scan (`tolerax.scan("azimuth", fidelity=("lumped", "ideal"))`, 0.6 s from a steady start, one
 reversal at 0.25 s), choose per feature the lower limit of the tolerance zone (>= 5 um) and the
 band half-width (1-50 um) of the output-bearing and planet-pin clearances and the sun- and
@@ -32,16 +33,14 @@ everywhere, +-10 um.
   clearance, which the lumped joint does not have, stays at 100 +- 10 um): mean + 1 std of the
   RMS pointing error, and the yield against the requirement with its 95 % Wilson interval.
 
-Each method's outcome is written to `benchmarks/results/design_comparison/<method>.json` as it
-finishes, so methods may run in separate processes (e.g. `--methods baseline gradient` in one,
+Each method's outcome is written to `benchmarks/results/design_comparison/<method>.json` (with
+`--results DIR`: DIR/design_comparison/) as it finishes, so methods may run in separate processes (e.g. `--methods baseline gradient` in one,
 `--methods random grid cma optuna random-compute` in another, then `--methods verify`); the
 table is assembled from whatever is there.
 """
 
-import argparse
 import json
 import math
-import time
 
 import equinox as eqx
 import jax
@@ -50,16 +49,15 @@ import numpy as np
 import tolerax as tx
 from tolerax.design.propose import design_problem
 
+import _design
 import harness
 
 PENALTY = 10.0
 
 
 def setup(args):
-    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
-    pointing = tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
-    problem = design_problem(pointing, n_draws=args.draws)
-    return pointing, problem
+    pointing = _design.pointing(args)
+    return pointing, design_problem(pointing, n_draws=args.draws)
 
 
 def evaluator(problem, width):
@@ -112,9 +110,7 @@ class Log:
 
 
 def run_gradient(args, pointing, problem, outer, inner):
-    start = time.perf_counter()
-    report = tx.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=outer, inner_steps=inner, gradient=args.mode)
-    wall = time.perf_counter() - start
+    wall, report = _design.propose(pointing, args.requirement, args, outer, inner, gradient=args.mode)
     print(report.table(), flush=True)
     x = tx.Design(report.result.x.nominal, report.result.x.band)
     hist = report.result.history
@@ -131,8 +127,8 @@ def gradient_cost_ratio(problem, f_z, to_x, width):
     """A gradient's wall time in forward solves, measured here, after compilation (best of 2)."""
     z = np.full(2 * len(problem.features.names), 0.5)
     grad = eqx.filter_jit(jax.grad(lambda x: problem.objective(x, problem.draws, width)))
-    _, t_g, _ = harness.timed(grad, to_x(z), repeats=2)
-    _, t_f, _ = harness.timed(f_z, z, repeats=2)
+    t_g = harness.timed(grad, to_x(z), repeats=2).run_s
+    t_f = harness.timed(f_z, z, repeats=2).run_s
     return t_g / t_f, t_f
 
 
@@ -142,55 +138,56 @@ def run_derivative_free(method, args, problem, budget):
     log = Log(problem, f, to_x, args.requirement, cost0)
     dim = 2 * len(problem.features.names)
     rng = np.random.default_rng(args.seed)
-    start = time.perf_counter()
-    if method.startswith("random"):
-        for _ in range(budget):
-            log(rng.uniform(0.0, 1.0, dim))
-    elif method == "grid":
-        n = len(problem.features.names)
-        levels = max(2, int(math.floor(budget ** (1.0 / n))))
-        bands = np.geomspace(problem.lower.band[0], problem.upper.band[0], levels)
-        span = np.asarray(problem.upper.band - problem.lower.band)
-        for combo in np.array(np.meshgrid(*[bands] * n, indexing="ij")).reshape(n, -1).T[:budget]:
-            z = np.concatenate([np.zeros(n), (combo - np.asarray(problem.lower.band)) / span])
-            log(z)
-    elif method == "cma":
-        import cma
 
-        es = cma.CMAEvolutionStrategy(
-            to_z(problem.x0), 0.3, {"bounds": [0.0, 1.0], "maxfevals": budget, "seed": args.seed + 1, "verbose": -9}
-        )
-        while not es.stop() and len(log.rows) < budget:
-            zs = es.ask()
-            zs = zs[: budget - len(log.rows)]
-            values = [log(z) for z in zs]
-            if len(values) < es.popsize:
-                break
-            es.tell(zs, values)
-    elif method == "optuna":
-        import optuna
+    def search():
+        if method.startswith("random"):
+            for _ in range(budget):
+                log(rng.uniform(0.0, 1.0, dim))
+        elif method == "grid":
+            n = len(problem.features.names)
+            levels = max(2, int(math.floor(budget ** (1.0 / n))))
+            bands = np.geomspace(problem.lower.band[0], problem.upper.band[0], levels)
+            span = np.asarray(problem.upper.band - problem.lower.band)
+            for combo in np.array(np.meshgrid(*[bands] * n, indexing="ij")).reshape(n, -1).T[:budget]:
+                log(np.concatenate([np.zeros(n), (combo - np.asarray(problem.lower.band)) / span]))
+        elif method == "cma":
+            import cma
 
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
-        study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=args.seed))
-        study.enqueue_trial({f"z{i}": float(v) for i, v in enumerate(to_z(problem.x0))})
-        study.optimize(lambda trial: log(np.array([trial.suggest_float(f"z{i}", 0.0, 1.0) for i in range(dim)])), n_trials=budget)
-    else:
-        raise ValueError(method)
+            es = cma.CMAEvolutionStrategy(
+                to_z(problem.x0), 0.3, {"bounds": [0.0, 1.0], "maxfevals": budget, "seed": args.seed + 1, "verbose": -9}
+            )
+            while not es.stop() and len(log.rows) < budget:
+                zs = es.ask()
+                zs = zs[: budget - len(log.rows)]
+                values = [log(z) for z in zs]
+                if len(values) < es.popsize:
+                    break
+                es.tell(zs, values)
+        elif method == "optuna":
+            import optuna
+
+            optuna.logging.set_verbosity(optuna.logging.WARNING)
+            study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=args.seed))
+            study.enqueue_trial({f"z{i}": float(v) for i, v in enumerate(to_z(problem.x0))})
+            study.optimize(lambda trial: log(np.array([trial.suggest_float(f"z{i}", 0.0, 1.0) for i in range(dim)])), n_trials=budget)
+        else:
+            raise ValueError(method)
+
+    wall, _ = harness.wall(search)
     best = log.best()
     x = to_x(best["z"])
     return dict(
         cost=best["cost"], objective=best["objective"], feasible=best["feasible"],
         x=dict(limit=np.asarray(x.nominal).tolist(), band=np.asarray(x.band).tolist()),
-        evaluations=f"{len(log.rows)} objective evaluations", wall=time.perf_counter() - start,
+        evaluations=f"{len(log.rows)} objective evaluations", wall=wall,
         n_feasible=sum(1 for r in log.rows if r[2] <= args.requirement),
     )
 
 
 def verify(args, pointing, problem, limit, band, key):
     """Fresh units at planetary fidelity and a 10x smaller smoothing width."""
-    scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
-    planetary = tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
-    scene = planetary.with_width(tx.design_of(scene), args.widths[-1] / 10)
+    planetary = _design.pointing(args, "planetary")
+    scene = planetary.with_width(tx.design_of(planetary.scene), args.widths[-1] / 10)
     planetary = eqx.tree_at(lambda p: p.scene, planetary, scene)
     # The planetary joint has one feature the lumped one lacks (its sun floats on a bearing):
     # it keeps the baseline's 100 um +- 10 um in every verification.
@@ -198,24 +195,20 @@ def verify(args, pointing, problem, limit, band, key):
     baseline = dict(zip(tx.design_names(scene), np.asarray(tx.design_of(scene))))
     nominal, bands = zip(*(designed.get(name, (baseline[name], 10e-6)) for name in baseline))
     tolerances = tx.Tolerances(tuple(baseline), nominal, bands)
-    start = time.perf_counter()
-    mc = tx.monte_carlo(planetary, tolerances, args.verify_units, key, chunk_size=1, progress=False,
-                        requirement={"pointing_rms": args.requirement})
+    wall, mc = harness.wall(tx.monte_carlo, planetary, tolerances, args.verify_units, key, chunk_size=1, progress=False,
+                            requirement={"pointing_rms": args.requirement})
     values = mc.dataset["pointing_rms"].values[mc.dataset["success"].values]
     summary = mc.summary()["pointing_rms"]
     return dict(
         mean_plus_std=float(np.mean(values) + np.std(values, ddof=1)), mean=float(np.mean(values)), n_used=int(summary["n_used"]),
-        yield_=float(summary["yield"]), interval=[summary["yield_low"], summary["yield_high"]], wall=time.perf_counter() - start,
+        yield_=float(summary["yield"]), interval=[summary["yield_low"], summary["yield_high"]], wall=wall,
     )
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--requirement", type=float, default=400.0)
-    parser.add_argument("--horizon", type=float, default=0.6)
-    parser.add_argument("--draws", type=int, default=4)
-    parser.add_argument("--outer", type=int, default=4)
-    parser.add_argument("--inner", type=int, default=6)
+    _design.add_arguments(parser)
     parser.add_argument("--widths", type=float, nargs="+", default=[1e-6, 1e-7])
     parser.add_argument("--methods", nargs="+", default=["baseline", "gradient", "random", "grid", "cma", "optuna", "random-compute", "verify"],
                         help="methods to run (gradient-long is not in the default: a larger budget than the others)")
@@ -225,7 +218,7 @@ def main():
     parser.add_argument("--verify-units", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--table-only", action="store_true")
-    args = parser.parse_args()
+    args = harness.parse_args(parser)
     out = harness.results_dir() / "design_comparison"
     out.mkdir(exist_ok=True)
     pointing, problem = setup(args)
@@ -305,8 +298,7 @@ def write(args, problem, out):
             "(benchmarks/README.md lists the commands; the command above is the last one). "
             f"Features: {', '.join(problem.features.names)}. Requirement: mean + 1 std of the RMS pointing error over "
             f"{args.draws} fixed units <= {args.requirement:g} arcsec, {args.horizon} s azimuth scan; verification on "
-            f"{args.verify_units} fresh units at planetary fidelity, smoothing {args.widths[-1] / 10:g} m. Machine load "
-            f"(1-min average) at the end: {__import__('os').getloadavg()[0]:.1f} on 2 cores."
+            f"{args.verify_units} fresh units at planetary fidelity, smoothing {args.widths[-1] / 10:g} m."
         ),
         notes=notes,
     )

@@ -1,19 +1,17 @@
 """The trade-off curve of tolerance design: the cheapest design's cost against the required
 pointing accuracy, one `propose_design` run per requirement (issue 12, item 8).
 
-    python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--outer 4] [--inner 6]
+    python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--outer 4] [--inner 6] [--results DIR]
 
-Same problem as `benchmarks/design_comparison.py`: the azimuth scan (lumped, 0.6 s, steady start),
+Same problem as `benchmarks/design_comparison.py` (`_design.py`): the azimuth scan (lumped, 0.6 s, steady start),
 mean + 1 std of the RMS pointing error over 4 fixed manufactured units, lower limits of every
 tolerance zone >= 5 um, bands 1-50 um, ISO 286 cost (1 per feature at IT7). Every run reuses one
 compiled optimiser iteration: only the requirement's value changes. Writes
 `benchmarks/results/design_tradeoff.md`, `.png` and `.json` (the points, which
-`notebooks/design_and_yield.ipynb` plots at its small size).
+`notebooks/design_and_yield.ipynb` plots at its small size; `--results DIR`: in DIR).
 """
 
-import argparse
 import json
-import time
 
 import matplotlib
 
@@ -23,24 +21,19 @@ import numpy as np  # noqa: E402
 
 import tolerax as tx  # noqa: E402
 
+import _design  # noqa: E402
 import harness  # noqa: E402
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--requirements", type=float, nargs="+", default=[300.0, 500.0, 800.0])
-    parser.add_argument("--horizon", type=float, default=0.6)
-    parser.add_argument("--draws", type=int, default=4)
-    parser.add_argument("--outer", type=int, default=4)
-    parser.add_argument("--inner", type=int, default=6)
-    args = parser.parse_args()
-    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
-    pointing = tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
+    _design.add_arguments(parser)
+    args = harness.parse_args(parser)
+    pointing = _design.pointing(args)
     rows, points, curve = [], [], []
     for requirement in args.requirements:
-        start = time.perf_counter()
-        report = tx.propose_design(pointing, requirement, n_draws=args.draws, max_outer=args.outer, inner_steps=args.inner)
-        wall = time.perf_counter() - start
+        wall, report = _design.propose(pointing, requirement, args)
         print(report.table(), flush=True)
         met = report.objective <= requirement * (1 + 1e-3)
         points.append((requirement, report.cost, met))
@@ -76,7 +69,7 @@ def main():
          "multiplier (cost per arcsec)", "wall (s)"],
         rows,
         about=(
-            f"Features in order: {', '.join(tx.design_names(scene))}. {args.outer} x {args.inner} optimiser steps per point. "
+            f"Features in order: {', '.join(tx.design_names(pointing.scene))}. {args.outer} x {args.inner} optimiser steps per point. "
             f"Figure: `{png.name}`. The multiplier is the optimiser's estimate of d cost / d requirement (its sign reversed)."
         ),
     )

@@ -1,67 +1,130 @@
 """The one benchmark harness: compile-then-time on the public API, the environment-and-load
 header, and the writer of `benchmarks/results/<name>.md`, shared by every benchmark script.
 
-- `timed(fn, *args, repeats=)`: call once (compiles), then `repeats` timed calls; the fastest is
-  the run time (noise on a shared or virtual machine only ever adds time), the first call's time
-  minus it the compile time.
+- `timed(fn, *args, repeats=)` -> `Timing`: call once (compiles), then up to `repeats` timed calls;
+  `run_s` is the fastest (noise on a shared or virtual machine only ever adds time), `median_s`
+  the median, `compile_s` the first call's time minus the fastest. `wall(fn, *args)`: one call,
+  `(seconds, output)`, blocked until its arrays are ready; every timing in the scripts is one of
+  these two.
 - `fidelity_cost` / `cost_table`: the dual-axis antenna at one joint fidelity, timed with `timed`
   (`mechanism_cost.py`).
+- `argument_parser(doc)` / `parse_args(parser)`: every script's options, plus `--results DIR`
+  (where to write; also `$TOLERAX_BENCH_RESULTS`), so a smoke run never overwrites the committed
+  results.
 - `write_table(...)`: each result file gets the same head: a title, then a line with the command
   that reproduces it (`command(args)`: every option spelled out) and the environment it ran in
-  (`environment()`: tolerax, jax and diffrax versions, JAX platform and device count, CPU cores,
-  the git commit, the date and the load average), then the script's own description, its
-  table(s) and notes. Scripts format their cells themselves, so each table keeps its columns and
-  number formats from run to run.
-
-Set `TOLERAX_BENCH_RESULTS=DIR` to write somewhere else than `benchmarks/results/` (a smoke run
-that must not overwrite the committed results).
+  (`environment()`: tolerax, jax, diffrax and Python versions, JAX platform, device count and
+  kind, CPU cores and how many this process may use, the git commit and whether src/ or
+  benchmarks/ had uncommitted changes, the date, the load averages at the start and at the end,
+  and the command line exactly as typed), then the script's own description, its table(s) and
+  notes. Scripts format their cells themselves, so each table keeps its columns and number
+  formats from run to run.
 """
 
+import argparse
 import dataclasses
 import datetime
+import math
 import os
 import pathlib
+import platform
 import shlex
+import statistics
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import diffrax
 import jax
+import numpy as np
 
 import tolerax
 
 ENV_VAR = "TOLERAX_BENCH_RESULTS"
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+START_LOAD = os.getloadavg()  # when the script imported the harness: the load it started under
 
 
-def timed(fn: Callable, *args, repeats: int = 1, **kwargs):
-    """`(compile_s, run_s, output)`: `fn(*args, **kwargs)` called once (compiling), then
-    `repeats` more times, each blocked until its arrays are ready; `run_s` is the fastest of the
-    later calls, `compile_s` the first call's time minus it. With `repeats=0` the one call's time
-    is `run_s` (compilation included) and `compile_s` is 0."""
-    times, out = [], None
-    for _ in range(1 + repeats):
-        start = time.perf_counter()
-        out = jax.block_until_ready(fn(*args, **kwargs))
-        times.append(time.perf_counter() - start)
-    if repeats == 0:
-        return 0.0, times[0], out
-    run = min(times[1:])
-    return max(times[0] - run, 0.0), run, out
+# ---------------------------------------------------------------------------------------------
+# Timing
+
 
 @dataclasses.dataclass(frozen=True)
-class Section:
-    """A further table after the main one: an optional `## heading`, the table, notes."""
+class Timing:
+    """What `timed` measured: `compile_s` (the first call minus the fastest later one; negative
+    or tiny: noise larger than the compilation; `nan` with no later call), `run_s` (the fastest
+    later call, or the only call), `median_s` (the median of the later calls), `times` (every
+    call, the compiling one first) and `output` (the last call's result)."""
 
-    heading: str | None
-    columns: Sequence[str]
-    rows: Sequence[Sequence[str]]
-    notes: Sequence[str] = ()
+    compile_s: float
+    run_s: float
+    median_s: float
+    times: tuple[float, ...]
+    output: Any
+
+
+def wall(fn: Callable, *args, **kwargs) -> tuple[float, Any]:
+    """`(seconds, output)` of one call `fn(*args, **kwargs)`, blocked until its arrays are ready
+    (a NumPy array is returned as is: blocking on it would add a microsecond to a call that
+    takes a few)."""
+    start = time.perf_counter()
+    out = fn(*args, **kwargs)
+    if not isinstance(out, np.ndarray):
+        out = jax.block_until_ready(out)
+    return time.perf_counter() - start, out
+
+
+def timed(
+    fn: Callable, *args, repeats: int = 1, enough_s: float = math.inf, once_s: float = math.inf, **kwargs
+) -> Timing:
+    """Compile, then time: `fn(*args, **kwargs)` called once (compiling), then up to `repeats`
+    more times, each blocked until its arrays are ready (`wall`).
+
+    - `enough_s`: stop repeating once the fastest timed call took at least this long (the noise
+      of a long call is small against it).
+    - `once_s`: when the compiling call took longer than this, do not repeat it: `run_s` is that
+      call's time, compilation included, and `compile_s` is `nan`.
+    - `repeats=0`: one call; the same as `once_s=0`.
+    """
+    first, out = wall(fn, *args, **kwargs)
+    times = [first]
+    if first <= once_s:
+        while len(times) <= repeats and (len(times) == 1 or min(times[1:]) < enough_s):
+            t, out = wall(fn, *args, **kwargs)
+            times.append(t)
+    later = times[1:]
+    if not later:
+        return Timing(math.nan, first, first, tuple(times), out)
+    return Timing(first - min(later), min(later), statistics.median(later), tuple(times), out)
+
+
+# ---------------------------------------------------------------------------------------------
+# Options, environment, result files
+
+
+def argument_parser(doc: str | None) -> argparse.ArgumentParser:
+    """A script's parser: its docstring as the help text, and `--results DIR`."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument(
+        "--results", type=pathlib.Path, metavar="DIR",
+        help=f"write the result files to DIR (default: ${ENV_VAR} where set, else benchmarks/results)",
+    )
+    return parser
+
+
+def parse_args(parser: argparse.ArgumentParser, argv: Sequence[str] | None = None) -> argparse.Namespace:
+    """`parser.parse_args(argv)`, with `--results DIR` made the results folder."""
+    args = parser.parse_args(argv)
+    if getattr(args, "results", None) is not None:
+        os.environ[ENV_VAR] = str(args.results)
+    return args
 
 
 def results_dir() -> pathlib.Path:
-    """`benchmarks/results/`, or `$TOLERAX_BENCH_RESULTS` where set (created if missing)."""
+    """`benchmarks/results/`, or `--results` / `$TOLERAX_BENCH_RESULTS` where set (created if
+    missing)."""
     out = pathlib.Path(os.environ.get(ENV_VAR) or pathlib.Path(__file__).parent / "results")
     out.mkdir(parents=True, exist_ok=True)
     return out
@@ -70,14 +133,15 @@ def results_dir() -> pathlib.Path:
 def command(args=None) -> str:
     """The command line that reproduces this run: `python benchmarks/<script>` with every option
     of the parsed `args` spelled out (defaults included, so the file records what ran even if a
-    default changes later); the raw command line where `args` is None."""
+    default changes later; `--results`, where the files went, left out); the raw command line
+    where `args` is None."""
     head = ["python", f"benchmarks/{pathlib.Path(sys.argv[0]).name}"]
     if args is None:
         return shlex.join(head + sys.argv[1:])
     words = []
     for dest, value in vars(args).items():
         option = "--" + dest.replace("_", "-")
-        if value is None or value is False:
+        if dest == "results" or value is None or value is False:
             continue
         if value is True:
             words.append(option)
@@ -88,23 +152,41 @@ def command(args=None) -> str:
     return shlex.join(head + words)
 
 
-def _commit() -> str:
+def load(averages: Sequence[float] | None = None) -> str:
+    """Load averages (1/5/15 min), now or the given ones, as `1.2/0.9/0.8`."""
+    return "/".join(f"{x:.1f}" for x in (os.getloadavg() if averages is None else averages))
+
+
+def _git(*words: str) -> str | None:
     try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
-                             cwd=pathlib.Path(__file__).parent)
-        return out.stdout.strip()
+        out = subprocess.run(["git", *words], capture_output=True, text=True, check=True, cwd=ROOT)
     except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+        return None
+    return out.stdout.strip()
+
+
+def commit() -> str:
+    """The short commit, with `+ uncommitted changes` where src/ or benchmarks/ (results aside)
+    differ from it."""
+    head = _git("rev-parse", "--short", "HEAD")
+    if head is None:
+        return "unknown commit"
+    dirty = _git("status", "--porcelain", "--", "src", "benchmarks", ":(exclude)benchmarks/results")
+    return f"commit {head}" + (" + uncommitted changes" if dirty else "")
 
 
 def environment() -> str:
-    """Versions, platform, commit, date and load, for the head line."""
+    """Versions, platform, commit, date, load and the command line as typed, for the head line."""
     devices = jax.devices()
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    typed = shlex.join([pathlib.Path(sys.executable).name] + sys.argv)
+    kind = devices[0].device_kind
     return (
         f"tolerax {tolerax.__version__}, jax {jax.__version__}, diffrax {diffrax.__version__}, "
-        f"{devices[0].platform} x{len(devices)}, {os.cpu_count()} CPU cores; commit {_commit()}, "
-        f"{datetime.date.today().isoformat()}, load average {load} at the end"
+        f"Python {platform.python_version()}, {devices[0].platform} x{len(devices)}"
+        f"{'' if kind == devices[0].platform else f' ({kind})'}, "
+        f"{os.cpu_count()} CPU cores ({usable} usable); {commit()}, {datetime.date.today().isoformat()}; "
+        f"load average {load(START_LOAD)} at the start, {load()} at the end; run as `{typed}`"
     )
 
 
@@ -120,6 +202,16 @@ def markdown_table(columns: Sequence[str], rows: Sequence[Sequence[str]]) -> lis
     return lines
 
 
+@dataclasses.dataclass(frozen=True)
+class Section:
+    """A further table after the main one: an optional `## heading`, the table, notes."""
+
+    heading: str | None
+    columns: Sequence[str]
+    rows: Sequence[Sequence[str]]
+    notes: Sequence[str] = ()
+
+
 def write_table(
     name: str,
     title: str,
@@ -131,6 +223,7 @@ def write_table(
     intro: Sequence[str] = (),
     notes: Sequence[str] = (),
     sections: Sequence[Section] = (),
+    env: str | None = None,
 ) -> pathlib.Path:
     """Write `results/<name>.md` and print it; returns its path.
 
@@ -138,8 +231,10 @@ def write_table(
     - `about`: text after the head line (scene, settings). `intro`: paragraphs before the table.
     - `columns`, `rows`: the main table, cells already formatted as strings.
     - `notes`: paragraphs after it. `sections`: further tables (`Section`), in order.
+    - `env`: the head line's environment where it is not this process's (a table rendered again
+      from a saved run: the environment that run recorded); default `environment()`.
     """
-    head = f"`{command}` ({environment()})."
+    head = f"`{command}` ({env or environment()})."
     lines = [f"# {title}", "", head + (f" {about}" if about else ""), ""]
     for paragraph in intro:
         lines += [paragraph, ""]
@@ -163,7 +258,7 @@ def write_table(
 # Cost per joint fidelity of the dual-axis antenna (mechanism_cost.py)
 
 COLUMNS = (
-    "fidelity", "DOFs (u)", "contacts", "compile (s)", "wall s per simulated s", "x {base}",
+    "fidelity", "DOFs (u)", "contacts", "compile (s)", "wall s per simulated s", "median wall s per simulated s", "x {base}",
     "accepted steps per simulated s", "rejected", "pointing RMS (arcsec)",
 )
 
@@ -189,21 +284,23 @@ def fidelity_cost(
     The scene is solved `1 + repeats` times (`timed`).
 
     **Returns:** a dict: `fidelity`, `dofs` (velocity coordinates), `contacts` (clearance contacts),
-    `compile_s`, `per_sim_s` (wall s per simulated s), `steps_per_sim_s` (accepted steps per
+    `compile_s`, `per_sim_s` (wall s per simulated s, the fastest of the repeats),
+    `median_per_sim_s` (the median of the repeats), `steps_per_sim_s` (accepted steps per
     simulated s), `rejected` (rejected steps), `pointing_rms_arcsec` (over the whole run).
     """
     mech = tolerax.antenna("dual", fidelity=fidelity, **options)
-    compile_s, run, res = timed(
+    t = timed(
         tolerax.simulate, mech, duration, repeats=repeats, n_save=n_save, start="steady", rtol=rtol, atol=atol,
         pcoeff=pid[0], icoeff=pid[1],
     )
-    lay = mech.layout
+    res, lay = t.output, mech.layout
     return dict(
         fidelity=fidelity if label is None else label,
         dofs=int(lay.size_u),
         contacts=int(lay.size_v),
-        compile_s=compile_s,
-        per_sim_s=run / duration,
+        compile_s=t.compile_s,
+        per_sim_s=t.run_s / duration,
+        median_per_sim_s=t.median_s / duration,
         steps_per_sim_s=int(res.num_steps) / duration,
         rejected=int(res.num_rejected),
         pointing_rms_arcsec=float((res.pointing_error**2).mean() ** 0.5) / tolerax.ARCSEC,
@@ -218,7 +315,7 @@ def cost_table(rows: list[dict]) -> tuple[list[str], list[tuple[str, ...]]]:
     cells = [
         (
             r["fidelity"], str(r["dofs"]), str(r["contacts"]), f"{r['compile_s']:.1f}", f"{r['per_sim_s']:.2f}",
-            f"{r['per_sim_s'] / base['per_sim_s']:.1f}", f"{r['steps_per_sim_s']:.0f}", str(r["rejected"]),
+            f"{r['median_per_sim_s']:.2f}", f"{r['per_sim_s'] / base['per_sim_s']:.1f}", f"{r['steps_per_sim_s']:.0f}", str(r["rejected"]),
             f"{r['pointing_rms_arcsec']:.1f}",
         )
         for r in rows

@@ -4,7 +4,8 @@ output a pointing study reads, over a long horizon.
     python benchmarks/mass_scaling.py [--duration 5.0] [--scalings 10 100 1000] [--rtols 1e-6] [--control-rtol 1e-7] [--window-start 1.0] [--output mass_scaling]
     python benchmarks/mass_scaling.py --render   # rewrite the .md from the saved .json
 
-Writes `benchmarks/results/mass_scaling.{md,json,png}` (`--output`: another stem).
+Writes `benchmarks/results/mass_scaling.{md,json,png}` (`--output`: another stem; `--results DIR`:
+in DIR).
 
 Scene: `tolerax.antenna("dual", fidelity=...)` (the `mechanism_cost.py`
 scene: free base, 0.98 deg/s on both joints, 100 um clearances and backlash), steady start,
@@ -32,7 +33,6 @@ about the model: a scaled run's difference means something only where it clearly
 control's.
 """
 
-import argparse
 import json
 import os
 
@@ -83,9 +83,7 @@ def run(scaling, args, rtol=1e-6):
     # First a 10 ms solve: the same program (only the save times' values differ), so it times the
     # compilation (plus 10 ms of simulation) without solving the whole horizon twice.
     for duration in (0.01, args.duration):
-        _, wall, res = harness.timed(
-            tolerax.simulate, mech, duration, repeats=0, n_save=n_save, start="steady", rtol=rtol, atol=1e-3 * rtol
-        )
+        wall, res = harness.wall(tolerax.simulate, mech, duration, n_save=n_save, start="steady", rtol=rtol, atol=1e-3 * rtol)
         walls.append(wall)
         if not res.success:
             raise SystemExit(f"mass_scaling={scaling}: " + "\n".join(res.failures()))
@@ -104,6 +102,8 @@ def _label(r):
 
 
 def render(payload, stem):
+    """Write the .md from a run's payload (the environment it recorded, where it did)."""
+    env = payload.get("environment", f"environment not recorded; rendered from the saved JSON at {harness.commit()}")
     runs = payload["runs"]
     full = runs[0]
     keys = list(full["outputs"])
@@ -144,6 +144,7 @@ def render(payload, stem):
         about=f"Scene: dual-axis antenna, free base, 0.98 deg/s on both joints, 100 um clearances and backlash, steady start, {payload['duration']:g} s, Tsit5, rtol 1e-6 (atol 1e-9) unless a row says otherwise (atol 1e-3 rtol).",
         intro=[f"Load averages (1 min) at each run's start: {', '.join(f'{x:.2f}' for x in payload['load'])}."],
         sections=[section],
+        env=env,
     )
 
 
@@ -171,7 +172,7 @@ def plot(payload, traces, path):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--duration", type=float, default=5.0, help="simulated time (s)")
     parser.add_argument("--scalings", type=float, nargs="+", default=[10.0, 100.0, 1000.0], help="mass_scaling values")
     parser.add_argument("--rtols", type=float, nargs="+", default=[1e-6], help="rtols of the scaled runs (atol 1e-3 rtol)")
@@ -179,7 +180,7 @@ def main():
     parser.add_argument("--control-rtol", type=float, default=1e-7, help="rtol of the full stage's control run (atol 1e-3 rtol); 0: none")
     parser.add_argument("--window-start", type=float, default=1.0, help="start of the output window (s)")
     parser.add_argument("--render", action="store_true", help="rewrite the .md from the saved .json (no runs, no figure)")
-    args = parser.parse_args()
+    args = harness.parse_args(parser)
     stem = harness.results_dir() / args.output
     if args.render:
         render(json.loads(stem.with_suffix(".json").read_text()), stem)
@@ -195,6 +196,7 @@ def main():
         record, pe, ts = run(scaling, args, rtol)
         print(json.dumps(record), flush=True)
         payload["runs"].append(record)
+        payload["environment"] = harness.environment()
         traces.append((_label(record).replace("planetary-scaled, ", ""), pe, ts))
         stem.with_suffix(".json").write_text(json.dumps(payload, indent=1))
     render(payload, stem)

@@ -3,7 +3,7 @@ fidelity (free base, 0.98 deg/s on both joints, 100 um clearances and backlash, 
 Tsit5 rtol 1e-6 atol 1e-9).
 
     python benchmarks/mechanism_cost.py [--duration 0.5] [--fidelities ideal lumped planetary]
-        [--scalings 100] [--rtols 1e-5] [--pid 0.3 0.3] [--repeats 3]
+        [--scalings 100] [--rtols 1e-5] [--pid 0.3 0.3] [--repeats 3] [--results DIR]
 
 `--scalings` adds a `planetary-scaled` row at each given `mass_scaling` (the fidelity's own row
 uses its default, 10), and `--rtols` one more per scaling at each looser relative tolerance, with
@@ -16,28 +16,30 @@ planetary run about 2.5x), and even alone the same solve varies up to ~2.7x from
 (host noise), so `--repeats` reports the fastest of several runs. Ratios within one run and step
 counts are the robust figures.
 
-Writes `benchmarks/results/mechanism_cost.md` (the measurement is `harness.fidelity_cost`). Each scene is solved 1 + `--repeats` times: the first
-call's time minus the fastest later one is the compile time; the fastest later one is the run time
-(same machine, same run, so the ratios between fidelities are what to read).
+Writes `benchmarks/results/mechanism_cost.md` (`--results DIR`: DIR/mechanism_cost.md); the
+measurement is `harness.fidelity_cost`. Each scene is solved 1 + `--repeats` times: the first
+call's time minus the fastest later one is the compile time; the fastest later one is the run time,
+and the median of the later ones is reported beside it (same machine, same run, so the ratios
+between fidelities are what to read).
 """
 
-import argparse
 import os
 
 import tolerax
+
 import harness
 from harness import cost_table, fidelity_cost
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--duration", type=float, default=0.5, help="simulated seconds per scene")
     parser.add_argument("--fidelities", nargs="+", choices=list(tolerax.FIDELITIES), default=list(tolerax.FIDELITIES))
     parser.add_argument("--scalings", nargs="*", type=float, default=[], help="extra planetary-scaled rows at these mass scalings")
     parser.add_argument("--rtols", nargs="*", type=float, default=[], help="extra planetary-scaled rows per scaling at these rtols")
     parser.add_argument("--pid", nargs=2, type=float, metavar=("PCOEFF", "ICOEFF"), help="each --rtols row again with this step-size controller")
     parser.add_argument("--repeats", type=int, default=1, help="timed runs per scene after the compiling one; the fastest is reported")
-    args = parser.parse_args()
+    args = harness.parse_args(parser)
     if args.pid and not (args.scalings and args.rtols):
         parser.error("--pid repeats the --rtols rows of each --scalings value: give both")
     rows, loads = [], []
@@ -76,7 +78,7 @@ def main():
         columns,
         cells,
         about=f"{args.duration} s simulated per scene, steady start, 0.98 deg/s both joints. Load average (1 min) "
-        f"before each scene and after the last: {', '.join(f'{x:.2f}' for x in loads)} (2 cores).",
+        f"before each scene and after the last: {', '.join(f'{x:.2f}' for x in loads)} ({os.cpu_count()} cores).",
         notes=notes,
     )
 

@@ -4,6 +4,7 @@ planetary fidelity.
 
     python benchmarks/monte_carlo_throughput.py [--scenes lumped planetary]
         [--backends vmap processes processes-free dask] [--chunks 1 4 16] [--worker-chunks 1 4] [--workers 2]
+        [--output monte_carlo_throughput] [--results DIR]
 
 Model: `tolerax.PointingObjective` on `tolerax.scan("azimuth", fidelity=(f, "ideal"))`, steady
 start, 101 saves, the objective's solver defaults (Tsit5, rtol 1e-6, atol 1e-9), a short horizon
@@ -11,7 +12,7 @@ start, 101 saves, the objective's solver defaults (Tsit5, rtol 1e-6, atol 1e-9),
 the scene's clearances and backlash drawn uniformly within `tolerax.tolerances_of(scene,
 band=--band)`, with one key for every configuration, so every configuration solves the same units.
 
-Configurations (one timed `monte_carlo` call each, wall clock, progress bar off):
+Configurations (one timed `monte_carlo` call each, wall clock by `harness.wall`, progress bar off):
 
 - `vmap`, chunk c in `--chunks`: first a warm-up call with one sample (padded to c, so it compiles
   the chunk's program), then the timed call.
@@ -30,11 +31,10 @@ count, and worker chunk sizes that give a worker fewer than two chunks (so no ra
 are skipped for that scene. Every configuration's outputs are compared with the vmap run of the same
 chunk size (the engine promises identical results for the same key on every backend) and with
 vmap at the smallest chunk. Writes `benchmarks/results/monte_carlo_throughput.md` (or
-`--output`.md), then exits with
+`--output`.md; `--results DIR`: in DIR), then exits with
 status 1 if a backend disagreed with vmap at the same chunk size.
 """
 
-import argparse
 import os
 import sys
 import time
@@ -50,20 +50,20 @@ import harness
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
 
 
-def _load() -> str:
-    return "/".join(f"{x:.1f}" for x in os.getloadavg())
-
-
-def _timed_call(model, tolerances, n, key, **kwargs):
-    """One `monte_carlo` call: its result, wall time (s), and `(seconds from the call's start,
-    samples in the chunk)` for each chunk in the order the driver received them."""
+def _timed_call(model, tolerances, n, key, warmup=None, **kwargs):
+    """One `monte_carlo` call (`harness.wall`): its result, wall time (s), and `(seconds from the
+    call's start, samples in the chunk)` for each chunk in the order the driver received them.
+    With `warmup` (a sample count), a warm-up call of that many samples with the same options
+    comes first (it compiles the chunk's program); its wall time is returned first (None
+    without one)."""
+    warm = harness.wall(tolerax.monte_carlo, model, tolerances, warmup, key, progress=False, **kwargs)[0] if warmup else None
     done = []
     start = time.perf_counter()
-    res = tolerax.monte_carlo(
-        model, tolerances, n, key, progress=False,
+    wall, res = harness.wall(
+        tolerax.monte_carlo, model, tolerances, n, key, progress=False,
         callback=lambda k, ds: done.append((time.perf_counter() - start, ds.sizes["sample"])), **kwargs,
     )
-    return res, time.perf_counter() - start, done
+    return warm, res, wall, done
 
 
 def _rate_after_start(done, workers):
@@ -99,7 +99,7 @@ def measure(label, model, tolerances, n, key, args, client, chunks, worker_chunk
 
     def record(backend, chunk, warmup, res, wall, done, steady):
         row = dict(backend=backend, chunk=chunk, n=n, warmup=warmup, wall=wall, rate=n / wall, steady=steady,
-                   ok=int(res.success.sum()), load=_load(), per_chunk=np.diff([0.0] + [t for t, _ in done]),
+                   ok=int(res.success.sum()), load=harness.load(), per_chunk=np.diff([0.0] + [t for t, _ in done]),
                    workers="1 (in process)" if backend == "vmap" else str(args.workers))
         row["same"] = None if backend == "vmap" or chunk not in refs else _compare(res, refs[chunk])
         row["across"] = _compare(res, refs[min(refs)])[1] if refs else None
@@ -110,26 +110,20 @@ def measure(label, model, tolerances, n, key, args, client, chunks, worker_chunk
 
     if "vmap" in args.backends:
         for chunk in chunks:
-            start = time.perf_counter()
-            tolerax.monte_carlo(model, tolerances, 1, key, chunk_size=chunk, progress=False)
-            warmup = time.perf_counter() - start
-            res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk)
+            warmup, res, wall, done = _timed_call(model, tolerances, n, key, warmup=1, chunk_size=chunk)
             record("vmap", chunk, warmup, res, wall, done, n / wall)
             refs[chunk] = res
     for chunk in worker_chunks:  # pinned and free alternate, so a slow spell of the machine hits both
         for backend, pin in (("processes", None), ("processes-free", False)):
             if backend not in args.backends:
                 continue
-            res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk, backend="processes",
-                                          workers=args.workers, pin_workers=pin)
+            _, res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk, backend="processes",
+                                             workers=args.workers, pin_workers=pin)
             record(backend, chunk, None, res, wall, done, _rate_after_start(done, args.workers))
     if "dask" in args.backends:
         for chunk in worker_chunks:
-            start = time.perf_counter()
-            tolerax.monte_carlo(model, tolerances, chunk + 1, key, chunk_size=chunk, backend="dask", client=client,
-                                progress=False)
-            warmup = time.perf_counter() - start
-            res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk, backend="dask", client=client)
+            warmup, res, wall, done = _timed_call(model, tolerances, n, key, warmup=chunk + 1, chunk_size=chunk,
+                                                  backend="dask", client=client)
             record("dask", chunk, warmup, res, wall, done, n / wall)
     return rows, failures
 
@@ -200,7 +194,7 @@ def which_backend(rows, cluster_start) -> str:
 
 
 def main():
-    parser = argparse.ArgumentParser()
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--scenes", nargs="+", choices=("lumped", "planetary"), default=["lumped", "planetary"])
     parser.add_argument("--backends", nargs="+", choices=("vmap", "processes", "processes-free", "dask"),
                         default=["vmap", "processes", "dask"])
@@ -215,18 +209,19 @@ def main():
     parser.add_argument("--band", type=float, default=10e-6, help="tolerance half-width of every feature (m)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--output", default="monte_carlo_throughput", help="results file name (without .md)")
-    args = parser.parse_args()
-    load_before = _load()
+    args = harness.parse_args(parser)
+    load_before = harness.load()
     key = jax.random.key(args.seed)
     client = cluster = cluster_start = None
     if "dask" in args.backends:
         import distributed
 
-        start = time.perf_counter()
-        cluster = distributed.LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None)
-        client = distributed.Client(cluster)
-        cluster_start = time.perf_counter() - start
+        def start_cluster():
+            cluster = distributed.LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=None)
+            return cluster, distributed.Client(cluster)
+
+        cluster_start, (cluster, client) = harness.wall(start_cluster)
     sections, failures = [], []
     try:
         for fidelity in args.scenes:
@@ -267,7 +262,7 @@ def main():
             client.close()
             cluster.close()
     intro = [
-        f"Load average (1/5/15 min) before the run: {load_before}; after: {_load()}, on {os.cpu_count()} cores. "
+        f"Load average (1/5/15 min) before the run: {load_before}; after: {harness.load()}, on {os.cpu_count()} cores. "
         f"Dask cluster start-up ({args.workers} workers): {_fmt(cluster_start, '.1f')} s, in no row. "
         "Warm-up call: vmap, one sample padded to the chunk (compiles); dask, chunk + 1 samples (one chunk per "
         "worker, each compiles); processes have none, as every call starts its own pool, so their timed call "

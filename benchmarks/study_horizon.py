@@ -6,12 +6,11 @@ the claims read.
 reads every `STUDY-full.json` in `--long` (written by `tolerax studies STUDY --size full
 --duration 20 --settle 10 --out DIR`) and the same study's rows in `--short` (the committed 3 s
 studies, metrics over 2-3 s), pairs the scenes by their labels, and writes
-`benchmarks/results/study_horizon.md`: per scene, the metrics over each run's window, the output
+`benchmarks/results/study_horizon.md` (`--results DIR`: in DIR): per scene, the metrics over each run's window, the output
 bearing forces of both joints, the largest tracking-speed-error peak over X/Y/Z, the torsional
 and radial vibration amplitudes and the pointing error, plus steps and wall time. Nothing is run.
 """
 
-import argparse
 import json
 import pathlib
 
@@ -41,10 +40,10 @@ def _window(row):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--long", type=pathlib.Path, required=True, help="folder of the long-horizon JSON tables")
     parser.add_argument("--short", type=pathlib.Path, required=True, help="folder of the committed 3 s tables")
-    args = parser.parse_args()
+    args = harness.parse_args(parser)
     sections = []
     for path in sorted(args.long.glob("*-full.json")):
         study = path.name[: -len("-full.json")]

@@ -5,7 +5,7 @@ solvers, tolerances, the smoothing width, the paper's fixed 1e-4 s step, and Sci
     python benchmarks/work_precision.py --scene dual-lumped     # dual-axis antenna, lumped joints
     python benchmarks/work_precision.py --scene dual-planetary  # dual-axis antenna, planetary joints
 
-Writes `benchmarks/results/work_precision_<scene>.{md,json,png}`. Options: `--quick` (fewer
+Writes `benchmarks/results/work_precision_<scene>.{md,json,png}` (`--results DIR`: in DIR). Options: `--quick` (fewer
 tolerances), `--methods Tsit5 RK45` (only those methods: a smoke run), `--no-implicit`,
 `--no-scipy`, `--duration`, `--render` (rewrite the .md and .png from the saved .json),
 `--mass-scalings 10 100` (dual-planetary: Tsit5 on the mass-scaled joints, `fidelity=
@@ -20,8 +20,9 @@ with it: the table states their disagreement, which bounds how small an error ca
 - series (output angle or pointing error, tracking speed error): max |x - x_ref| / max |x_ref|;
 - peak contact force: |max F - max F_ref| / max(max F_ref, 1 N) (over the save times).
 
-**Work.** Wall time of a solve after compilation (best of repeats; compile time reported
-separately), on whatever machine runs the script: ratios within one run are what to read.
+**Work.** Wall time of a solve after compilation (`harness.timed`: best of up to 3 repeats, fewer
+once a solve takes 2 s, none after a first call over 120 s; compile time reported separately),
+on whatever machine runs the script: ratios within one run are what to read.
 
 **SciPy baseline.** The same equations: the scene's JAX right-hand side, compiled with `jax.jit`
 and called from `scipy.integrate.solve_ivp` on the flattened state (with a compiled `jacfwd`
@@ -37,11 +38,8 @@ states of a Tsit5 run (rtol 1e-8) (`numpy_check`); the table states the largest 
 for scale, how far the JAX right-hand side moves under a 1e-15 perturbation of the state.
 """
 
-import argparse
 import dataclasses
 import json
-import math
-import time
 import types
 
 import diffrax
@@ -134,18 +132,13 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
             atol=1e-3 * rtol, max_steps=max_steps, fixed_step=fixed_step, throw=False,
         )
 
-    _, first, res = harness.timed(run, repeats=0)
-    best, repeats = math.inf, 0
-    if first > 120.0:  # a slow configuration: one run, compile included (flagged in the table)
-        best, repeats = first, 3
-    while repeats < 3 and (repeats == 0 or best < 2.0):
-        _, wall, res = harness.timed(run, repeats=0)
-        best = min(best, wall)
-        repeats += 1
-    ok = res.success
+    # Up to 3 timed repeats, fewer once a solve takes 2 s; a configuration whose first call takes
+    # over 120 s is run once, compilation included (its compile time `nan`, flagged in the table).
+    t = harness.timed(run, repeats=3, enough_s=2.0, once_s=120.0)
+    res, ok = t.output, t.output.success
     record = dict(
-        wall_s=best,
-        compile_s=max(first - best, 0.0) if best < first else float("nan"),
+        wall_s=t.run_s,
+        compile_s=t.compile_s if t.compile_s > 0 else float("nan"),
         steps=int(res.num_steps),
         rejected=int(res.num_rejected),
         ok=ok,
@@ -178,16 +171,19 @@ def run_scipy(case, scene, method, rtol, numpy_rhs=None):
     f_np(0.0, np.asarray(flat0))  # compile
     if implicit and jac_np is not None:
         jac_np(0.0, np.asarray(flat0))
-    start = time.perf_counter()
-    try:
-        sol = scipy.integrate.solve_ivp(
-            f_np, (0.0, case.duration), np.asarray(flat0), method=method, t_eval=ts,
-            rtol=rtol, atol=1e-3 * rtol, **({"jac": jac_np} if implicit and jac_np is not None else {}),
-        )
-    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as error:  # e.g. inf/NaN in a trial Jacobian
-        wall = time.perf_counter() - start
-        return dict(wall_s=wall, compile_s=0.0, steps=0, nfev=0, njev=0, ok=False, result=f"raised {error}"), None
-    wall = time.perf_counter() - start
+
+    def solve():
+        try:
+            return scipy.integrate.solve_ivp(
+                f_np, (0.0, case.duration), np.asarray(flat0), method=method, t_eval=ts,
+                rtol=rtol, atol=1e-3 * rtol, **({"jac": jac_np} if implicit and jac_np is not None else {}),
+            )
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as error:  # e.g. inf/NaN in a trial Jacobian
+            return error
+
+    wall, sol = harness.wall(solve)  # once: a SciPy solve is not compiled, and the slow ones take minutes
+    if isinstance(sol, Exception):
+        return dict(wall_s=wall, compile_s=0.0, steps=0, nfev=0, njev=0, ok=False, result=f"raised {sol}"), None
     record = dict(wall_s=wall, compile_s=0.0, steps=int(sol.t.size), nfev=int(sol.nfev), njev=int(sol.njev), ok=bool(sol.success), result=sol.message if not sol.success else "")
     if not sol.success or sol.y.shape[1] != ts.size:
         record["ok"] = False
@@ -204,14 +200,11 @@ def run_scipy(case, scene, method, rtol, numpy_rhs=None):
 
 
 def rhs_call_cost(scene, start, repeats=2000):
-    """Seconds per call of the compiled right-hand side from Python (dispatch included)."""
+    """Seconds per call of the compiled right-hand side from Python (dispatch and conversion to
+    NumPy included): the median of `repeats` calls after the compiling one."""
     f, flat0, _ = flat_rhs(scene, start)
     y, t = np.asarray(flat0), np.float64(0.0)
-    np.asarray(f(t, y))
-    t0 = time.perf_counter()
-    for _ in range(repeats):
-        np.asarray(f(t, y))
-    return (time.perf_counter() - t0) / repeats
+    return harness.timed(lambda: np.asarray(f(t, y)), repeats=repeats).median_s
 
 
 def numpy_check(case, scene, rhs, n_states=81):
@@ -255,7 +248,7 @@ METHODS = ("Tsit5", "Dopri5", "Dopri8", "Bosh3", "Kvaerno3", "Kvaerno5", "RK45",
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.argument_parser(__doc__)
     parser.add_argument("--scene", choices=sorted(CASES), default="bench")
     parser.add_argument("--quick", action="store_true", help="fewer tolerances (a smoke run)")
     parser.add_argument("--methods", nargs="+", choices=METHODS, help="run only these methods (a smoke run); the reference always runs")
@@ -267,7 +260,7 @@ def main():
     parser.add_argument("--duration", type=float, help="override the scene's simulated time (s)")
     parser.add_argument("--mass-scalings", type=float, nargs="+", default=[], help="dual-planetary only: Tsit5 rows on mass-scaled joints at these scalings (family 'scaled s=N')")
     parser.add_argument("--render", action="store_true", help="rewrite the .md and .png from the scene's saved .json (no runs)")
-    args = parser.parse_args()
+    args = harness.parse_args(parser)
     case = CASES[args.scene]
     if args.mass_scalings and case.name != "dual-planetary":
         parser.error("--mass-scalings needs --scene dual-planetary (the scaled joints replace planetary ones)")
@@ -276,7 +269,8 @@ def main():
         case = dataclasses.replace(case, duration=saved["duration"], description=saved["scene"])
         # JSON written before the command was recorded: the default run of this scene.
         command = saved.get("command", f"python benchmarks/work_precision.py --scene {case.name}")
-        write(case, command, saved["rows"], saved["reference"], saved["reference_check"], saved["rhs_call_s"], saved.get("numpy"))
+        env = saved.get("environment", f"environment not recorded; rendered from the saved JSON at {harness.commit()}")
+        write(case, command, saved["rows"], saved["reference"], saved["reference_check"], saved["rhs_call_s"], saved.get("numpy"), env)
         return
     if args.duration:
         case = dataclasses.replace(case, duration=args.duration, description=case.description.rsplit(",", 1)[0] + f", {args.duration:g} s")
@@ -292,10 +286,8 @@ def main():
 
         np_rhs = numpy_rhs(scene)
         y0 = np.asarray(ravel_pytree(scene.initial_state(case.start))[0])
-        start = time.perf_counter()
-        for _ in range(200):
-            np_rhs(0.1, y0)
-        numpy_info = dict(call_s=(time.perf_counter() - start) / 200, check=numpy_check(case, scene, np_rhs))
+        call_s = harness.timed(np_rhs, 0.1, y0, repeats=200).median_s
+        numpy_info = dict(call_s=call_s, check=numpy_check(case, scene, np_rhs))
         print("NumPy right-hand side:", numpy_info, flush=True)
     # Reference, checked by a second method.
     ref_rec, reference = run_diffrax(case, scene, diffrax.Dopri8(), 1e-12)
@@ -362,11 +354,14 @@ def main():
                         break  # tighter tolerances only cost more
 
 
-def write(case, command, rows, ref_rec, agreement, call, numpy_info=None):
+def write(case, command, rows, ref_rec, agreement, call, numpy_info=None, env=None):
+    """Write the .json, .md and .png; `env`: the environment a saved run recorded (default: this
+    process's, `harness.environment()`)."""
     stem = harness.results_dir() / f"work_precision_{case.name}"
     keys = list(next((r["errors"] for r in rows if r["errors"]), agreement or {}).keys())
+    env = env or harness.environment()
     payload = dict(
-        scene=case.description, duration=case.duration, command=command, reference=ref_rec,
+        scene=case.description, duration=case.duration, command=command, environment=env, reference=ref_rec,
         reference_check=agreement, rhs_call_s=call, numpy=numpy_info, rows=rows,
     )
     stem.with_suffix(".json").write_text(json.dumps(payload, indent=1, default=float))
@@ -385,6 +380,7 @@ def write(case, command, rows, ref_rec, agreement, call, numpy_info=None):
         ["family", "method", "rtol", "eps (m)", "wall (s)", "compile (s)", "accepted steps (rejected) / SciPy evaluations", *keys],
         table,
         about=f"Scene: {case.description}.",
+        env=env,
         intro=[
             f"Reference: Dopri8 rtol 1e-12, {ref_rec['steps']} steps, {ref_rec['wall_s']:.1f} s. "
             "Tsit5 at rtol 1e-11 disagrees with it by "

@@ -1,0 +1,34 @@
+"""The tolerance-design problem both design benchmarks solve (`design_comparison.py`,
+`design_tradeoff.py`): the azimuth scan (`tolerax.scan("azimuth", fidelity=("lumped",
+"ideal"))`, steady start, one reversal at 0.25 s), the RMS pointing error over `--horizon` s (61
+saves, no settling window) of `--draws` fixed manufactured units, and an optimiser budget of
+`--outer` x `--inner` steps per `tolerax.propose_design` run."""
+
+import tolerax as tx
+
+import harness
+
+
+def add_arguments(parser):
+    """The problem's options, shared by both scripts (same names, same defaults)."""
+    parser.add_argument("--horizon", type=float, default=0.6, help="simulated time per unit (s)")
+    parser.add_argument("--draws", type=int, default=4, help="manufactured units in the robust objective")
+    parser.add_argument("--outer", type=int, default=4, help="propose_design's outer iterations")
+    parser.add_argument("--inner", type=int, default=6, help="propose_design's inner steps per outer iteration")
+
+
+def pointing(args, fidelity="lumped"):
+    """The objective `propose_design` is given: `PointingObjective` on the azimuth scan at
+    `fidelity` (the design is made on lumped joints, verified on planetary ones)."""
+    scene = tx.scan("azimuth", fidelity=(fidelity, "ideal"))
+    return tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
+
+
+def propose(pointing, requirement, args, outer=None, inner=None, **options):
+    """`(seconds, report)`: one `tolerax.propose_design` run at `requirement` (arcsec) with the
+    problem's units and budget (`outer`, `inner`: another budget), timed by `harness.wall`;
+    `options` go to `propose_design`."""
+    return harness.wall(
+        tx.propose_design, pointing, requirement, n_draws=args.draws, max_outer=args.outer if outer is None else outer,
+        inner_steps=args.inner if inner is None else inner, **options,
+    )
