@@ -33,7 +33,7 @@ class PointingObjective(eqx.Module):
 
     `adjoint` (optional): how derivatives pass through the solve, a diffrax adjoint handed to
     `simulate` (default `None`: `diffrax.RecursiveCheckpointAdjoint()`, reverse mode;
-    `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). benchmarks/gradient_methods.md compares
+    `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). benchmarks/results/gradient_methods.md compares
     their costs.
     """
 

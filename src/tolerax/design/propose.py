@@ -20,6 +20,7 @@ from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries
 from .objectives import UNITS, PointingObjective
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
+from .sequential import sequential_design
 from ..uncertainty.sampling import unit_draws
 
 
@@ -86,7 +87,7 @@ class RobustPointing(eqx.Module):
     `"forward"` (default; one forward solve carrying one tangent per design feature, then the
     chain rule through `realise`; the objective then supports reverse-mode `jax.grad`/`vjp` but
     not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
-    mode). benchmarks/gradient_methods.md measures both."""
+    mode). benchmarks/results/gradient_methods.md measures both."""
 
     pointing: PointingObjective
     output: str = eqx.field(static=True, default="pointing_rms")
@@ -270,6 +271,29 @@ def design_problem(
     )
 
 
+def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress):
+    """`sequential_design` once per smoothing width, wide to narrow, each started from the
+    last design with a smaller trust region (a wide width smooths the contact onsets that make
+    a narrow width's gradients unreliable far from the optimum); one result whose history runs
+    over all of them."""
+    results, x = [], problem.x0
+    for k, width in enumerate(widths):
+        result = sequential_design(
+            problem.objective, problem.features, requirement=requirement, lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=x, cost_model=problem.cost_model, width=width, max_iterations=max_iterations,
+            trust_region=0.5 if k == 0 else 0.1, progress=progress,
+        )
+        results.append(result)
+        x = result.x
+    offset = sum(len(np.asarray(r.history.cost)) for r in results[:-1])
+    steps = np.cumsum([int(np.asarray(r.history.steps)[-1]) for r in results])
+    history = jax.tree.map(lambda *h: jnp.concatenate(h), *[r.history for r in results])
+    counts = np.concatenate([np.asarray(r.history.steps) + (steps[i - 1] if i else 0) for i, r in enumerate(results)])
+    history = eqx.tree_at(lambda h: h.steps, history, jnp.asarray(counts, dtype=float))
+    last = results[-1]
+    return eqx.tree_at(lambda r: (r.history, r.iteration), last, (history, last.iteration + offset))
+
+
 def propose_design(
     pointing: PointingObjective,
     requirement: float,
@@ -278,6 +302,7 @@ def propose_design(
     max_outer: int = 6,
     inner_steps: int = 10,
     learning_rate: float = 0.1,
+    method: str = "augmented-lagrangian",
     progress: bool = False,
     **problem,
 ) -> DesignReport:
@@ -300,23 +325,33 @@ def propose_design(
       repeated: wide first (a smoother, less chaotic objective), narrower later.
     - `max_outer`, `inner_steps`, `learning_rate`: optimiser budget (each inner step is one
       gradient of the objective over all draws: a simulation each).
-    - `progress`: a progress bar over the optimiser's outer iterations (`optimise_design`).
+    - `method`: `"augmented-lagrangian"` (default: `optimise_design`, Adam on the augmented
+      Lagrangian with the `widths` continuation) or `"sequential"` (`sequential_design`: the
+      linearised problem solved exactly at each iterate, in a trust region, once per width of
+      `widths`, each from the last one's design; at most `max_outer` gradients per width,
+      `inner_steps` and `learning_rate` unused).
+    - `progress`: a progress bar over the optimiser's iterations.
     - `**problem`: the problem's options, as `design_problem` takes them (starting band,
       functional minima, band range, manufactured units, robust statistic, cost model, gradient
       mode).
 
     **Returns:** a `DesignReport`.
     """
+    if method not in ("augmented-lagrangian", "sequential"):
+        raise ValueError(f"propose_design: method must be 'augmented-lagrangian' or 'sequential', got {method!r}.")
     problem = design_problem(pointing, **problem)
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
     baseline_objective = float(eqx.filter_jit(objective)(x0, draws, widths[-1]))
-    result = optimise_design(
-        objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
-        cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
-        max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
-    )
+    if method == "sequential":
+        result = _sequential_continuation(problem, requirement, widths, max_outer, progress)
+    else:
+        result = optimise_design(
+            objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
+            cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
+            max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
+        )
     band_opt = np.asarray(result.x.band)
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
     # and at fixed nominal d/db = d/db|_l - d/dl.
