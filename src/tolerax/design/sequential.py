@@ -58,6 +58,13 @@ def _bisect(fn, lower, upper):
 
 
 @eqx.filter_jit
+def _value_and_grad(objective, x, draws, width):
+    # One program per objective structure, shared by every call (starts, smoothing widths): the
+    # width and the draws are arrays.
+    return jax.value_and_grad(lambda x_: objective(x_, draws, width))(x)
+
+
+@eqx.filter_jit
 def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
     """Exact minimiser of the linearised problem over the boxes `l_box`, `b_box` (pairs of
     arrays): `(l, b, multiplier, predicted f)`; the multiplier is `inf` when even the tightest
@@ -148,12 +155,12 @@ def sequential_design(
     hi = np.concatenate([np.asarray(upper.nominal), np.asarray(upper.band)])
     span = np.where(hi > lo, hi - lo, 1.0)
     n = len(features.names)
-    value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda x: objective(x, draws, width)))
+    width = None if width is None else jnp.asarray(width, dtype=float)
     size_mm = features.size_mm
 
     def evaluate(z):
         x = Design(z[:n], z[n:])
-        f, g = value_and_grad(x)
+        f, g = _value_and_grad(objective, x, draws, width)
         return float(f), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)])
 
     def cost(z):
@@ -169,9 +176,9 @@ def sequential_design(
     for _ in range(max_iterations):
         box_lo, box_hi = np.maximum(lo, z - radius * span), np.minimum(hi, z + radius * span)
         l, b, lam_k, f_pred = _subproblem(
-            cost_model, size_mm, f, jnp.asarray(grad[:n]), jnp.asarray(grad[n:]), jnp.asarray(z[:n]), jnp.asarray(z[n:]),
+            cost_model, size_mm, jnp.asarray(f), jnp.asarray(grad[:n]), jnp.asarray(grad[n:]), jnp.asarray(z[:n]), jnp.asarray(z[n:]),
             (jnp.asarray(box_lo[:n]), jnp.asarray(box_hi[:n])), (jnp.asarray(box_lo[n:]), jnp.asarray(box_hi[n:])),
-            float(requirement),
+            jnp.asarray(float(requirement)),  # arrays, not Python floats: no retrace when values change
         )
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), lo, hi)
         f_trial, grad_trial = evaluate(trial)
