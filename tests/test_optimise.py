@@ -118,6 +118,27 @@ def _rss_pointing(x, draws, continuation):
     return robust(jnp.sqrt(jnp.sum(v**2, axis=1)), "mean+kstd", k=2.0)
 
 
+def _slsqp_rss(draws, model, requirement):
+    """SciPy's SLSQP on the `_rss_pointing` problem over the box lower limits 20-40 um, bands
+    1-15 um (variables in um), from 30 um / 8 um: the reference both optimisers are checked on."""
+
+    def unpack(p):
+        return Design(p[:3] * UM, p[3:] * UM)
+
+    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
+    margin = jax.jit(lambda p: requirement - _rss_pointing(unpack(p), draws, 0.0))
+    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
+    return scipy.optimize.minimize(
+        as_numpy(cost),
+        np.r_[np.full(3, 30.0), np.full(3, 8.0)],
+        jac=as_numpy(jax.jit(jax.grad(cost))),
+        method="SLSQP",
+        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
+        constraints=[{"type": "ineq", "fun": as_numpy(margin), "jac": as_numpy(jax.jit(jax.grad(margin)))}],
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
+
+
 def test_against_scipy_slsqp():
     # A nonlinear, non-separable objective (root-sum-square over random draws) with the ISO cost:
     # no closed form, so SciPy's SLSQP (a different method: SQP with a quasi-Newton Hessian) is the
@@ -127,22 +148,7 @@ def test_against_scipy_slsqp():
     lower, upper = _box(20 * UM, 40 * UM, 1 * UM, 15 * UM)
     problem = dict(lower=lower, upper=upper, draws=draws, cost_model=model)
     result = optimise_design(_rss_pointing, FEATURES, requirement=requirement, **problem)
-
-    def unpack(p):
-        return Design(p[:3] * UM, p[3:] * UM)
-
-    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
-    margin = jax.jit(lambda p: requirement - _rss_pointing(unpack(p), draws, 0.0))
-    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
-    reference = scipy.optimize.minimize(
-        as_numpy(cost),
-        np.r_[np.full(3, 30.0), np.full(3, 8.0)],
-        jac=as_numpy(jax.jit(jax.grad(cost))),
-        method="SLSQP",
-        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
-        constraints=[{"type": "ineq", "fun": as_numpy(margin), "jac": as_numpy(jax.jit(jax.grad(margin)))}],
-        options={"ftol": 1e-12, "maxiter": 500},
-    )
+    reference = _slsqp_rss(draws, model, requirement)
     assert reference.success
     # Both stop at ~1e-6 relative (violation tolerance here, ftol there): 1e-5 in x and cost.
     np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-5)
@@ -337,18 +343,7 @@ def test_sequential_against_scipy_slsqp_where_the_response_bends():
     result = sequential_design(_rss_pointing, FEATURES, requirement=requirement, lower=lower, upper=upper, draws=draws,
                                x0=x0, cost_model=model, tol=1e-6, max_iterations=40)
 
-    def unpack(p):
-        return Design(p[:3] * UM, p[3:] * UM)
-
-    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
-    margin = jax.jit(lambda p: requirement - _rss_pointing(unpack(p), draws, 0.0))
-    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
-    reference = scipy.optimize.minimize(
-        as_numpy(cost), np.r_[np.full(3, 30.0), np.full(3, 8.0)], jac=as_numpy(jax.jit(jax.grad(cost))), method="SLSQP",
-        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
-        constraints=[{"type": "ineq", "fun": as_numpy(margin), "jac": as_numpy(jax.jit(jax.grad(margin)))}],
-        options={"ftol": 1e-12, "maxiter": 500},
-    )
+    reference = _slsqp_rss(draws, model, requirement)
     assert reference.success and bool(result.converged)
     np.testing.assert_allclose(result.cost, reference.fun, rtol=1e-5)
     np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-4)
