@@ -84,8 +84,11 @@ def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement
 
         return jax.vmap(one)(jnp.arange(n), b_box[0], b_box[1], d)
 
+    def linear(b):
+        return f_k + jnp.dot(a, l - l_k) + jnp.dot(d, b - b_k)
+
     def predicted(lam):
-        return f_k + jnp.dot(a, l - l_k) + jnp.dot(d, bands(lam) - b_k)
+        return linear(bands(lam))
 
     h0 = predicted(0.0) - requirement
     # The multiplier at which every band with d > 0 is at its tightest: the slope there balances.
@@ -93,16 +96,20 @@ def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement
     lam_max = jnp.max(jnp.where(d > 0, -tightest / jnp.where(d > 0, d, 1.0), 0.0)) * 1.01 + 1e-300
     h_max = predicted(lam_max) - requirement
     lam = jnp.where(h0 <= 0, 0.0, jnp.where(h_max >= 0, jnp.inf, _bisect(lambda x: requirement - predicted(x), 0.0, lam_max)))
-    at = jnp.where(jnp.isinf(lam), lam_max, lam)
-    b = bands(at)
-    return l, b, lam, predicted(at)
+    b = bands(jnp.where(jnp.isinf(lam), lam_max, lam))
+    return l, b, lam, linear(b)
+
+
+def _cost_gradient(cost_model, size_mm, band) -> np.ndarray:
+    """$\\partial C/\\partial b$ (cost/m) at the bands `band`."""
+    return np.asarray(jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(band)))
 
 
 def _optimality(cost_model, size_mm, z, grad, lo, hi, n) -> float:
     """First-order optimality residual at `z`: $\\|\\nabla C + \\lambda\\nabla f\\| / \\|\\nabla C\\|$ over
     the variables free to move (not on a bound that the Lagrangian's gradient pushes against),
     with the least-squares multiplier $\\lambda \\ge 0$. Zero at a KKT point."""
-    dc = np.concatenate([np.zeros(n), np.asarray(jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(z[n:])))])
+    dc = np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])])
     ff = grad @ grad
     lam = max(0.0, -float(dc @ grad) / ff) if ff > 0 else 0.0
     g = dc + lam * grad
@@ -207,8 +214,9 @@ def sequential_design(
             best = (rows[-1][0], len(rows) - 1, z, f, grad, lam)
         bar.update(1)
         bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=f"{f:.1f}", requirement=f"{requirement:g}")
-        optimality = _optimality(cost_model, size_mm, z, grad, lo, hi, n)
-        if accept and met and (active or widest) and (moved <= step_tol or optimality <= optimality_tol):
+        if accept and met and (active or widest) and (
+            moved <= step_tol or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
+        ):
             converged = True
             break
     bar.close()
@@ -218,7 +226,6 @@ def sequential_design(
     x = Design(z[:n], z[n:])
     x_lo, x_hi = Design(lo[:n], lo[n:]), Design(hi[:n], hi[n:])
     feature_cost = cost_model(jnp.asarray(z[n:]), size_mm)
-    cost_grad = jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(z[n:]))
     history = History(*(jnp.asarray(np.asarray(col, dtype=float)) for col in zip(*rows)))
     return OptimisationResult(
         x=x,
@@ -232,7 +239,7 @@ def sequential_design(
         at_lower=jax.tree.map(lambda v, bound: v <= bound, x, x_lo),
         at_upper=jax.tree.map(lambda v, bound: v >= bound, x, x_hi),
         sensitivity=Design(grad[:n], grad[n:]),
-        cost_gradient=Design(np.zeros(n), np.asarray(cost_grad)),
+        cost_gradient=Design(np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])),
         converged=jnp.asarray(converged),
         iteration=jnp.asarray(chosen),
         history=history,
