@@ -60,11 +60,14 @@ from .io.scenefile import (
 from .design.features import (
     design_names as design_names,
     design_of as design_of,
+    lost_motion_weights as lost_motion_weights,
     tolerances_of as tolerances_of,
     with_design as with_design,
 )
 from .design.objectives import PointingObjective as PointingObjective
 from .design.propose import DesignReport as DesignReport, propose_design as propose_design
+from .design.reliability import LinearisedYield as LinearisedYield, YieldCheck as YieldCheck, yield_check as yield_check
+from .design.sequential import sequential_design as sequential_design
 from .uncertainty.sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
 from .uncertainty.montecarlo import monte_carlo as monte_carlo
 from .uncertainty.results import MonteCarloResult as MonteCarloResult, wilson_interval as wilson_interval

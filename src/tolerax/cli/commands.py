@@ -108,14 +108,22 @@ def design_command(parser, args) -> int:
     if tol.get("bands"):
         print(f"tolerax design: the optimiser starts every feature at the scene's band +-{band * 1e6:g} um; "
               "the per-feature [tolerances.bands] are not used.")
+    if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
+        parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
+    if args.yield_ is not None and args.method != "sequential":
+        parser.error("--yield needs --method sequential (its Monte Carlo check re-solves the design)")
+    if args.check is not None and args.yield_ is None:
+        parser.error("--check needs --yield (it checks the yield of the proposal)")
     pointing = scene_file.objective()
+    statistic = (f"mean + 1 std over {args.draws} units drawn uniformly within the bands" if args.yield_ is None
+                 else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
-          f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, mean + 1 std over {args.draws} units "
-          f"drawn uniformly within the bands), {args.outer} x {args.inner} optimiser steps.")
+          f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {statistic}); method {args.method}.")
     start = time.perf_counter()
+    options = dict(n_draws=args.draws) if args.yield_ is None else dict(yield_=args.yield_, check_units=args.check)
     try:
-        report = _propose.propose_design(pointing, requirement, band=band, n_draws=args.draws, max_outer=args.outer,
-                                         inner_steps=args.inner, progress=True)
+        report = _propose.propose_design(pointing, requirement, band=band, max_outer=args.outer, inner_steps=args.inner,
+                                         method=args.method, progress=True, **options)
     except ValueError as err:  # e.g. a starting band outside the optimiser's range
         print(f"tolerax design: {err}", file=sys.stderr)
         return 2

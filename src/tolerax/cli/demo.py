@@ -55,11 +55,12 @@ def demo_command(parser, args) -> int:
         pointing = F.load_scene(DEFAULT_SCENE).objective()
         print(f"tolerax demo: tolerance proposal on {DEFAULT_SCENE} ({pointing.duration} s per unit): requirement "
               f"{args.requirement} arcsec on mean + 1 std of the RMS pointing error over {args.draws} units, "
-              f"{args.outer} x {args.steps} optimiser steps (a short run: see `tolerax design` for a full one).")
+              f"method {args.method} (see `tolerax design` for the options).")
         start = time.perf_counter()
         try:
-            report = _propose.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=args.outer,
-                                             inner_steps=args.steps, progress=True)
+            outer = args.outer if args.outer is not None or args.method == "sequential" else 3
+            report = _propose.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=outer,
+                                             inner_steps=args.steps, method=args.method, progress=True)
         except (ValueError, RuntimeError) as err:  # bad sizes; a failed simulation makes the objective NaN
             print(f"tolerax demo: {err}", file=sys.stderr)
             code = 2 if isinstance(err, ValueError) else 3
@@ -71,8 +72,10 @@ def demo_command(parser, args) -> int:
             fig = report.plot()
             fig.savefig(out / "design" / "design.png", dpi=120)
             plt.close(fig)
-            lines += [f"{args.outer} x {args.steps} optimiser steps over {args.draws} units in {design_wall:.1f} s of wall "
-                      "time (compilation included). Files: `design/`.", "", report.table()]
+            used = int(report.result.history.steps[-1])
+            lines += [f"{used} {'gradients' if args.method == 'sequential' else 'optimiser steps'} over {args.draws} units "
+                      f"({args.method}) in {design_wall:.1f} s of wall time (compilation included). Files: `design/`.", "",
+                      report.table()]
         else:
             lines.append(f"Failed after {design_wall:.1f} s (see the message above).")
     fig = _demo_figure(result, scene_file, report)
@@ -126,7 +129,7 @@ def _demo_figure(result, scene_file, report):
         ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in report.names], fontsize=8)
         ax.set_xlabel("tolerance zone (µm)")
         ax.set_title(f"Azimuth scan: tolerance zones for {report.requirement:.0f} arcsec (mean + 1 std of the RMS), "
-                     f"{len(report.result.history.cost)} outer iterations", fontsize=9)
+                     f"{len(report.result.history.cost)} iterations", fontsize=9)
         ax.legend(fontsize=7, loc="lower left")
         ax.grid(alpha=0.3, axis="x")
     fig.tight_layout()

@@ -41,8 +41,12 @@ def main(argv=None) -> int:
                       help="simulated time, s (default 1, one scan period; with --bench 2); the pointing window starts at 0.3 s "
                       "when the run is longer")
     demo.add_argument("--steps", type=count(0), default=6,
-                      help="optimiser steps per outer iteration of the proposal (default 6; 0 skips the proposal)")
-    demo.add_argument("--outer", type=count(1), default=3, help="outer (augmented Lagrangian) iterations (default 3)")
+                      help="0 skips the proposal; with --method augmented-lagrangian: steps per outer iteration (default 6)")
+    demo.add_argument("--outer", type=count(1), default=None,
+                      help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
+                      "iterations (default 3)")
+    demo.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
+                      help="the proposal's optimiser (default sequential; see tolerax.propose_design)")
     demo.add_argument("--draws", type=count(2), default=2,
                       help="manufactured units in the robust objective, mean + 1 std (default 2, at least 2)")
     demo.add_argument("--requirement", type=positive, default=700.0,
@@ -81,8 +85,18 @@ def main(argv=None) -> int:
                         help="RMS pointing requirement, arcsec (default: the scene's [tolerances] requirement)")
     design.add_argument("--draws", type=count(2), default=4,
                         help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
-    design.add_argument("--outer", type=count(1), default=6, help="outer (augmented Lagrangian) iterations (default 6)")
-    design.add_argument("--inner", type=count(1), default=10, help="optimiser steps per outer iteration (default 10)")
+    design.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
+                        help="optimiser (default sequential: a stack-up linearised from the simulation at each iterate, "
+                        "solved exactly in a trust region; see tolerax.propose_design)")
+    design.add_argument("--outer", type=count(1), default=None,
+                        help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
+                        "iterations (default 6)")
+    design.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
+    design.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
+                        help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
+                        "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
+    design.add_argument("--check", type=count(0), default=None,
+                        help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
     mc = sub.add_parser(
         "montecarlo", help="pointing-error distribution and yield over manufacturing errors",
         description="Simulate manufactured units of the scene, each clearance and backlash drawn within its "

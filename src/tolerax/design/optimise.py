@@ -176,6 +176,7 @@ class OptimisationResult(eqx.Module):
     - `iteration`: the outer iteration (index into `history`) whose design this is: the cheapest
       one that met the requirement (to `tol`) at the final continuation value, else the last one.
     - `history`: a `History`.
+    - `optimality` (property): the first-order optimality residual at `x` (`optimality_residual`).
     """
 
     x: Design
@@ -193,6 +194,30 @@ class OptimisationResult(eqx.Module):
     converged: Bool[Array, ""]
     iteration: Int[Array, ""]
     history: History
+
+    @property
+    def optimality(self) -> float:
+        """First-order optimality residual at `x` (`optimality_residual`): 0 at a KKT point."""
+        flat = lambda d: np.concatenate([np.asarray(d.nominal), np.asarray(d.band)]).ravel()  # noqa: E731
+        return optimality_residual(flat(self.cost_gradient), flat(self.sensitivity), flat(self.at_lower), flat(self.at_upper))
+
+
+def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
+    """The first-order (KKT) optimality residual of $\\min C$ s.t. $f \\le R$ in a box:
+    $\\|\\nabla C + \\lambda\\nabla f\\| / \\|\\nabla C\\|$ over the variables free to move (not on
+    a bound that the Lagrangian's gradient pushes against), with the least-squares multiplier
+    $\\lambda \\ge 0$. Zero at a KKT point of an active constraint; 1 where $\\nabla f$ offers no
+    trade (e.g. an inactive constraint with bands that could still widen).
+
+    Arguments are flat arrays over all variables: $\\nabla C$, $\\nabla f$ and whether each
+    variable sits on its lower or upper bound."""
+    dc, grad = np.asarray(cost_gradient, dtype=float), np.asarray(gradient, dtype=float)
+    ff = grad @ grad
+    lam = max(0.0, -float(dc @ grad) / ff) if ff > 0 else 0.0
+    g = dc + lam * grad
+    free = ~((np.asarray(at_lower) & (g > 0)) | (np.asarray(at_upper) & (g < 0)))
+    scale = np.linalg.norm(dc[free]) if np.any(free) else 0.0
+    return float(np.linalg.norm(g[free]) / scale) if scale > 0 else 0.0
 
 
 class _Problem(eqx.Module):

@@ -20,6 +20,7 @@ from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries
 from .objectives import UNITS, PointingObjective
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
+from .reliability import LinearisedYield, YieldCheck, yield_check, yield_draws
 from .sequential import sequential_design
 from ..uncertainty.sampling import unit_draws
 
@@ -132,6 +133,9 @@ class DesignReport:
     - `sensitivity` (arcsec/m): d objective / d (nominal, band) per feature at the proposal.
     - `result`: the full `OptimisationResult` (history included); its `x.nominal` holds the
       lower limits $l$ (`FromLowerLimit`), the proposal's `nominal` is $l + b$.
+    - `yield_`: the yield $Y$ of a yield requirement (the objective is then the linearised
+      $Y$-quantile, `LinearisedYield`), else `None`; `checks`: the Monte Carlo checks of the
+      proposal (`YieldCheck`, the last one of the returned design).
     """
 
     names: tuple[str, ...]
@@ -147,6 +151,8 @@ class DesignReport:
     sensitivity: Design
     baseline: tuple
     result: OptimisationResult
+    yield_: float | None = None
+    checks: tuple[YieldCheck, ...] = ()
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature."""
@@ -160,19 +166,22 @@ class DesignReport:
                 f"| {name} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
             )
+        what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         head = (
-            f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); objective "
+            f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
             f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
-            f"{self._iteration_text()}."
+            f"{self._iteration_text()}; first-order optimality residual {self.result.optimality:.2g}."
         )
+        if self.checks:
+            head += " " + self.checks[-1].text() + "."
         return head + "\n\n" + "\n".join(rows)
 
     def _iteration_text(self) -> str:
         chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
         if chosen == n - 1:
-            return f"the last of {n} outer iterations"
-        return f"outer iteration {chosen + 1} of {n}, the cheapest that met the requirement"
+            return f"the last of {n} iterations"
+        return f"iteration {chosen + 1} of {n}, the cheapest that met the requirement"
 
     def plot(self):
         """History (cost, objective) and sensitivities; returns the matplotlib figure."""
@@ -226,6 +235,8 @@ def design_problem(
     output: str = "pointing_rms",
     cost_model: AbstractCostModel | None = None,
     gradient: str = "forward",
+    yield_: float | None = None,
+    n_yield_draws: int = 16384,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -245,6 +256,11 @@ def design_problem(
       grades, relative cost 1 per feature at IT7).
     - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
       (`RobustPointing`).
+    - `yield_`: a yield $Y$ in (0, 1) makes the objective the $Y$-quantile of `output` over all
+      units made within the bands, linearised at the zone middles (`LinearisedYield`: one
+      simulation with one forward-mode tangent per feature; `n_draws`, `key`, `statistic`, `k`
+      and `gradient` unused), so that objective $\\le R$ reads $P(\\text{output} \\le R) \\ge Y$;
+      `n_yield_draws` fixed quasi-random draws (`yield_draws`) carry the quantile.
     """
     scene = pointing.scene
     names = design_names(scene)
@@ -260,10 +276,14 @@ def design_problem(
         )
     key = jax.random.key(0) if key is None else key
     limit0 = np.maximum(nominal0 - band, min_clearance)
+    if yield_ is None:
+        objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
+    else:
+        objective, draws = LinearisedYield(pointing, output, float(yield_)), yield_draws(n, n_yield_draws)
     return DesignProblem(
-        objective=FromLowerLimit(RobustPointing(pointing, output, statistic, k, gradient)),
+        objective=FromLowerLimit(objective),
         features=Features(names, feature_sizes(scene)),
-        draws=unit_draws(key, n_draws, n),
+        draws=draws,
         lower=Design(min_clearance, np.full(n, band_lo)),
         upper=Design(limit0, np.full(n, band_hi)),
         x0=Design(limit0, np.full(n, float(band))),
@@ -271,17 +291,19 @@ def design_problem(
     )
 
 
-def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress):
+def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5):
     """`sequential_design` once per smoothing width, wide to narrow, each started from the
     last design with a smaller trust region (a wide width smooths the contact onsets that make
     a narrow width's gradients unreliable far from the optimum); one result whose history runs
     over all of them."""
-    results, x = [], problem.x0
+    results, x = [], problem.x0 if x0 is None else x0
     for k, width in enumerate(widths):
+        done = sum(int(np.asarray(r.history.steps)[-1]) for r in results)  # gradients before this width
         result = sequential_design(
             problem.objective, problem.features, requirement=requirement, lower=problem.lower, upper=problem.upper,
             draws=problem.draws, x0=x, cost_model=problem.cost_model, width=width, max_iterations=max_iterations,
-            trust_region=0.5 if k == 0 else 0.1, progress=progress,
+            trust_region=trust if k == 0 else 0.1, progress=progress,
+            callback=None if callback is None else (lambda i, *rest, done=done: callback(done + i, *rest)),
         )
         results.append(result)
         x = result.x
@@ -299,11 +321,15 @@ def propose_design(
     requirement: float,
     *,
     widths=(1e-6, 1e-7),
-    max_outer: int = 6,
+    max_outer: int | None = None,
     inner_steps: int = 10,
     learning_rate: float = 0.1,
-    method: str = "augmented-lagrangian",
+    method: str = "sequential",
     progress: bool = False,
+    callback=None,
+    check_units: int | None = None,
+    max_checks: int = 3,
+    check_key=None,
     **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
@@ -323,29 +349,60 @@ def propose_design(
     - `requirement`: arcsec.
     - `widths`: smoothing-width continuation (m), one value per outer iteration, the last
       repeated: wide first (a smoother, less chaotic objective), narrower later.
-    - `max_outer`, `inner_steps`, `learning_rate`: optimiser budget (each inner step is one
-      gradient of the objective over all draws: a simulation each).
-    - `method`: `"augmented-lagrangian"` (default: `optimise_design`, Adam on the augmented
-      Lagrangian with the `widths` continuation) or `"sequential"` (`sequential_design`: the
-      linearised problem solved exactly at each iterate, in a trust region, once per width of
-      `widths`, each from the last one's design; at most `max_outer` gradients per width,
-      `inner_steps` and `learning_rate` unused).
+    - `method`: `"sequential"` (default: `sequential_design`, the linearised problem solved
+      exactly at each iterate in a trust region, once per width of `widths`, each from the last
+      one's design; at most `max_outer` gradients per width, default 20; `inner_steps` and
+      `learning_rate` unused) or `"augmented-lagrangian"` (`optimise_design`: Adam on the
+      augmented Lagrangian, on optax, with the `widths` continuation; `max_outer` outer
+      iterations, default 6, of `inner_steps` steps at `learning_rate`).
+      benchmarks/results/design_comparison.md races the two, SciPy's SLSQP, a calibrated
+      stack-up and derivative-free search.
     - `progress`: a progress bar over the optimiser's iterations.
+    - `callback`: `method="sequential"` only: `callback(gradients, x, cost, objective)` after
+      every gradient evaluation (`sequential_design`; `x.nominal` holds the lower limits).
+    - `check_units`, `max_checks`, `check_key`: with a yield requirement (`yield_`), the
+      proposal is checked on `check_units` fresh simulated units (default 200; 0: no check;
+      `yield_check`, units from `check_key`, default `jax.random.key(1)`) and, where the linear
+      model under- or over-reads their `yield_` quantile by more than 1 % of `requirement` and
+      twice the check's standard error, the requirement the optimiser sees is shifted by the difference and the design solved again
+      from where it was, at most `max_checks` checks (`method="sequential"` only).
     - `**problem`: the problem's options, as `design_problem` takes them (starting band,
-      functional minima, band range, manufactured units, robust statistic, cost model, gradient
-      mode).
+      functional minima, band range, manufactured units, robust statistic or `yield_`, cost
+      model, gradient mode).
 
     **Returns:** a `DesignReport`.
     """
     if method not in ("augmented-lagrangian", "sequential"):
         raise ValueError(f"propose_design: method must be 'augmented-lagrangian' or 'sequential', got {method!r}.")
+    if callback is not None and method != "sequential":
+        raise ValueError("propose_design: callback is supported by method='sequential' only.")
+    yield_ = problem.get("yield_")
+    check_units = (200 if yield_ is not None else 0) if check_units is None else int(check_units)
+    if check_units and yield_ is None:
+        raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")
+    if check_units and method != "sequential":
+        raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential'.")
+    if max_outer is None:
+        max_outer = 20 if method == "sequential" else 6
     problem = design_problem(pointing, **problem)
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
     baseline_objective = float(eqx.filter_jit(objective)(x0, draws, widths[-1]))
+    checks = []
     if method == "sequential":
-        result = _sequential_continuation(problem, requirement, widths, max_outer, progress)
+        result = _sequential_continuation(problem, requirement, widths, max_outer, progress, callback)
+        target = float(requirement)
+        key = jax.random.key(1) if check_key is None else check_key
+        for _ in range(max_checks if check_units else 0):
+            middle = Design(result.x.nominal + result.x.band, result.x.band)
+            checks.append(yield_check(objective.objective, middle, requirement, check_units, key, widths[-1]))
+            corrected = float(requirement) - checks[-1].shift
+            noise = max(0.01 * float(requirement), 2.0 * checks[-1].shift_se)  # a shift within the check's own noise is not one
+            if not math.isfinite(corrected) or abs(corrected - target) <= noise or len(checks) == max_checks:
+                break
+            target = corrected
+            result = _sequential_continuation(problem, target, widths[-1:], max_outer, progress, callback, x0=result.x, trust=0.1)
     else:
         result = optimise_design(
             objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
@@ -370,4 +427,6 @@ def propose_design(
         sensitivity=Design(s_limit, s_band - s_limit),
         baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)), baseline_objective),
         result=result,
+        yield_=yield_,
+        checks=tuple(checks),
     )

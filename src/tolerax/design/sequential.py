@@ -37,7 +37,7 @@ import optimistix as optx
 import tqdm
 
 from .cost import AbstractCostModel
-from .optimise import Design, Features, History, OptimisationResult
+from .optimise import Design, Features, History, OptimisationResult, optimality_residual
 
 
 def _bisect(fn, lower, upper):
@@ -106,16 +106,9 @@ def _cost_gradient(cost_model, size_mm, band) -> np.ndarray:
 
 
 def _optimality(cost_model, size_mm, z, grad, lo, hi, n) -> float:
-    """First-order optimality residual at `z`: $\\|\\nabla C + \\lambda\\nabla f\\| / \\|\\nabla C\\|$ over
-    the variables free to move (not on a bound that the Lagrangian's gradient pushes against),
-    with the least-squares multiplier $\\lambda \\ge 0$. Zero at a KKT point."""
+    """`optimality_residual` at box point `z` (flat lower limits then bands) with gradient `grad`."""
     dc = np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])])
-    ff = grad @ grad
-    lam = max(0.0, -float(dc @ grad) / ff) if ff > 0 else 0.0
-    g = dc + lam * grad
-    free = ~(((z <= lo) & (g > 0)) | ((z >= hi) & (g < 0)))
-    scale = np.linalg.norm(dc[free]) if np.any(free) else 0.0
-    return float(np.linalg.norm(g[free]) / scale) if scale > 0 else 0.0
+    return optimality_residual(dc, grad, z <= lo, z >= hi)
 
 
 def sequential_design(
@@ -135,6 +128,7 @@ def sequential_design(
     step_tol: float = 1e-3,
     optimality_tol: float = 1e-3,
     progress: bool = False,
+    callback: Callable[[int, Design, float, float], None] | None = None,
 ) -> OptimisationResult:
     """Cheapest bands meeting `requirement` by sequential linearisation (see the module
     docstring). The design's `nominal` field holds the zone's *lower limit* (`FromLowerLimit`'s
@@ -154,6 +148,9 @@ def sequential_design(
     - `optimality_tol`: or has stopped improving: the first-order optimality residual (see
       `_optimality`) is below this.
     - `progress`: a tqdm bar over iterations.
+    - `callback`: called after every gradient evaluation as `callback(evaluations, x, cost,
+      objective)` with the design just evaluated (the trial point, kept or not), its cost and
+      objective (arcsec): a live plot, a log, or a race against another method's wall time.
 
     **Returns:** an `OptimisationResult` (its `history.penalty` is NaN and `history.steps` counts
     gradient evaluations; `multiplier` is the subproblem's $\\lambda$ at the last iterate).
@@ -175,6 +172,8 @@ def sequential_design(
 
     z = np.clip(np.concatenate([np.asarray(x0.nominal), np.asarray(x0.band)]), lo, hi)
     f, grad = evaluate(z)
+    if callback is not None:
+        callback(1, Design(z[:n], z[n:]), cost(z), f)
     radius = float(trust_region)
     rows, lam, converged, previous = [], 0.0, False, None
     best = None  # (cost, row index, z, f, grad, multiplier) of the cheapest iterate that met the requirement
@@ -190,6 +189,8 @@ def sequential_design(
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), lo, hi)
         f_trial, grad_trial = evaluate(trial)
         evaluations += 1
+        if callback is not None:
+            callback(evaluations, Design(trial[:n], trial[n:]), cost(trial), f_trial)
         f_pred, lam_k = float(f_pred), float(lam_k)
         model_error = abs(f_trial - f_pred)
         change = max(abs(f_pred - f), tol * requirement)
