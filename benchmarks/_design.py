@@ -13,8 +13,10 @@ def add_arguments(parser):
     """The problem's options, shared by both scripts (same names, same defaults)."""
     parser.add_argument("--horizon", type=float, default=0.6, help="simulated time per unit (s)")
     parser.add_argument("--draws", type=int, default=4, help="manufactured units in the robust objective")
-    parser.add_argument("--outer", type=int, default=4, help="propose_design's outer iterations")
-    parser.add_argument("--inner", type=int, default=6, help="propose_design's inner steps per outer iteration")
+    parser.add_argument("--method", default="sequential", choices=("sequential", "augmented-lagrangian"), help="propose_design's method")
+    parser.add_argument("--outer", type=int, default=None,
+                        help="propose_design's max_outer (sequential: gradients per width, default 20; augmented Lagrangian: outer iterations)")
+    parser.add_argument("--inner", type=int, default=6, help="augmented Lagrangian: inner steps per outer iteration")
 
 
 def pointing(args, fidelity="lumped"):
@@ -30,5 +32,5 @@ def propose(pointing, requirement, args, outer=None, inner=None, **options):
     `options` go to `propose_design`."""
     return harness.wall(
         tx.propose_design, pointing, requirement, n_draws=args.draws, max_outer=args.outer if outer is None else outer,
-        inner_steps=args.inner if inner is None else inner, **options,
+        inner_steps=args.inner if inner is None else inner, **{"method": args.method, **options},
     )

@@ -1,7 +1,7 @@
 """The trade-off curve of tolerance design: the cheapest design's cost against the required
 pointing accuracy, one `propose_design` run per requirement (issue 12, item 8).
 
-    python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--outer 4] [--inner 6] [--results DIR]
+    python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--method sequential] [--results DIR]
 
 Same problem as `benchmarks/design_comparison.py` (`_design.py`): the azimuth scan (lumped, 0.6 s, steady start),
 mean + 1 std of the RMS pointing error over 4 fixed manufactured units, lower limits of every
@@ -69,7 +69,7 @@ def main():
          "multiplier (cost per arcsec)", "wall (s)"],
         rows,
         about=(
-            f"Features in order: {', '.join(tx.design_names(pointing.scene))}. {args.outer} x {args.inner} optimiser steps per point. "
+            f"Features in order: {', '.join(tx.design_names(pointing.scene))}. method {args.method} (max_outer {args.outer}, inner {args.inner}). "
             f"Figure: `{png.name}`. The multiplier is the optimiser's estimate of d cost / d requirement (its sign reversed)."
         ),
     )

@@ -140,7 +140,7 @@ def command(args=None) -> str:
         return shlex.join(head + sys.argv[1:])
     words = []
     for dest, value in vars(args).items():
-        option = "--" + dest.replace("_", "-")
+        option = "--" + dest.rstrip("_").replace("_", "-")  # dest `yield_` (a keyword) is option `--yield`
         if dest == "results" or value is None or value is False:
             continue
         if value is True:
