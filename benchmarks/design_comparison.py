@@ -12,19 +12,21 @@ at 0.25 s), choose per feature the lower limit of the tolerance zone (>= 5 um) a
 half-width (1-50 um) of the output-bearing and planet-pin clearances and the sun- and ring-mesh
 backlash, minimising the ISO 286 cost of the bands subject to mean + 1 std of the RMS pointing
 error over 4 fixed manufactured units <= the requirement. A design *meets* it when its objective,
-simulated at the final smoothing width (0.1 um), is within `--tol` (1 %) of the requirement or
-below, for every method alike (the sequential method's own stopping tolerance).
+simulated at the final smoothing width (0.1 um), is within `--tol` (0.2 %) of the requirement or
+below, for every method alike (a 1 % slack, the sequential method's own stopping tolerance, is
+worth ~1.5 % of cost: enough to reorder methods that differ by less).
 
 Methods, each timed from its first call with every program already compiled (a warm-up compiles
 the forward objective, its value-and-gradient and the sequential subproblem first; the table
 reports those compile times apart):
 
 - `sequential`: `propose_design(method="sequential")` from each starting band of `--starts` (its
-  "seeds": the method is deterministic), at smoothing widths 1 um then 0.1 um.
+  "seeds": the method is deterministic), at `--widths` in turn (default 1 um then 0.1 um); only
+  its proposal counts (judged at the last width: the 1 um iterates are not designs at 0.1 um).
 - `augmented-lagrangian`: `propose_design(method="augmented-lagrangian")`, 4 x 6 steps (the
-  previous default), from the 10 um start.
-- `slsqp`: SciPy's SLSQP on the same exact JAX value and gradient (forward mode), the same
-  widths in turn, from the 10 um start: the reference the issue asks for (cyipopt is not
+  previous default), widths 1 um then the last of `--widths`, from the 10 um start.
+- `slsqp`: SciPy's SLSQP on the same exact JAX value and gradient (forward mode), at the same
+  widths, from the 10 um start: the reference the issue asks for (cyipopt is not
   installable here: no IPOPT library).
 - `stackup`: the engineer's calibrated stack-up, the issue's 2.47. Each fixed unit's one-sided
   lost motion at the output O is read off the drawings (`lost_motion_weights`: 4.39 arcsec per
@@ -90,6 +92,7 @@ class Race:
         self.value_and_grad = eqx.filter_jit(lambda x, w: jax.value_and_grad(lambda x_: p.objective(x_, p.draws, w))(x))
         self.cost0 = self.cost(self.to_x(self.to_z(p.x0)))
         self.rows, self.start = [], None
+        self.current_width = args.widths[-1]  # the width of the evaluations being logged
 
     # --- coordinates and cost
     def to_x(self, z):
@@ -112,7 +115,7 @@ class Race:
 
     def log(self, x, value, kind="f"):
         self.rows.append(dict(t=time.perf_counter() - self.start, cost=self.cost(x), objective=float(value), kind=kind,
-                              z=self.to_z(x).tolist()))
+                              z=self.to_z(x).tolist(), width=float(self.current_width)))
 
     def evaluate(self, z):
         """The objective (arcsec) at box coordinates `z`, logged."""
@@ -131,7 +134,7 @@ class Race:
         wall = time.perf_counter() - self.start
         best = None
         for r in self.rows:
-            if self.meets(r["objective"]) and (best is None or r["cost"] < best["cost"]):
+            if r["width"] == self.args.widths[-1] and self.meets(r["objective"]) and (best is None or r["cost"] < best["cost"]):
                 best = r
         x = self.to_x(best["z"]) if best else None
         return dict(
@@ -165,6 +168,9 @@ def run_sequential(race, band):
         race.pointing, race.args.requirement, method="sequential", max_outer=race.args.max_iterations, widths=tuple(race.args.widths),
         band=band * 1e-6, n_draws=race.args.draws, callback=lambda i, x, cost, value: race.log(x, value, "gradient"),
     )
+    if len(race.args.widths) > 1:  # the callback cannot tell the widths apart: judge the proposal itself
+        race.rows = []
+        race.log(tx.Design(report.result.x.nominal, report.result.x.band), report.objective, "final")
     # The proposal is the method's answer: judged like every other design, at the final width.
     out = race.end(converged=bool(report.result.converged), gradients=int(np.asarray(report.result.history.steps)[-1]),
                    reported_cost=report.cost, reported_objective=report.objective, optimality=report.result.optimality)
@@ -173,8 +179,8 @@ def run_sequential(race, band):
 
 def run_augmented_lagrangian(race):
     race.begin()
-    report = tx.propose_design(race.pointing, race.args.requirement, method="augmented-lagrangian", max_outer=4, inner_steps=6, widths=tuple(race.args.widths),
-                               n_draws=race.args.draws)
+    report = tx.propose_design(race.pointing, race.args.requirement, method="augmented-lagrangian", max_outer=4, inner_steps=6,
+                               widths=(1e-6, race.args.widths[-1]), n_draws=race.args.draws)
     x = tx.Design(report.result.x.nominal, report.result.x.band)
     race.log(x, report.objective, "final")  # the optimiser's iterates are not observable one by one
     return race.end(converged=bool(report.result.converged), gradients=28, optimality=report.result.optimality)
@@ -189,6 +195,7 @@ def run_slsqp(race):
     cost_grad = jax.jit(jax.value_and_grad(lambda b: p.cost_model.total(b, p.features.size_mm)))
     for width in race.args.widths:
         cache = {}
+        race.current_width = width
 
         def vg(zz, width=width, cache=cache):
             key = tuple(np.round(zz, 15))
@@ -292,10 +299,12 @@ def verify(race, x, key):
                 interval=[float(s["yield_low"]), float(s["yield_high"])])
 
 
-def best_so_far(run, requirement, tol):
-    """(times, cheapest cost met so far) of one run."""
+def best_so_far(run, requirement, tol, width):
+    """(times, cheapest cost met so far) of one run, counting evaluations at `width` only."""
     t, c, best = [], [], math.inf
     for r in run["rows"]:
+        if r.get("width", width) != width:
+            continue
         if math.isfinite(r["objective"]) and r["objective"] <= requirement * (1 + tol) and r["cost"] < best:
             best = r["cost"]
             t.append(r["t"])
@@ -303,8 +312,8 @@ def best_so_far(run, requirement, tol):
     return t, c
 
 
-def time_to(run, target, requirement, tol):
-    t, c = best_so_far(run, requirement, tol)
+def time_to(run, target, requirement, tol, width):
+    t, c = best_so_far(run, requirement, tol, width)
     for ti, ci in zip(t, c):
         if ci <= target:
             return ti
@@ -315,7 +324,9 @@ def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--requirement", type=float, default=400.0, help="arcsec")
     _design.add_arguments(parser)  # --horizon, --draws (--outer, --inner unused here)
-    parser.add_argument("--widths", type=float, nargs="+", default=[1e-6, 1e-7], help="smoothing widths (m), wide to narrow")
+    parser.add_argument("--widths", type=float, nargs="+", default=[1e-6, 1e-7],
+                        help="sequential and SLSQP: smoothing widths (m), wide to narrow; designs are judged at the last "
+                        "(the augmented Lagrangian keeps its own 1e-6 then 1e-7)")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--seeds", type=int, default=5, help="seeds per stochastic method")
     parser.add_argument("--budget", type=int, default=290, help="objective evaluations per TPE, CMA-ES or random run")
@@ -323,7 +334,8 @@ def main():
     parser.add_argument("--max-iterations", type=int, default=20, help="sequential, SLSQP: gradients (iterations) per width at most")
     parser.add_argument("--stackup-checks", type=int, default=4, help="stack-up: simulations of its design at most")
     parser.add_argument("--calibration", type=int, default=6, help="stack-up: simulations that calibrate it")
-    parser.add_argument("--tol", type=float, default=0.01, help="a design meets the requirement within this fraction")
+    parser.add_argument("--tol", type=float, default=0.002,
+                        help="a design meets the requirement within this fraction (default 0.2 %%: the sequential method and SLSQP land within 0.02 %%)")
     parser.add_argument("--verify-units", type=int, default=0, help="planetary units to verify designs on (0: none)")
     parser.add_argument("--table-only", action="store_true")
     args = harness.parse_args(parser)
@@ -353,7 +365,9 @@ def main():
                 run["label"] = label
                 print({k: v for k, v in run.items() if k != "rows"}, flush=True)
                 runs.append(run)
-            (out / f"{method}.json").write_text(json.dumps(dict(method=method, runs=runs, env=harness.environment()), indent=1))
+            for run in runs:  # every evaluation's time, cost, objective and width; the designs only for the answers (`x`)
+                run["rows"] = [{k: v for k, v in row.items() if k != "z"} for row in run["rows"]]
+            (out / f"{method}.json").write_text(json.dumps(dict(method=method, runs=runs, env=harness.environment())))
         if args.verify_units:
             run_verification(race, out)
     write(args, out)
@@ -384,18 +398,24 @@ def write(args, out):
     data = {m: json.loads((out / f"{m}.json").read_text()) for m in METHODS if (out / f"{m}.json").exists()}
     warm = json.loads((out / "warmup.json").read_text()) if (out / "warmup.json").exists() else None
     R, tol = args.requirement, args.tol
+    rows = []
+    for d in data.values():  # judged again here, at this invocation's --tol and final width
+        for r in d["runs"]:
+            _, c = best_so_far(r, R, tol, args.widths[-1])
+            r["cost"] = c[-1] if c else None
+            r["objective"] = min((x["objective"] for x in r["rows"] if x.get("width", args.widths[-1]) == args.widths[-1]
+                                  and x["cost"] == r["cost"]), default=None)
     tpe = [r["cost"] for r in data.get("tpe", {}).get("runs", []) if r["cost"] is not None]
     tpe_median = float(np.median(tpe)) if tpe else None
-    rows = []
     for m, d in data.items():
         runs = d["runs"]
         costs = [r["cost"] for r in runs if r["cost"] is not None]
         walls = [r["wall"] for r in runs]
-        reach = [time_to(r, tpe_median, R, tol) for r in runs] if tpe_median else []
+        reach = [time_to(r, tpe_median, R, tol, args.widths[-1]) for r in runs] if tpe_median else []
         reached = [t for t in reach if math.isfinite(t)]
         conv = [r.get("converged") for r in runs if "converged" in r]
         rows.append((
-            m, str(len(runs)), f"{np.median([r['evaluations'] for r in runs]):.0f}", f"{np.median(walls):.0f}",
+            m, str(len(runs)), f"{np.median([r.get('gradients', r['evaluations']) for r in runs]):.0f}", f"{np.median(walls):.0f}",
             f"{np.median(costs):.3f} [{min(costs):.3f}, {max(costs):.3f}]" if costs else "none met",
             f"{len(costs)} of {len(runs)}",
             (f"{np.median(reach):.0f} ({len(reached)} of {len(runs)} reach it)" if reach and reached else "never") if tpe_median else "",
@@ -423,17 +443,18 @@ def write(args, out):
         for label, v in json.loads(vpath.read_text()).items():
             notes.append(f"Verified at planetary fidelity, {v['n_used']} fresh units: {label}, cost {v['cost']:.3f}: mean + std "
                          f"{v['mean_plus_std']:.0f} arcsec, yield {v['yield_']:.2f} [{v['interval'][0]:.2f}, {v['interval'][1]:.2f}].")
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, ax = plt.subplots(figsize=(8, 4.5))
     for k, (m, d) in enumerate(data.items()):
         for j, r in enumerate(d["runs"]):
-            t, c = best_so_far(r, R, tol)
+            t, c = best_so_far(r, R, tol, args.widths[-1])
             if t:
                 ax.step(t + [r["wall"]], c + [c[-1]], where="post", color=f"C{k}", lw=1.2, alpha=0.8, label=m if j == 0 else None)
+                ax.plot([r["wall"]], [c[-1]], "o", ms=4, color=f"C{k}")  # where the run ended (a proposal: its only point)
     if tpe_median:
         ax.axhline(tpe_median, color="0.5", ls=":", lw=0.8, label=f"TPE median after {args.budget} evaluations")
     ax.set_xscale("log")
     ax.set_xlabel("wall time (s, compiled)")
-    ax.set_ylabel("cheapest design met so far (cost, IT7 = 1 per feature)")
+    ax.set_ylabel("cheapest design met so far\n(cost, IT7 = 1 per feature)")
     ax.set_ylim(top=min(ax.get_ylim()[1], 6.0))
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -442,12 +463,14 @@ def write(args, out):
         "design_comparison",
         "Tolerance design: the sequential method against a calibrated stack-up, SLSQP and derivative-free search, cost against wall time",
         harness.command(args),
-        ["method", "runs", "evaluations (median)", "wall (s, median)", "cost of the design met: median [min, max]", "runs that met it",
+        ["method", "runs", "simulations: evaluations or gradients (median)", "wall (s, median)", "cost of the design met: median [min, max]", "runs that met it",
          f"wall to reach TPE's median {tpe_median:.3f} (s)" if tpe_median else "wall to reach TPE's median", "converged (says)"],
         rows,
         about=(f"Requirement: mean + 1 std of the RMS pointing error over {args.draws} fixed units <= {R:g} arcsec (met within "
                f"{tol:.0%}), {args.horizon} s lumped azimuth scan; the figure `design_comparison.png` draws each run's cheapest "
-               "design met against wall time. Runs are of one method after another in one process (see `env` in each JSON)."),
+               "design met against wall time. Within one invocation the methods run one after another in one process; "
+               "each method's JSON records the invocation's environment (`env`: commit, load). The compile and "
+               "gradient-cost figures are those of the invocation that wrote `warmup.json`."),
         notes=notes,
     )
 

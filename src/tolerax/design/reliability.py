@@ -99,18 +99,38 @@ class LinearisedYield(eqx.Module):
     module docstring): one simulation with one tangent per feature, whatever the yield. `draws`:
     `yield_draws` (fixed); `width`: the smoothing width (m) passed to `pointing`.
     $P(\\text{output} \\le R) \\ge q$ for the linearised response exactly when the objective is
-    $\\le R$."""
+    $\\le R$.
+
+    `slope_width` (m, optional): take the slopes $s$ from a solve at this (wider) smoothing width
+    and only the value $f$ at `width` (one more solve, without tangents). Where the contacts
+    make the response rough, forward-mode tangents at a narrow width are not the slope of the
+    response: on the dual scan at 0.1 um they jumped from +2.8 to -436 arcsec/um for a 0.1 um
+    change of the design while the value moved by 0.3 %, and at 1 um they stayed within 5 %.
+    The slopes of the smoothed model are what a stack-up needs; the Monte Carlo check measures
+    what they miss."""
 
     pointing: PointingObjective
     output: str = eqx.field(static=True, default="pointing_rms")
     q: float = eqx.field(static=True, default=0.99)
+    slope_width: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
             raise ValueError(f"LinearisedYield: the yield q must be in (0, 1), got {self.q!r}.")
+        if self.slope_width is not None and not self.slope_width > 0:
+            raise ValueError(f"LinearisedYield: slope_width must be > 0 (m), got {self.slope_width!r}.")
+
+    def linear_model(self, middle, width):
+        """`(f, s)` at the zone middles `middle` (m): the value at `width` and the slopes (at
+        `slope_width` where set); the derivative passed back through `f` is `s`."""
+        if self.slope_width is None:
+            return value_and_slopes(middle, self.pointing, self.output, width)
+        smooth, slopes = value_and_slopes(middle, self.pointing, self.output, jnp.asarray(self.slope_width, dtype=float))
+        value = jax.lax.stop_gradient(_unit_output(middle, self.pointing, self.output, width))
+        return value + (smooth - jax.lax.stop_gradient(smooth)), slopes
 
     def __call__(self, x: Design, draws, width) -> Array:
-        value, slopes = value_and_slopes(x.nominal, self.pointing, self.output, width)
+        value, slopes = self.linear_model(x.nominal, width)
         return linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q)
 
 
@@ -167,7 +187,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: in
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
     width = None if width is None else jnp.asarray(width, dtype=float)
     values = realise(x, unit_draws(key, int(n), x.nominal.shape[0]))
-    f, s = eqx.filter_jit(value_and_slopes)(x.nominal, objective.pointing, objective.output, width)
+    f, s = eqx.filter_jit(lambda o, m, w: o.linear_model(m, w))(objective, x.nominal, width)
     linear = np.asarray(f + (values - x.nominal) @ s)
     simulated = np.concatenate([
         np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)) for i in range(0, int(n), chunk)

@@ -198,6 +198,10 @@ def sequential_design(
         accept = violation_trial <= max(violation, tol * requirement) or model_error <= 0.5 * change
         step = (trial - z) / span
         moved = float(np.max(np.abs(step)))
+        # A step stopped by the trust region, not by the box or the model's own optimum: a small
+        # one says the region collapsed, not that the design converged.
+        inner = (box_lo > lo) | (box_hi < hi)
+        limited = bool(np.any(inner & ((trial <= box_lo + 1e-12 * span) | (trial >= box_hi - 1e-12 * span)) & (np.abs(step) > 0)))
         if accept:
             z, f, grad, lam = trial, f_trial, grad_trial, lam_k
         radius = min(2.0 * radius, 1.0) if model_error <= 0.25 * change else max(0.25 * radius, 1e-4)
@@ -216,7 +220,7 @@ def sequential_design(
         bar.update(1)
         bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=f"{f:.1f}", requirement=f"{requirement:g}")
         if accept and met and (active or widest) and (
-            moved <= step_tol or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
+            (moved <= step_tol and not limited) or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
         ):
             converged = True
             break
