@@ -418,7 +418,8 @@ def write(args, out):
             m, str(len(runs)), f"{np.median([r.get('gradients', r['evaluations']) for r in runs]):.0f}", f"{np.median(walls):.0f}",
             f"{np.median(costs):.3f} [{min(costs):.3f}, {max(costs):.3f}]" if costs else "none met",
             f"{len(costs)} of {len(runs)}",
-            (f"{np.median(reach):.0f} ({len(reached)} of {len(runs)} reach it)" if reach and reached else "never") if tpe_median else "",
+            (f"{'median not reached' if not math.isfinite(np.median(reach)) else f'{np.median(reach):.0f}'} "
+             f"({len(reached)} of {len(runs)} reach it)" if reach and reached else "never") if tpe_median else "",
             f"{sum(conv)} of {len(conv)}" if conv else "",
         ))
     notes = []
