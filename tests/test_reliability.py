@@ -139,3 +139,12 @@ def test_slopes_at_a_wider_width(scan_pointing):
     np.testing.assert_allclose(np.asarray(grad), np.asarray(s_wide), rtol=1e-9)
     with pytest.raises(ValueError, match="slope_width"):
         rel.LinearisedYield(scan_pointing, slope_width=-1.0)
+
+
+def test_the_proposal_after_checks_is_the_cheapest_accepted():
+    """After several Monte Carlo checks, the proposal is the cheapest design whose simulated
+    quantile met the requirement (to 1 %), not the last re-solve; none accepted: `None` (the
+    last design stays)."""
+    assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
+    assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
+    assert _propose._cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None

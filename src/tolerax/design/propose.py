@@ -325,6 +325,13 @@ def _sequential_continuation(problem: DesignProblem, requirement, widths, max_it
     return eqx.tree_at(lambda r: (r.history, r.iteration), last, (history, last.iteration + offset))
 
 
+def _cheapest_accepted(costs, quantiles, requirement, tol=0.01):
+    """Index of the cheapest design whose simulated quantile met `requirement` to `tol`, or
+    `None` where none did."""
+    ok = [k for k, q in enumerate(quantiles) if q <= requirement * (1 + tol)]
+    return min(ok, key=lambda k: costs[k]) if ok else None
+
+
 def propose_design(
     pointing: PointingObjective,
     requirement: float,
@@ -421,10 +428,9 @@ def propose_design(
         # The proposal: the cheapest checked design whose simulated quantile met the requirement
         # (to the method's 1 %), else the last one: a re-solve that did not land is not kept
         # over a cheaper design the simulation already accepted.
-        passed = [(r, c) for r, c in checked if c.quantile_simulated <= float(requirement) * 1.01]
-        if passed:
-            result, last = min(passed, key=lambda rc: float(rc[0].cost))
-            checks = checks[: checks.index(last) + 1]
+        k = _cheapest_accepted([float(r.cost) for r, _ in checked], [c.quantile_simulated for _, c in checked], float(requirement))
+        if k is not None:
+            result, checks = checked[k][0], checks[: k + 1]
     else:
         result = optimise_design(
             objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
