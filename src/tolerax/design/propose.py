@@ -384,8 +384,9 @@ def propose_design(
       proposal is checked on `check_units` fresh simulated units (default 200; 0: no check;
       `yield_check`, units from `check_key`, default `jax.random.key(1)`) and, where the linear
       model under- or over-reads their `yield_` quantile by more than 1 % of `requirement` and
-      twice the check's standard error, the requirement the optimiser sees is shifted by the difference and the design solved again
-      from where it was, at most `max_checks` checks (`method="sequential"` only).
+      twice the check's standard error, the requirement the optimiser sees is shifted by the
+      difference and the design solved again from where it was, at most `max_checks` checks
+      (`method="sequential"` only).
     - `**problem`: the problem's options, as `design_problem` takes them (starting band,
       functional minima, band range, manufactured units, robust statistic or `yield_`, cost
       model, gradient mode).
@@ -401,7 +402,7 @@ def propose_design(
     if check_units and yield_ is None:
         raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")
     if check_units and method != "sequential":
-        raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential'.")
+        raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
     problem = design_problem(pointing, **problem)

@@ -24,7 +24,9 @@ more than the linear model predicted (or lowers the violation); the trust region
 model predicted the objective well and shrinks when it did not, so the method still converges
 where the response bends (contact onset, clipping at zero clearance). It stops when the design
 stops moving with the constraint met to `tol` (active, or inactive with every band at its
-widest).
+widest) — a step cut short by the trust region does not count: on an objective rough at small
+scales (impacts at a narrow smoothing width) the region collapses, and the run then ends on its
+budget, reported not converged, with the cheapest iterate on the requirement.
 """
 
 from collections.abc import Callable
