@@ -136,6 +136,9 @@ def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):
     assert report.objective <= 1.5 * baseline * 1.02
     assert report.names == tx.design_names(scan_pointing.scene)
     assert "IT" in report.table()
+    # The drawings' weights beside the simulated sensitivities: the scene's own geometry.
+    np.testing.assert_allclose(report.lost_motion, tx.lost_motion_weights(scan_pointing.scene))
+    assert "simulated / drawings" in report.table()
 
 
 def test_sequential_proposal_lands_on_the_requirement(scan_pointing):

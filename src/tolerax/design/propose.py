@@ -17,7 +17,7 @@ import numpy as np
 import optax
 from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade, grade_of
-from .features import design_names, design_of, feature_entries
+from .features import design_names, design_of, feature_entries, lost_motion_weights
 from .objectives import UNITS, PointingObjective
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
 from .reliability import LinearisedYield, YieldCheck, yield_check, yield_draws
@@ -137,6 +137,8 @@ class DesignReport:
       $Y$-quantile, `LinearisedYield`), else `None`; `checks`: the Monte Carlo checks of the
       proposal (`YieldCheck`; the last is the returned design's: the cheapest checked design
       whose simulated quantile met the requirement to 1 %, else the last one checked).
+    - `lost_motion` (arcsec/m): the geometric stack-up's weight of each feature
+      (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities.
     """
 
     names: tuple[str, ...]
@@ -154,19 +156,25 @@ class DesignReport:
     result: OptimisationResult
     yield_: float | None = None
     checks: tuple[YieldCheck, ...] = ()
+    lost_motion: np.ndarray | None = None
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature."""
+        geometric = self.lost_motion is not None
         rows = [
-            "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |",
-            "|---|---|---|---|---|---|---|",
+            "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
+            + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
+            "|---|---|---|---|---|---|---|" + ("---|" if geometric else ""),
         ]
         for k, name in enumerate(self.names):
             low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
                 f"| {name} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
+                + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
             )
+        if geometric:
+            rows += ["", self._weights_text()]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         head = (
             f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); {what} "
@@ -178,6 +186,17 @@ class DesignReport:
         if self.checks:
             head += " " + self.checks[-1].text() + "."
         return head + "\n\n" + "\n".join(rows)
+
+    def _weights_text(self) -> str:
+        """The simulated sensitivities beside the drawings' weights, each relative to the first
+        feature the drawings weigh (a backlash or a pin clearance): where they differ, a stack-up
+        from the drawings misallocates the bands."""
+        s, w = np.asarray(self.sensitivity.nominal, dtype=float), np.asarray(self.lost_motion, dtype=float)
+        ref = int(np.flatnonzero(w > 0)[0]) if np.any(w > 0) else None
+        if ref is None or s[ref] == 0:
+            return "No feature moves the output by the drawings: no weights to compare."
+        pairs = ", ".join(f"{name} {s[k] / s[ref]:.2f} / {w[k] / w[ref]:.2f}" for k, name in enumerate(self.names))
+        return f"Weight per µm relative to {self.names[ref]}, simulated / drawings (`lost_motion_weights`): {pairs}."
 
     def _iteration_text(self) -> str:
         chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
@@ -458,4 +477,5 @@ def propose_design(
         result=result,
         yield_=yield_,
         checks=tuple(checks),
+        lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
     )
