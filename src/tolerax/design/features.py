@@ -18,6 +18,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 from collections.abc import Callable
 
+from ..mechanism.outputs import ARCSEC
 from ..mechanism.scene import AbstractScene
 from ..physics.stage import PlanetaryStage
 from ..uncertainty.sampling import Tolerances
@@ -86,9 +87,6 @@ def tolerances_of(scene, band=10e-6, distribution: str = "uniform") -> Tolerance
     return Tolerances(design_names(scene), nominal, jnp.broadcast_to(jnp.asarray(band, dtype=float), nominal.shape), distribution)
 
 
-ARCSEC_PER_RAD = 180.0 / jnp.pi * 3600.0
-
-
 def lost_motion_weights(scene):
     """The geometric stack-up's weights (arcsec/m): the one-sided lost motion at each joint's
     output per metre of each design feature, with the sun held, from the stage's geometry alone
@@ -107,5 +105,5 @@ def lost_motion_weights(scene):
             w = float(jnp.cos(stage.sun_pressure_angle) + jnp.cos(stage.ring_pressure_angle))
         else:
             w = 0.0
-        weights.append(w / lever * float(ARCSEC_PER_RAD))
+        weights.append(w / lever / ARCSEC)
     return jnp.asarray(weights)

@@ -4,8 +4,11 @@ vector (`tolerax.design.features`). One `PointingObjective` serves the gradient 
 scalar outputs and a `success` flag).
 """
 
+import dataclasses
+
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 from .features import with_design
@@ -83,6 +86,20 @@ class PointingObjective(eqx.Module):
             tracking_speed_rms=metrics["tracking_speed_rms"],
             success=res.result == diffrax.RESULTS.successful,
         )
+
+
+def unit_output(values, pointing: PointingObjective, output: str, width):
+    """One manufactured unit's `output` at design `values` (m), NaN if its solve failed."""
+    out = pointing(values, width)
+    return jnp.where(out["success"], out[output], jnp.nan)
+
+
+def value_and_jacobian(values, pointing: PointingObjective, output: str, width):
+    """`(unit_output, its Jacobian over values)` from one solve carrying one forward-mode
+    tangent per feature (`diffrax.ForwardMode`)."""
+    forward = dataclasses.replace(pointing, adjoint=diffrax.ForwardMode())
+    jac, value = jax.jacfwd(lambda v: (lambda y: (y, y))(unit_output(v, forward, output, width)), has_aux=True)(values)
+    return value, jac
 
 
 def _widths(scene):

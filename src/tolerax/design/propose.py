@@ -9,7 +9,6 @@ and the augmented-Lagrangian optimiser on optax (`tolerax.design.optimise`), and
 import dataclasses
 import math
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -18,7 +17,7 @@ import optax
 from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries, lost_motion_weights
-from .objectives import UNITS, PointingObjective
+from .objectives import UNITS, PointingObjective, unit_output, value_and_jacobian
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
 from .reliability import LinearisedYield, YieldCheck, yield_check, yield_draws
 from .sequential import sequential_design
@@ -50,27 +49,19 @@ class OnHalfWidth(AbstractCostModel):
         return self.model(2.0 * band, size_mm)
 
 
-def _unit_output(values, pointing: PointingObjective, output: str, width):
-    """One manufactured unit's `output` (NaN if its solve failed)."""
-    out = pointing(values, width)
-    return jnp.where(out["success"], out[output], jnp.nan)
-
-
 @eqx.filter_custom_vjp
 def _unit_output_forward(values, pointing, output, width):
-    """`_unit_output`, whose reverse-mode derivative is computed in forward mode: the backward
+    """`unit_output`, whose reverse-mode derivative is computed in forward mode: the backward
     pass of a simulation needs the whole trajectory (checkpointed and recomputed), while a
     handful of tangents carried along the forward solve (`diffrax.ForwardMode`) cost less for
     the few clearances of a scene (benchmarks/results/gradient_methods.md). The Jacobian over
     the unit's design vector is formed on the forward pass and kept for the backward one."""
-    return _unit_output(values, pointing, output, width)
+    return unit_output(values, pointing, output, width)
 
 
 @_unit_output_forward.def_fwd
 def _unit_output_forward_fwd(perturbed, values, pointing, output, width):
-    forward = dataclasses.replace(pointing, adjoint=diffrax.ForwardMode())
-    jac, value = jax.jacfwd(lambda v: (lambda y: (y, y))(_unit_output(v, forward, output, width)), has_aux=True)(values)
-    return value, jac
+    return value_and_jacobian(values, pointing, output, width)
 
 
 @_unit_output_forward.def_bwd
@@ -101,7 +92,7 @@ class RobustPointing(eqx.Module):
             raise ValueError(f"RobustPointing: gradient must be 'forward' or 'reverse', got {self.gradient!r}.")
 
     def __call__(self, x: Design, draws, width) -> Array:
-        unit = _unit_output_forward if self.gradient == "forward" else _unit_output
+        unit = _unit_output_forward if self.gradient == "forward" else unit_output
         value = jax.vmap(lambda v: unit(v, self.pointing, self.output, width))(realise(x, draws))
         return robust(value, kind=self.statistic, k=self.k)
 

@@ -28,7 +28,6 @@ again (the SORA idea: a deterministic problem with a shifted limit, Du and Chen,
 import dataclasses
 import math
 
-import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -36,7 +35,7 @@ import numpy as np
 import scipy.stats
 from jaxtyping import Array
 
-from .objectives import PointingObjective
+from .objectives import PointingObjective, unit_output, value_and_jacobian
 from .optimise import Design, realise, robust
 from ..uncertainty.results import wilson_interval
 from ..uncertainty.sampling import unit_draws
@@ -62,29 +61,18 @@ def linear_quantile(value, slopes, x: Design, draws, q: float) -> Array:
     return robust(value + deltas @ slopes, kind="quantile", q=q)
 
 
-def _unit_output(values, pointing: PointingObjective, output: str, width):
-    out = pointing(values, width)
-    return jnp.where(out["success"], out[output], jnp.nan)
-
-
-def _value_and_jacobian(values, pointing, output, width):
-    forward = dataclasses.replace(pointing, adjoint=diffrax.ForwardMode())
-    jac, value = jax.jacfwd(lambda v: (lambda y: (y, y))(_unit_output(v, forward, output, width)), has_aux=True)(values)
-    return value, jac
-
-
 @eqx.filter_custom_vjp
 def value_and_slopes(values, pointing, output, width):
     """`(f, s)`: one unit's `output` at feature `values` (m) and its gradient $s$ over them,
     from one solve carrying one forward-mode tangent per feature (`diffrax.ForwardMode`). The
     derivative passed back is that of $f$ alone ($s$ is treated as a constant: see the module
     docstring). NaN where the solve failed."""
-    return _value_and_jacobian(values, pointing, output, width)
+    return value_and_jacobian(values, pointing, output, width)
 
 
 @value_and_slopes.def_fwd
 def _value_and_slopes_fwd(perturbed, values, pointing, output, width):
-    value, jac = _value_and_jacobian(values, pointing, output, width)
+    value, jac = value_and_jacobian(values, pointing, output, width)
     return (value, jac), jac
 
 
@@ -126,7 +114,7 @@ class LinearisedYield(eqx.Module):
         if self.slope_width is None:
             return value_and_slopes(middle, self.pointing, self.output, width)
         smooth, slopes = value_and_slopes(middle, self.pointing, self.output, jnp.asarray(self.slope_width, dtype=float))
-        value = jax.lax.stop_gradient(_unit_output(middle, self.pointing, self.output, width))
+        value = jax.lax.stop_gradient(unit_output(middle, self.pointing, self.output, width))
         return value + (smooth - jax.lax.stop_gradient(smooth)), slopes
 
     def __call__(self, x: Design, draws, width) -> Array:
@@ -174,7 +162,7 @@ class YieldCheck:
 
 @eqx.filter_jit
 def _simulate_units(pointing, output, values, width):
-    return jax.vmap(lambda v: _unit_output(v, pointing, output, width))(values)
+    return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
 
 
 def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: int, key, width=None, chunk: int = 50) -> YieldCheck:
@@ -193,18 +181,21 @@ def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: in
         np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)) for i in range(0, int(n), chunk)
     ])
     ok = np.isfinite(simulated)
-    met = int(np.sum(simulated[ok] <= requirement))
-    low, high = wilson_interval(met, int(np.sum(ok)))
+    sim, lin, used = simulated[ok], linear[ok], int(np.sum(ok))
+    met = int(np.sum(sim <= requirement))
+    low, high = wilson_interval(met, used)
+
+    def hd(v):  # the Harrell-Davis q-quantile, as `robust(kind="quantile")` computes it
+        return float(scipy.stats.mstats.hdquantiles(v, prob=[objective.q])[0])
+
     q_sim, q_lin, se = math.nan, math.nan, math.nan
-    if np.sum(ok) >= 2:
-        q_sim, q_lin = (float(scipy.stats.mstats.hdquantiles(v[ok], prob=[objective.q])[0]) for v in (simulated, linear))
-        rows = np.random.default_rng(0).integers(0, int(np.sum(ok)), size=(400, int(np.sum(ok))))
-        quantile = np.vectorize(lambda i: float(scipy.stats.mstats.hdquantiles(simulated[ok][rows[i]], prob=[objective.q])[0]
-                                               - scipy.stats.mstats.hdquantiles(linear[ok][rows[i]], prob=[objective.q])[0]))
-        se = float(np.std(quantile(np.arange(len(rows))), ddof=1))
+    if used >= 2:
+        q_sim, q_lin = hd(sim), hd(lin)
+        rows = np.random.default_rng(0).integers(0, used, size=(400, used))
+        se = float(np.std([hd(sim[r]) - hd(lin[r]) for r in rows], ddof=1))
     return YieldCheck(
         n=int(n), n_failed=int(np.sum(~ok)), q=objective.q, requirement=float(requirement), simulated=simulated, linear=linear,
-        yield_simulated=met / max(int(np.sum(ok)), 1), interval=(float(low), float(high)),
-        yield_linear=float(np.mean(linear[ok] <= requirement)) if np.any(ok) else math.nan,
+        yield_simulated=met / max(used, 1), interval=(float(low), float(high)),
+        yield_linear=float(np.mean(lin <= requirement)) if used else math.nan,
         quantile_simulated=q_sim, quantile_linear=q_lin, shift=q_sim - q_lin, shift_se=se,
     )
