@@ -4,6 +4,9 @@
 saves, no settling window) of `--draws` fixed manufactured units, and an optimiser budget of
 `--outer` x `--inner` steps per `tolerax.propose_design` run."""
 
+import equinox as eqx
+import numpy as np
+
 import tolerax as tx
 
 import harness
@@ -34,3 +37,18 @@ def propose(pointing, requirement, args, outer=None, inner=None, **options):
         tx.propose_design, pointing, requirement, n_draws=args.draws, max_outer=args.outer if outer is None else outer,
         inner_steps=args.inner if inner is None else inner, **{"method": args.method, **options},
     )
+
+
+def at_width(pointing, width):
+    """`pointing` with every stage's smoothing width set to `width` (m)."""
+    return eqx.tree_at(lambda q: q.scene, pointing, pointing.with_width(tx.design_of(pointing.scene), width))
+
+
+def designed_tolerances(scene, names, nominal, band, other_band=10e-6):
+    """`tx.Tolerances` over every feature of `scene`: the designed ones (`names`, zone middles
+    `nominal` and half-widths `band`, m) and the others, which the design model lacks (the
+    planetary joint's sun bearing), at the scene's own value +- `other_band` (m)."""
+    designed = dict(zip(names, zip(np.asarray(nominal, dtype=float), np.asarray(band, dtype=float))))
+    all_names = tx.design_names(scene)
+    middles, bands = zip(*(designed.get(name, (float(v), other_band)) for name, v in zip(all_names, np.asarray(tx.design_of(scene)))))
+    return tx.Tolerances(all_names, middles, bands)

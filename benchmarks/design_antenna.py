@@ -28,6 +28,7 @@ import numpy as np
 import tolerax as tx
 from tolerax.design.propose import design_problem
 
+import _design
 import harness
 
 
@@ -51,15 +52,10 @@ def main():
     wall_design, report = harness.wall(tx.propose_design, lumped, R, yield_=args.yield_)
     print(report.table(), flush=True)
 
-    planetary = tx.PointingObjective(tx.scan("dual", fidelity="planetary-scaled"), duration=args.horizon, settle=0.0, start="steady",
-                                     n_save=61, rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3)
-    scene = planetary.with_width(tx.design_of(planetary.scene), width)
-    planetary = tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61, rtol=1e-3, atol=1e-6,
-                                     pcoeff=0.3, icoeff=0.3)
-    designed = dict(zip(report.names, zip(report.nominal, report.band)))
-    names = tx.design_names(scene)
-    nominal, bands = zip(*(designed.get(name, (float(v), 10e-6)) for name, v in zip(names, np.asarray(tx.design_of(scene)))))
-    wall_verify, mc = harness.wall(tx.monte_carlo, planetary, tx.Tolerances(names, nominal, bands), args.verify_units,
+    planetary = _design.at_width(tx.PointingObjective(tx.scan("dual", fidelity="planetary-scaled"), duration=args.horizon, settle=0.0,
+                                                      start="steady", n_save=61, rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3), width)
+    tolerances = _design.designed_tolerances(planetary.scene, report.names, report.nominal, report.band)
+    wall_verify, mc = harness.wall(tx.monte_carlo, planetary, tolerances, args.verify_units,
                                    jax.random.key(2025), chunk_size=args.chunk, progress=True, requirement={"pointing_rms": R})
     total = time.perf_counter() - start
     s = mc.summary()["pointing_rms"]

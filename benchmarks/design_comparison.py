@@ -284,13 +284,8 @@ def verify(race, x, key):
     a 10x smaller smoothing width (the planetary joint's sun-bearing clearance, which the lumped
     joint lacks, stays at 100 +- 10 um)."""
     args, names = race.args, race.problem.features.names
-    planetary = _design.pointing(args, "planetary")
-    scene = planetary.with_width(tx.design_of(planetary.scene), args.widths[-1] / 10)
-    planetary = eqx.tree_at(lambda q: q.scene, planetary, scene)
-    designed = dict(zip(names, zip(np.asarray(x["limit"]) + np.asarray(x["band"]), np.asarray(x["band"]))))
-    baseline = dict(zip(tx.design_names(scene), np.asarray(tx.design_of(scene))))
-    nominal, bands = zip(*(designed.get(name, (baseline[name], 10e-6)) for name in baseline))
-    tolerances = tx.Tolerances(tuple(baseline), nominal, bands)
+    planetary = _design.at_width(_design.pointing(args, "planetary"), args.widths[-1] / 10)
+    tolerances = _design.designed_tolerances(planetary.scene, names, np.asarray(x["limit"]) + np.asarray(x["band"]), x["band"])
     mc = tx.monte_carlo(planetary, tolerances, args.verify_units, key, chunk_size=1, progress=False,
                         requirement={"pointing_rms": args.requirement})
     values = mc.dataset["pointing_rms"].values[mc.dataset["success"].values]
