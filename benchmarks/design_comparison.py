@@ -173,7 +173,7 @@ def run_sequential(race, band):
         race.log(tx.Design(report.result.x.nominal, report.result.x.band), report.objective, "final")
     # The proposal is the method's answer: judged like every other design, at the final width.
     out = race.end(converged=bool(report.result.converged), gradients=int(np.asarray(report.result.history.steps)[-1]),
-                   reported_cost=report.cost, reported_objective=report.objective, optimality=report.result.optimality)
+                   reported_cost=report.cost, reported_objective=report.objective, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
     return out
 
 
@@ -183,7 +183,7 @@ def run_augmented_lagrangian(race):
                                widths=(1e-6, race.args.widths[-1]), n_draws=race.args.draws)
     x = tx.Design(report.result.x.nominal, report.result.x.band)
     race.log(x, report.objective, "final")  # the optimiser's iterates are not observable one by one
-    return race.end(converged=bool(report.result.converged), gradients=28, optimality=report.result.optimality)
+    return race.end(converged=bool(report.result.converged), gradients=28, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
 
 
 def run_slsqp(race):
@@ -429,7 +429,7 @@ def write(args, out):
     for m in ("sequential", "slsqp", "augmented-lagrangian", "stackup"):  # the deterministic methods' designs
         for r in data.get(m, {}).get("runs", []):
             extra = ", ".join(f"{k} {r[k]:.3g}" if isinstance(r[k], float) else f"{k} {r[k]}" for k in
-                              ("gradients", "converged", "optimality", "reported_cost", "reported_objective", "message", "alpha", "beta") if k in r)
+                              ("gradients", "converged", "optimality", "band_optimality", "reported_cost", "reported_objective", "message", "alpha", "beta") if k in r)
             bands = ", ".join(f"{b * 1e6:.1f}" for b in r["x"]["band"]) if r["x"] else "-"
             limits = ", ".join(f"{b * 1e6:.1f}" for b in r["x"]["limit"]) if r["x"] else "-"
             notes.append(f"- `{m}` {r['label']}: cost {r['cost']}, objective {r['objective']}, lower limits {limits} um, "

@@ -351,3 +351,36 @@ def test_sequential_against_scipy_slsqp_where_the_response_bends():
     # Each iteration is one value-and-gradient of the objective; SLSQP's quasi-Newton model of the
     # same problem took more (deterministic: 9 against 29 when this was written).
     assert int(result.history.steps[-1]) < reference.njev
+
+
+def test_optimality_residual_is_zero_at_kkt_with_lower_limits_held_on_their_bounds():
+    """At a KKT point whose cost-free lower limits sit on the bounds they are pushed against
+    (large positive $\\partial f/\\partial l$), the residual is 0: the multiplier is fitted to the
+    variables that can move, not to all (a least-squares fit over all read 0.33 at such a point
+    of the design scan). Also: 1 where $\\nabla f$ offers no trade, 0 with every band at its widest,
+    and the exact piecewise minimum equals a dense scan over $\\lambda$ on random instances."""
+    from tolerax.design.optimise import optimality_residual
+
+    lam = 0.009
+    d = np.array([9.1, 4.8, 5.2])  # band sensitivities (arcsec/um)
+    dc = np.concatenate([np.zeros(2), -lam * d])  # bands balanced: c_i' + lam d_i = 0
+    grad = np.concatenate([[6.5, 3.4], d])  # lower limits: f grows with them, they sit on their lower bounds
+    at_lower = np.array([True, True, False, False, False])
+    none = np.zeros(5, dtype=bool)
+    assert optimality_residual(dc, grad, at_lower, none) == pytest.approx(0.0, abs=1e-12)
+    assert optimality_residual(dc, np.zeros(5), at_lower, none) == pytest.approx(1.0)
+    assert optimality_residual(dc, grad, at_lower, ~at_lower) == 0.0  # every band on its (upper) bound
+    # Unbalanced bands: a positive residual that matches a brute-force scan over the multiplier.
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        dc, grad = rng.normal(size=6), rng.normal(size=6)
+        lo, hi = rng.random(6) < 0.3, rng.random(6) < 0.3
+        hi &= ~lo
+
+        def projected(m, dc=dc, grad=grad, lo=lo, hi=hi):
+            g = dc + m * grad
+            return np.linalg.norm(np.where(lo, np.minimum(g, 0), np.where(hi, np.maximum(g, 0), g)))
+
+        scale = projected(0.0)
+        scan = min(projected(m) for m in np.linspace(0.0, 50.0, 200_001)) / scale if scale > 0 else 0.0
+        assert optimality_residual(dc, grad, lo, hi) == pytest.approx(scan, abs=1e-6)

@@ -176,7 +176,9 @@ class OptimisationResult(eqx.Module):
     - `iteration`: the outer iteration (index into `history`) whose design this is: the cheapest
       one that met the requirement (to `tol`) at the final continuation value, else the last one.
     - `history`: a `History`.
-    - `optimality` (property): the first-order optimality residual at `x` (`optimality_residual`).
+    - `optimality` (property): the first-order optimality residual at `x` (`optimality_residual`);
+      `band_optimality`: the same over the bands alone, the lower limits held (they carry no
+      cost, and their derivative is noise on an objective rough at small scales).
     """
 
     x: Design
@@ -201,23 +203,52 @@ class OptimisationResult(eqx.Module):
         flat = lambda d: np.concatenate([np.asarray(d.nominal), np.asarray(d.band)]).ravel()  # noqa: E731
         return optimality_residual(flat(self.cost_gradient), flat(self.sensitivity), flat(self.at_lower), flat(self.at_upper))
 
+    @property
+    def band_optimality(self) -> float:
+        """First-order optimality residual over the bands, the lower limits held where they are."""
+        return optimality_residual(*(np.asarray(d.band).ravel() for d in (self.cost_gradient, self.sensitivity, self.at_lower, self.at_upper)))
+
 
 def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
     """The first-order (KKT) optimality residual of $\\min C$ s.t. $f \\le R$ in a box:
-    $\\|\\nabla C + \\lambda\\nabla f\\| / \\|\\nabla C\\|$ over the variables free to move (not on
-    a bound that the Lagrangian's gradient pushes against), with the least-squares multiplier
-    $\\lambda \\ge 0$. Zero at a KKT point of an active constraint; 1 where $\\nabla f$ offers no
-    trade (e.g. an inactive constraint with bands that could still widen).
+    $\\min_{\\lambda \\ge 0} \\|P(\\nabla C + \\lambda\\nabla f)\\| / \\|P(\\nabla C)\\|$, where $P$
+    projects onto the directions the box lets the design move in (a variable on its lower bound
+    keeps only a negative component, one on its upper bound only a positive one: the
+    projected-gradient criticality measure). Zero at a KKT point of an active constraint; 1 where
+    $\\nabla f$ offers no trade (e.g. an inactive constraint with bands that could still widen);
+    0 where even $P(\\nabla C)$ vanishes (every band at its widest).
+
+    The multiplier is the one that minimises the projected residual (a convex, piecewise-quadratic
+    function of $\\lambda$, minimised exactly over its pieces), so variables held on a bound do
+    not bias it: a least-squares multiplier fitted over every variable, the lower limits on
+    their bounds included, under-reads $\\lambda$ and reports a KKT point as far from one.
 
     Arguments are flat arrays over all variables: $\\nabla C$, $\\nabla f$ and whether each
     variable sits on its lower or upper bound."""
     dc, grad = np.asarray(cost_gradient, dtype=float), np.asarray(gradient, dtype=float)
-    ff = grad @ grad
-    lam = max(0.0, -float(dc @ grad) / ff) if ff > 0 else 0.0
-    g = dc + lam * grad
-    free = ~((np.asarray(at_lower) & (g > 0)) | (np.asarray(at_upper) & (g < 0)))
-    scale = np.linalg.norm(dc[free]) if np.any(free) else 0.0
-    return float(np.linalg.norm(g[free]) / scale) if scale > 0 else 0.0
+    at_lower, at_upper = np.asarray(at_lower, dtype=bool), np.asarray(at_upper, dtype=bool)
+
+    def projected(lam):
+        g = dc + lam * grad
+        return np.where(at_lower, np.minimum(g, 0.0), np.where(at_upper, np.maximum(g, 0.0), g))
+
+    scale = np.linalg.norm(projected(0.0))
+    if scale == 0.0:
+        return 0.0
+    # Pieces: between the multipliers where a bounded variable's component changes sign, the
+    # set of counted components is fixed and the squared norm is a quadratic in lambda.
+    bounded = (at_lower | at_upper) & (grad != 0)
+    kinks = np.unique(np.concatenate([[0.0], -dc[bounded] / grad[bounded]]))
+    kinks = kinks[np.isfinite(kinks) & (kinks >= 0)]
+    edges = np.concatenate([kinks, [np.inf]])
+    candidates = list(kinks)
+    for a, b in zip(edges[:-1], edges[1:]):
+        probe = a + 1.0 if np.isinf(b) else 0.5 * (a + b)
+        counted = ~(at_lower | at_upper) | (projected(probe) != 0)
+        gg = grad[counted] @ grad[counted]
+        if gg > 0:
+            candidates.append(float(np.clip(-(dc[counted] @ grad[counted]) / gg, a, b)))
+    return float(min(np.linalg.norm(projected(lam)) for lam in candidates) / scale)
 
 
 class _Problem(eqx.Module):

@@ -172,7 +172,7 @@ class DesignReport:
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
             f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
             f"{self._iteration_text()}; {'converged' if bool(self.result.converged) else 'not converged'}; first-order "
-            f"optimality residual {self.result.optimality:.2g}."
+            f"optimality residual {self.result.optimality:.2g} (bands alone {self.result.band_optimality:.2g})."
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."

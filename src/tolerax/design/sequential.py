@@ -22,11 +22,21 @@ monotone in $\\lambda$, whose root is found by bisection (`optimistix.Bisection`
 band. A step is kept when the objective at the trial point does not exceed the requirement by
 more than the linear model predicted (or lowers the violation); the trust region grows when the
 model predicted the objective well and shrinks when it did not, so the method still converges
-where the response bends (contact onset, clipping at zero clearance). It stops when the design
-stops moving with the constraint met to `tol` (active, or inactive with every band at its
-widest) — a step cut short by the trust region does not count: on an objective rough at small
-scales (impacts at a narrow smoothing width) the region collapses, and the run then ends on its
-budget, reported not converged, with the cheapest iterate on the requirement.
+where the response bends (contact onset, clipping at zero clearance).
+
+It stops, converged, with the constraint met to `tol` (active, or inactive with every band at
+its widest) and one of: the design stopped moving (a step cut short by the trust region does
+not count: that says the region collapsed); the first-order optimality residual below
+`optimality_tol`; or the cost stationary (changed by less than `cost_tol` relative over the
+last two kept steps, SLSQP's test) with the *bands* at a KKT point (their residual, the lower
+limits held, below `band_tol`). The last test exists because the lower limits carry no cost:
+their optimality condition is $\\partial f/\\partial l = 0$, and on an objective rough at small
+scales (impacts at a narrow smoothing width) that derivative is noise. Measured on the design
+scan at 0.1 um: the output bearing's lower limit has a local derivative of +0.50 arcsec/um
+where its secant over 5-90 um is -0.013 arcsec/um (1 arcsec over its whole range, 0.25 % of
+the requirement); the iterates move it about and the full residual stays near 0.05 while the
+cost has stopped changing. Otherwise the run ends on its budget, reported not converged, with
+the cheapest iterate on the requirement.
 """
 
 from collections.abc import Callable
@@ -107,10 +117,12 @@ def _cost_gradient(cost_model, size_mm, band) -> np.ndarray:
     return np.asarray(jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(band)))
 
 
-def _optimality(cost_model, size_mm, z, grad, lo, hi, n) -> float:
-    """`optimality_residual` at box point `z` (flat lower limits then bands) with gradient `grad`."""
+def _optimality(cost_model, size_mm, z, grad, lo, hi, n, bands_only=False) -> float:
+    """`optimality_residual` at box point `z` (flat lower limits then bands) with gradient `grad`;
+    `bands_only`: over the bands, the lower limits held where they are."""
     dc = np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])])
-    return optimality_residual(dc, grad, z <= lo, z >= hi)
+    keep = slice(n, None) if bands_only else slice(None)
+    return optimality_residual(dc[keep], grad[keep], (z <= lo)[keep], (z >= hi)[keep])
 
 
 def sequential_design(
@@ -129,6 +141,8 @@ def sequential_design(
     tol: float = 0.01,
     step_tol: float = 1e-3,
     optimality_tol: float = 1e-3,
+    cost_tol: float = 1e-3,
+    band_tol: float = 1e-2,
     progress: bool = False,
     callback: Callable[[int, Design, float, float], None] | None = None,
 ) -> OptimisationResult:
@@ -149,6 +163,8 @@ def sequential_design(
       of its range.
     - `optimality_tol`: or has stopped improving: the first-order optimality residual (see
       `_optimality`) is below this.
+    - `cost_tol`, `band_tol`: or the cost changed by less than `cost_tol` (relative) over the
+      last two kept steps with the bands' own residual (lower limits held) below `band_tol`.
     - `progress`: a tqdm bar over iterations.
     - `callback`: called after every gradient evaluation as `callback(evaluations, x, cost,
       objective)` with the design just evaluated (the trial point, kept or not), its cost and
@@ -179,6 +195,7 @@ def sequential_design(
         callback(1, Design(z[:n], z[n:]), cost(z), f)
     radius = float(trust_region)
     rows, lam, converged, previous = [], 0.0, False, None
+    kept = [cost(z)]  # the cost at the start and after every kept step
     best = None  # (cost, row index, z, f, grad, multiplier) of the cheapest iterate on the requirement (to tol / 10)
     bar = tqdm.tqdm(total=max_iterations, desc="sequential_design", disable=not progress)
     evaluations = 1
@@ -214,6 +231,7 @@ def sequential_design(
             radius = min(radius, max(0.5 * moved, 1e-6))
         if accept:
             previous = step
+            kept.append(cost(z))
         met = f <= requirement * (1 + tol)
         active = f >= requirement * (1 - tol)
         widest = bool(np.all(z[n:] >= hi[n:] - step_tol * span[n:]))
@@ -222,8 +240,11 @@ def sequential_design(
             best = (rows[-1][0], len(rows) - 1, z, f, grad, lam)
         bar.update(1)
         bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=f"{f:.1f}", requirement=f"{requirement:g}")
+        stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= cost_tol * kept[-1]
         if accept and met and (active or widest) and (
-            (moved <= step_tol and not limited) or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
+            (moved <= step_tol and not limited)
+            or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
+            or (stationary and _optimality(cost_model, size_mm, z, grad, lo, hi, n, bands_only=True) <= band_tol)
         ):
             converged = True
             break
