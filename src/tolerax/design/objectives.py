@@ -10,13 +10,17 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 from .features import with_design
-from ..mechanism.outputs import pointing_metrics
+from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
 
-OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms")
-UNITS = {"pointing_rms": "arcsec", "pointing_peak": "arcsec", "pointing_smooth_peak": "arcsec", "tracking_speed_rms": "arcsec/s"}
+OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms", "pointing_jitter")
+UNITS = {
+    "pointing_rms": "arcsec", "pointing_peak": "arcsec", "pointing_smooth_peak": "arcsec", "tracking_speed_rms": "arcsec/s",
+    "pointing_jitter": "arcsec",
+}
 
 
 class PointingObjective(eqx.Module):
@@ -26,8 +30,20 @@ class PointingObjective(eqx.Module):
     Outputs (arcsec): `pointing_rms` $\\sqrt{\\overline{e^2}}$; `pointing_peak` $\\max e$;
     `pointing_smooth_peak` $(\\overline{e^p})^{1/p}$ with $p$ = `peak_order` (a smooth surrogate
     of the peak, $\\le$ the peak, $\\ge$ the RMS); `tracking_speed_rms` (arcsec/s, RMS norm of the
-    reflector's angular-velocity error); and `success` (the solver reached `duration`; a failed
-    sample's numbers are meaningless, and the Monte Carlo engine never averages them).
+    reflector's angular-velocity error); with `jitter_cutoff` set, `pointing_jitter` (arcsec,
+    the pointing stability: the RMS of the error with everything below `jitter_cutoff` Hz
+    removed, `tolerax.mechanism.outputs.pointing_jitter`); and `success` (the solver reached
+    `duration`; a failed sample's numbers are meaningless, and the Monte Carlo engine never
+    averages them).
+
+    `jitter_cutoff` (Hz, default `None`: no jitter output; 20 is the usual start of a pointing
+    budget's stability band): the jitter's band starts there and ends at the Nyquist frequency
+    of the saves, `(n_save - 1) / (2 duration)`. Calling the objective raises `ValueError`
+    where the saves are too sparse for it (fewer than 4 per cutoff period, or a window
+    `duration - settle` shorter than one period: raise `n_save`). Off by default so that the
+    objectives without it (short smoke horizons, sparse saves) run as before. The jitter's
+    window is the others', decided in Python from the save times (`jnp.linspace(0, duration,
+    n_save)` computed by NumPy: a save within rounding of `settle` may fall on the other side).
 
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
@@ -55,6 +71,7 @@ class PointingObjective(eqx.Module):
     # Appended after the older fields, so positional construction keeps its meaning.
     pcoeff: float = eqx.field(static=True, default=0.0)
     icoeff: float = eqx.field(static=True, default=1.0)
+    jitter_cutoff: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not (0.0 <= self.settle < self.duration):
@@ -76,16 +93,27 @@ class PointingObjective(eqx.Module):
             throw=False, adjoint=self.adjoint,
         )
 
+    def jitter_window(self) -> np.ndarray:
+        """The saves in `[settle, duration]` (bool per save, NumPy: the jitter's FFT length must be
+        known in Python), checked against `jitter_cutoff` (`ValueError` if too sparse)."""
+        window = np.linspace(0.0, self.duration, int(self.n_save)) >= self.settle
+        check_jitter_sampling(self.duration / (int(self.n_save) - 1), int(np.sum(window)), self.jitter_cutoff)
+        return window
+
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
+        window = None if self.jitter_cutoff is None else self.jitter_window()  # check before the solve
         res = self.run(values, smoothing_width)
         metrics = pointing_metrics(res, res.ts >= self.settle, self.peak_order)
-        return dict(
+        out = dict(
             pointing_rms=metrics["pointing_rms"],
             pointing_peak=metrics["pointing_peak"],
             pointing_smooth_peak=metrics["pointing_smooth_peak"],
             tracking_speed_rms=metrics["tracking_speed_rms"],
             success=res.result == diffrax.RESULTS.successful,
         )
+        if window is not None:
+            out["pointing_jitter"] = pointing_metrics(res, window, jitter_cutoff=self.jitter_cutoff)["pointing_jitter"]
+        return out
 
 
 def unit_output(values, pointing: PointingObjective, output: str, width):
