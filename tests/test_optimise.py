@@ -384,3 +384,48 @@ def test_optimality_residual_is_zero_at_kkt_with_lower_limits_held_on_their_boun
         scale = projected(0.0)
         scan = min(projected(m) for m in np.linspace(0.0, 50.0, 200_001)) / scale if scale > 0 else 0.0
         assert optimality_residual(dc, grad, lo, hi) == pytest.approx(scan, abs=1e-6)
+
+
+def _stability(x, draws, continuation, weight=3.0):
+    """A second metric that weighs the features otherwise and *falls* as feature 0's lower limit
+    grows (as rattle can with a larger output-bearing clearance)."""
+    v = realise(x, draws) * jnp.array([2.0, 0.3, 0.1]) / UM
+    return robust(jnp.sqrt(jnp.sum(v**2, axis=1)), "mean+kstd", k=2.0) - weight * x.nominal[0] / UM
+
+
+@pytest.mark.parametrize("requirements, weight, interior", [((60.0, 40.0), 0.8, False), ((70.0, 10.0), 3.0, True)])
+def test_sequential_with_two_requirements_against_scipy_slsqp(requirements, weight, interior):
+    """Two constraints (a lost-motion and a stability metric), both active at the optimum, against
+    SLSQP with both: same cost and design. In the second case the trade between them puts feature
+    0's cost-free lower limit inside its range (SLSQP: 23.45 um), which the separable subproblem
+    (lower limits on a bound) reaches only through the trust region."""
+    from tolerax.design.sequential import sequential_design
+
+    draws = jnp.asarray(np.random.default_rng(0).uniform(-1.0, 1.0, (16, 3)))
+    model, R = IsoGrade(factor_per_grade=2.0), np.asarray(requirements)
+
+    def both(x, draws, width):
+        return jnp.stack([_rss_pointing(x, draws, width), _stability(x, draws, width, weight)])
+
+    lower, upper = _box(20 * UM, 40 * UM, 1 * UM, 15 * UM)
+    x0 = Design(jnp.full(3, 30 * UM), jnp.full(3, 8 * UM))
+    result = sequential_design(both, FEATURES, requirement=requirements, lower=lower, upper=upper, draws=draws, x0=x0,
+                               cost_model=model, tol=1e-6, max_iterations=60)
+
+    unpack = lambda p: Design(p[:3] * UM, p[3:] * UM)  # noqa: E731
+    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
+    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
+    margins = [jax.jit(lambda p, j=j: R[j] - both(unpack(p), draws, 0.0)[j]) for j in range(2)]
+    reference = scipy.optimize.minimize(
+        as_numpy(cost), np.r_[np.full(3, 30.0), np.full(3, 8.0)], jac=as_numpy(jax.jit(jax.grad(cost))), method="SLSQP",
+        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
+        constraints=[{"type": "ineq", "fun": as_numpy(g), "jac": as_numpy(jax.jit(jax.grad(g)))} for g in margins],
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
+    assert reference.success and np.all(np.abs([g(jnp.asarray(reference.x)) for g in margins]) < 1e-8)  # both active
+    assert (20.5 < reference.x[0] < 39.5) == interior
+    assert bool(result.converged)
+    np.testing.assert_allclose(result.cost, reference.fun, rtol=1e-5)
+    np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-3)
+    assert np.all(np.asarray(result.multiplier) > 0) and np.all(np.asarray(result.constraint_active))
+    assert result.optimality < 1e-3

@@ -131,17 +131,56 @@ def test_slopes_at_a_wider_width(scan_pointing):
     """`slope_width`: the value is the unit's metric at the objective's width, the slopes (and
     the derivative passed back through the value) those of the solve at the wider width."""
     m = jnp.array([100e-6, 20e-6, 20e-6, 20e-6])
+    x = tx.Design(m, jnp.full(4, 5e-6))
     objective = rel.LinearisedYield(scan_pointing, q=0.9, slope_width=1e-6)
-    f, s = eqx.filter_jit(lambda o, v: o.linear_model(v, 1e-7))(objective, m)
+    f, s = eqx.filter_jit(lambda o, x_: o.linear_model(x_, 1e-7))(objective, x)
     unit = eqx.filter_jit(lambda v, w: scan_pointing(v, w)["pointing_rms"])
     np.testing.assert_allclose(float(f), float(unit(m, 1e-7)), rtol=1e-12)
     _, s_wide = eqx.filter_jit(rel.value_and_slopes)(m, scan_pointing, "pointing_rms", jnp.asarray(1e-6))
     # The same solve in separately compiled programs: equal to rounding (measured 4e-12).
     np.testing.assert_allclose(np.asarray(s), np.asarray(s_wide), rtol=1e-9)
-    grad = eqx.filter_jit(jax.grad(lambda v: objective.linear_model(v, 1e-7)[0]))(m)
+    grad = eqx.filter_jit(jax.grad(lambda v: objective.linear_model(tx.Design(v, x.band), 1e-7)[0]))(m)
     np.testing.assert_allclose(np.asarray(grad), np.asarray(s_wide), rtol=1e-9)
     with pytest.raises(ValueError, match="slope_width"):
         rel.LinearisedYield(scan_pointing, slope_width=-1.0)
+
+
+def test_secant_slopes_are_the_least_squares_line_through_the_units(scan_pointing):
+    """`secant_units`: the value and slopes are the least-squares line through the metric of
+    the units at `secant_draws` (checked against NumPy's lstsq on the same units simulated one
+    by one); the derivative passed back through the value is the slopes, none through the band;
+    on this smooth scan (1 um width) the secants agree with the tangents at the middle to 5 %
+    on the features that matter (pin, backlash); too few units is refused."""
+    x = tx.Design(jnp.array([100e-6, 20e-6, 20e-6, 20e-6]), jnp.array([10e-6, 5e-6, 8e-6, 8e-6]))
+    objective = rel.LinearisedYield(scan_pointing, q=0.9, secant_units=8)
+    f, s = eqx.filter_jit(lambda o, x_: o.linear_model(x_, 1e-6))(objective, x)
+    units = np.asarray(realise(x, rel.secant_draws(4, 8)))
+    unit = eqx.filter_jit(lambda v, w: scan_pointing(v, w)["pointing_rms"])
+    values = np.array([float(unit(jnp.asarray(v), 1e-6)) for v in units])
+    rows = np.concatenate([np.ones((8, 1)), units - np.asarray(x.nominal)], axis=1)
+    coef = np.linalg.lstsq(rows, values, rcond=None)[0]
+    np.testing.assert_allclose(float(f), coef[0], rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(s), coef[1:], rtol=1e-6, atol=1e-6 * np.max(np.abs(coef[1:])))
+    grad = eqx.filter_jit(jax.grad(lambda x_: objective.linear_model(x_, 1e-6)[0]))(x)
+    # The same solves in a separately compiled program: equal to rounding (measured 3e-11).
+    np.testing.assert_allclose(np.asarray(grad.nominal), np.asarray(s), rtol=1e-9)
+    assert np.all(np.asarray(grad.band) == 0.0)
+    _, tangent = eqx.filter_jit(rel.value_and_slopes)(x.nominal, scan_pointing, "pointing_rms", jnp.asarray(1e-6))
+    np.testing.assert_allclose(np.asarray(s)[1:], np.asarray(tangent)[1:], rtol=0.05)
+    # Two outputs from the same solves: the first is the one-output fit, and the objective is a
+    # vector of their quantiles (the two requirements of `sequential_design`).
+    pair = rel.LinearisedYield(scan_pointing, output=("pointing_rms", "pointing_peak"), q=0.9, secant_units=8)
+    f2, s2 = eqx.filter_jit(lambda o, x_: o.linear_model(x_, 1e-6))(pair, x)
+    np.testing.assert_allclose(float(f2[0]), float(f), rtol=1e-9)
+    np.testing.assert_allclose(np.asarray(s2[0]), np.asarray(s), rtol=1e-6, atol=1e-6 * float(np.max(np.abs(s))))
+    draws = rel.yield_draws(4, 1024)
+    q2 = np.asarray(eqx.filter_jit(pair)(x, draws, 1e-6))
+    q1 = float(eqx.filter_jit(objective)(x, draws, 1e-6))
+    assert q2.shape == (2,) and q2[0] == pytest.approx(q1, rel=1e-9) and q2[1] > q2[0]  # the peak exceeds the RMS
+    with pytest.raises(ValueError, match="at least 5 units"):
+        rel.secant_draws(4, 4)
+    with pytest.raises(ValueError, match="not both"):
+        rel.LinearisedYield(scan_pointing, slope_width=1e-6, secant_units=8)
 
 
 def test_the_proposal_after_checks_is_the_cheapest_accepted():

@@ -116,9 +116,12 @@ class PointingObjective(eqx.Module):
         return out
 
 
-def unit_output(values, pointing: PointingObjective, output: str, width):
-    """One manufactured unit's `output` at design `values` (m), NaN if its solve failed."""
+def unit_output(values, pointing: PointingObjective, output: str | tuple[str, ...], width):
+    """One manufactured unit's `output` at design `values` (m), NaN if its solve failed; a tuple
+    of outputs: a vector of them, from the one solve."""
     out = pointing(values, width)
+    if isinstance(output, tuple):
+        return jnp.where(out["success"], jnp.stack([out[name] for name in output]), jnp.nan)
     return jnp.where(out["success"], out[output], jnp.nan)
 
 

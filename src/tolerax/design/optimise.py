@@ -36,6 +36,7 @@ import jax.numpy as jnp
 import jax.scipy.special as jsp
 import numpy as np
 import optax
+import scipy.optimize
 import tqdm
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 from ..physics import smooth as _smooth
@@ -52,6 +53,9 @@ class Design(eqx.Module):
     - `nominal`: nominal clearance or backlash of each feature (m), shape `(n_features,)`.
     - `band`: half-width of its tolerance band (m), same shape; a part is made anywhere in
       `nominal ± band`.
+
+    A leading axis, `(m, n_features)`, holds one row per constraint (a derivative of several
+    constraints, as `OptimisationResult.sensitivity` with two requirements).
     """
 
     nominal: Float[Array, " n"]
@@ -62,9 +66,9 @@ class Design(eqx.Module):
         self.band = V.real("Design", "band", band, "m", shape=None)
 
     def __check_init__(self):
-        if jnp.ndim(self.nominal) != 1 or jnp.shape(self.nominal) != jnp.shape(self.band):
+        if jnp.ndim(self.nominal) not in (1, 2) or jnp.shape(self.nominal) != jnp.shape(self.band):
             raise ValueError(
-                f"Design.nominal and Design.band must both have shape (n_features,), got "
+                f"Design.nominal and Design.band must both have shape (n_features,) (or (m, n_features), a row per constraint), got "
                 f"{jnp.shape(self.nominal)} and {jnp.shape(self.band)}."
             )
 
@@ -200,13 +204,19 @@ class OptimisationResult(eqx.Module):
     @property
     def optimality(self) -> float:
         """First-order optimality residual at `x` (`optimality_residual`): 0 at a KKT point."""
-        flat = lambda d: np.concatenate([np.asarray(d.nominal), np.asarray(d.band)]).ravel()  # noqa: E731
-        return optimality_residual(flat(self.cost_gradient), flat(self.sensitivity), flat(self.at_lower), flat(self.at_upper))
+        flat = lambda d: np.concatenate([np.asarray(d.nominal), np.asarray(d.band)], axis=-1)  # noqa: E731
+        sensitivity = flat(self.sensitivity)
+        if sensitivity.ndim == 2:  # several constraints: the active ones
+            sensitivity = sensitivity[np.asarray(self.constraint_active, dtype=bool)]
+        return optimality_residual(flat(self.cost_gradient), sensitivity, flat(self.at_lower), flat(self.at_upper))
 
     @property
     def band_optimality(self) -> float:
         """First-order optimality residual over the bands, the lower limits held where they are."""
-        return optimality_residual(*(np.asarray(d.band).ravel() for d in (self.cost_gradient, self.sensitivity, self.at_lower, self.at_upper)))
+        sensitivity = np.asarray(self.sensitivity.band)
+        if sensitivity.ndim == 2:
+            sensitivity = sensitivity[np.asarray(self.constraint_active, dtype=bool)]
+        return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band), np.asarray(self.at_upper.band))
 
 
 def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
@@ -224,17 +234,35 @@ def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
     their bounds included, under-reads $\\lambda$ and reports a KKT point as far from one.
 
     Arguments are flat arrays over all variables: $\\nabla C$, $\\nabla f$ and whether each
-    variable sits on its lower or upper bound."""
+    variable sits on its lower or upper bound. Several (active) constraints: `gradient` of
+    shape (m, n), one row each, and $\\lambda \\in \\mathbb{R}^m_{\\ge 0}$ found by bounded
+    quasi-Newton (`scipy.optimize.minimize`, L-BFGS-B: the squared projected norm is convex and
+    once differentiable); no rows: $\\lambda = 0$."""
     dc, grad = np.asarray(cost_gradient, dtype=float), np.asarray(gradient, dtype=float)
     at_lower, at_upper = np.asarray(at_lower, dtype=bool), np.asarray(at_upper, dtype=bool)
 
-    def projected(lam):
-        g = dc + lam * grad
+    def project(g):
         return np.where(at_lower, np.minimum(g, 0.0), np.where(at_upper, np.maximum(g, 0.0), g))
 
-    scale = np.linalg.norm(projected(0.0))
+    scale = np.linalg.norm(project(dc))
     if scale == 0.0:
         return 0.0
+    if grad.ndim == 2 and grad.shape[0] == 1:
+        grad = grad[0]
+    if grad.ndim == 2:
+        if grad.shape[0] == 0:
+            return 1.0
+
+        def squared(lam):
+            r = project(dc + lam @ grad)
+            return r @ r, 2.0 * grad @ r
+
+        lam = scipy.optimize.minimize(squared, np.zeros(grad.shape[0]), jac=True, method="L-BFGS-B",
+                                      bounds=[(0.0, None)] * grad.shape[0], options=dict(ftol=1e-15, gtol=1e-12)).x
+        return float(np.sqrt(squared(lam)[0]) / scale)
+
+    def projected(lam):
+        return project(dc + lam * grad)
     # Pieces: between the multipliers where a bounded variable's component changes sign, the
     # set of counted components is fixed and the squared norm is a quadratic in lambda.
     bounded = (at_lower | at_upper) & (grad != 0)

@@ -250,6 +250,7 @@ def design_problem(
     yield_: float | None = None,
     n_yield_draws: int = 16384,
     slope_width: float | None = None,
+    secant_units: int | None = None,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -278,7 +279,9 @@ def design_problem(
       at a narrow width forward-mode tangents through the contacts can be spiky); default at
       the objective's own width. On the dual scan slopes at 1 um did not make the design
       converge (it stalled at cost 8.47 where a run without them reached 2.69): the value is
-      rough there too.
+      rough there too. `secant_units` (optional, more than the features): fit the value and
+      slopes by least squares over this many units of the zone instead (`LinearisedYield`:
+      forward solves only; where tangents are noise, a line through the units is not).
     """
     scene = pointing.scene
     names = design_names(scene)
@@ -297,7 +300,8 @@ def design_problem(
     if yield_ is None:
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
-        objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width))
+        objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
+                                    None if secant_units is None else int(secant_units))
         draws = yield_draws(n, n_yield_draws)
     return DesignProblem(
         objective=FromLowerLimit(objective),

@@ -46,6 +46,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
+import scipy.optimize
 import tqdm
 
 from .cost import AbstractCostModel
@@ -74,6 +75,13 @@ def _value_and_grad(objective, x, draws, width):
     # One program per objective structure, shared by every call (starts, smoothing widths): the
     # width and the draws are arrays.
     return jax.value_and_grad(lambda x_: objective(x_, draws, width))(x)
+
+
+@eqx.filter_jit
+def _value_and_jacobian(objective, x, draws, width):
+    """Several constraints: their values and their Jacobian (one reverse pass each)."""
+    f = lambda x_: objective(x_, draws, width)  # noqa: E731
+    return f(x), jax.jacrev(f)(x)
 
 
 @eqx.filter_jit
@@ -112,24 +120,77 @@ def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement
     return l, b, lam, linear(b)
 
 
+def _subproblem2(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
+    """`_subproblem` with two linearised constraints (`f_k`, `requirement`: shape (2,); `a`,
+    `d`: (2, n); boxes as pairs of NumPy arrays): `(l, b, multipliers (2,), predicted f (2,))`.
+    The subproblem is small (the simulations are outside it), convex (a separable convex cost,
+    linear constraints, a box) and solved by SciPy's SLSQP on the cost's exact gradient (a
+    nested bisection over the two multipliers was tried: exact but minutes per call on a CPU).
+    The multipliers are the non-negative least-squares fit of the bands' stationarity,
+    $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`)."""
+    n = a.shape[1]
+    scale = np.where(b_box[1] > b_box[0], b_box[1] - b_box[0], 1.0)
+    l_span = np.where(l_box[1] > l_box[0], l_box[1] - l_box[0], 1.0)
+    total = jax.jit(lambda b: cost_model.total(b, size_mm))
+    grad = jax.jit(jax.grad(lambda b: cost_model.total(b, size_mm)))
+    c0 = max(abs(float(total(jnp.asarray(b_k)))), 1e-300)
+
+    def unpack(y):  # unit-box coordinates -> (l, b)
+        return l_box[0] + y[:n] * l_span, b_box[0] + y[n:] * scale
+
+    def cost(y):
+        return float(total(jnp.asarray(unpack(y)[1]))) / c0
+
+    def cost_grad(y):
+        return np.concatenate([np.zeros(n), np.asarray(grad(jnp.asarray(unpack(y)[1]))) * scale]) / c0
+
+    def linear(y):
+        l, b = unpack(y)
+        return f_k + a @ (l - l_k) + d @ (b - b_k)
+
+    jac = -np.concatenate([a * l_span, d * scale], axis=1) / requirement[:, None]
+    y0 = np.clip(np.concatenate([(l_k - l_box[0]) / l_span, (b_k - b_box[0]) / scale]), 0.0, 1.0)
+    result = scipy.optimize.minimize(
+        cost, y0, jac=cost_grad, method="SLSQP", bounds=[(0.0, 1.0)] * (2 * n),
+        constraints=[{"type": "ineq", "fun": lambda y: (requirement - linear(y)) / requirement, "jac": lambda y: jac}],
+        options=dict(ftol=1e-12, maxiter=500),
+    )
+    # SLSQP leaves a variable on its bound only to its own tolerance: snap it there, so that the
+    # design and its optimality residual see which bounds hold.
+    y = np.clip(result.x, 0.0, 1.0)
+    y = np.where(y < 1e-7, 0.0, np.where(y > 1.0 - 1e-7, 1.0, y))
+    l, b = unpack(y)
+    free = (b > b_box[0] + 1e-9 * scale) & (b < b_box[1] - 1e-9 * scale)
+    multipliers = np.zeros(2)
+    if np.any(free):
+        multipliers = scipy.optimize.nnls(d[:, free].T, -np.asarray(grad(jnp.asarray(b)))[free])[0]
+    predicted = linear(y)
+    # A constraint that even this design does not meet: infeasible within the region (as `_subproblem`'s inf).
+    multipliers = np.where(predicted > requirement * (1 + 1e-6), np.inf, multipliers)
+    return l, b, multipliers, predicted
+
+
 def _cost_gradient(cost_model, size_mm, band) -> np.ndarray:
     """$\\partial C/\\partial b$ (cost/m) at the bands `band`."""
     return np.asarray(jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(band)))
 
 
-def _optimality(cost_model, size_mm, z, grad, lo, hi, n, bands_only=False) -> float:
-    """`optimality_residual` at box point `z` (flat lower limits then bands) with gradient `grad`;
-    `bands_only`: over the bands, the lower limits held where they are."""
+def _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n, bands_only=False) -> float:
+    """`optimality_residual` at box point `z` (flat lower limits then bands) with the gradients
+    `grad` (m, 2n) of the constraints values `f`: over the active ones (to `tol`) where there
+    are several, an inactive constraint's multiplier being 0; `bands_only`: over the bands, the
+    lower limits held where they are."""
     dc = np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])])
     keep = slice(n, None) if bands_only else slice(None)
-    return optimality_residual(dc[keep], grad[keep], (z <= lo)[keep], (z >= hi)[keep])
+    rows = grad if grad.shape[0] == 1 else grad[f >= requirements * (1 - tol)]
+    return optimality_residual(dc[keep], rows[:, keep], (z <= lo)[keep], (z >= hi)[keep])
 
 
 def sequential_design(
     objective: Callable,
     features: Features,
     *,
-    requirement: float,
+    requirement: float | tuple[float, float],
     lower: Design,
     upper: Design,
     draws,
@@ -152,8 +213,11 @@ def sequential_design(
 
     **Arguments:**
 
-    - `objective`: `objective(x: Design, draws, width) -> scalar` (arcsec), differentiable.
-    - `features`, `requirement` (arcsec), `lower`, `upper` (`Design` boxes, m), `draws`, `x0`
+    - `objective`: `objective(x: Design, draws, width) -> scalar` (arcsec), differentiable; or,
+      with two requirements, a vector of two (e.g. a lost-motion metric and a stability metric:
+      `_subproblem2` solves the linearised problem with both; each constraint is tested as the
+      one-constraint method tests it and a step must pass for both).
+    - `features`, `requirement` (arcsec, or two of them), `lower`, `upper` (`Design` boxes, m), `draws`, `x0`
       (the start), `cost_model`: as `optimise_design`; `width` the continuation value passed
       to the objective (e.g. a smoothing width, m), fixed here.
     - `max_iterations`: gradient evaluations at most (one per iteration).
@@ -168,11 +232,13 @@ def sequential_design(
     - `progress`: a tqdm bar over iterations.
     - `callback`: called after every gradient evaluation as `callback(evaluations, x, cost,
       objective)` with the design just evaluated (the trial point, kept or not), its cost and
-      objective (arcsec): a live plot, a log, or a race against another method's wall time.
+      objective (arcsec; an array with two requirements): a live plot, a log, or a race against another method's wall time.
 
     **Returns:** an `OptimisationResult` whose design is the cheapest iterate on the requirement
     (objective $\\le R(1 + $`tol`$/10)$), else the last one (its `history.penalty` is NaN and
     `history.steps` counts gradient evaluations; `multiplier` is the subproblem's $\\lambda$ there).
+    With two requirements the objective, constraint, multiplier, activity and the history's
+    columns hold one value per constraint and `sensitivity` one row each.
     """
     lo = np.concatenate([np.asarray(lower.nominal), np.asarray(lower.band)])
     hi = np.concatenate([np.asarray(upper.nominal), np.asarray(upper.band)])
@@ -181,10 +247,22 @@ def sequential_design(
     width = None if width is None else jnp.asarray(width, dtype=float)
     size_mm = features.size_mm
 
+    requirements = np.atleast_1d(np.asarray(requirement, dtype=float))
+    m = requirements.shape[0]
+    if m > 2 or requirements.ndim != 1 or not np.all(requirements > 0):
+        raise ValueError(f"sequential_design: one or two requirements > 0 (arcsec), got {requirement!r}.")
+
     def evaluate(z):
+        """`(f, grad)`: the constraints' values (m,) and gradients (m, 2n)."""
         x = Design(z[:n], z[n:])
-        f, g = _value_and_grad(objective, x, draws, width)
-        return float(f), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)])
+        if m == 1:
+            f, g = _value_and_grad(objective, x, draws, width)
+            return np.atleast_1d(float(f)), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)])[None]
+        f, g = _value_and_jacobian(objective, x, draws, width)
+        return np.asarray(f, dtype=float).reshape(m), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)], axis=1)
+
+    def reported(v):
+        return float(v[0]) if m == 1 else np.asarray(v)
 
     def cost(z):
         return float(cost_model.total(jnp.asarray(z[n:]), size_mm))
@@ -192,30 +270,38 @@ def sequential_design(
     z = np.clip(np.concatenate([np.asarray(x0.nominal), np.asarray(x0.band)]), lo, hi)
     f, grad = evaluate(z)
     if callback is not None:
-        callback(1, Design(z[:n], z[n:]), cost(z), f)
+        callback(1, Design(z[:n], z[n:]), cost(z), reported(f))
     radius = float(trust_region)
-    rows, lam, converged, previous = [], 0.0, False, None
+    rows, lam, converged, previous = [], np.zeros(m), False, None
     kept = [cost(z)]  # the cost at the start and after every kept step
     best = None  # (cost, row index, z, f, grad, multiplier) of the cheapest iterate on the requirement (to tol / 10)
     bar = tqdm.tqdm(total=max_iterations, desc="sequential_design", disable=not progress)
     evaluations = 1
     for _ in range(max_iterations):
         box_lo, box_hi = np.maximum(lo, z - radius * span), np.minimum(hi, z + radius * span)
-        l, b, lam_k, f_pred = _subproblem(
-            cost_model, size_mm, jnp.asarray(f), jnp.asarray(grad[:n]), jnp.asarray(grad[n:]), jnp.asarray(z[:n]), jnp.asarray(z[n:]),
-            (jnp.asarray(box_lo[:n]), jnp.asarray(box_hi[:n])), (jnp.asarray(box_lo[n:]), jnp.asarray(box_hi[n:])),
-            jnp.asarray(float(requirement)),  # arrays, not Python floats: no retrace when values change
-        )
+        boxes = (jnp.asarray(box_lo[:n]), jnp.asarray(box_hi[:n])), (jnp.asarray(box_lo[n:]), jnp.asarray(box_hi[n:]))
+        if m == 1:
+            l, b, lam_k, f_pred = _subproblem(
+                cost_model, size_mm, jnp.asarray(f[0]), jnp.asarray(grad[0, :n]), jnp.asarray(grad[0, n:]), jnp.asarray(z[:n]),
+                jnp.asarray(z[n:]), *boxes,
+                jnp.asarray(requirements[0]),  # arrays, not Python floats: no retrace when values change
+            )
+        else:
+            l, b, lam_k, f_pred = _subproblem2(
+                cost_model, size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:], (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]),
+                requirements,
+            )
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), lo, hi)
         f_trial, grad_trial = evaluate(trial)
         evaluations += 1
         if callback is not None:
-            callback(evaluations, Design(trial[:n], trial[n:]), cost(trial), f_trial)
-        f_pred, lam_k = float(f_pred), float(lam_k)
-        model_error = abs(f_trial - f_pred)
-        change = max(abs(f_pred - f), tol * requirement)
-        violation, violation_trial = max(f - requirement, 0.0), max(f_trial - requirement, 0.0)
-        accept = violation_trial <= max(violation, tol * requirement) or model_error <= 0.5 * change
+            callback(evaluations, Design(trial[:n], trial[n:]), cost(trial), reported(f_trial))
+        f_pred, lam_k = np.atleast_1d(np.asarray(f_pred, dtype=float)), np.atleast_1d(np.asarray(lam_k, dtype=float))
+        # Per constraint, each as the one-constraint method reads it; a step must satisfy all.
+        model_error = np.abs(f_trial - f_pred)
+        change = np.maximum(np.abs(f_pred - f), tol * requirements)
+        violation, violation_trial = np.maximum(f - requirements, 0.0), np.maximum(f_trial - requirements, 0.0)
+        accept = bool(np.all(violation_trial <= np.maximum(violation, tol * requirements)) or np.all(model_error <= 0.5 * change))
         step = (trial - z) / span
         moved = float(np.max(np.abs(step)))
         # A step stopped by the trust region, not by the box or the model's own optimum: a small
@@ -224,7 +310,7 @@ def sequential_design(
         limited = bool(np.any(inner & ((trial <= box_lo + 1e-12 * span) | (trial >= box_hi - 1e-12 * span)) & (np.abs(step) > 0)))
         if accept:
             z, f, grad, lam = trial, f_trial, grad_trial, lam_k
-        radius = min(2.0 * radius, 1.0) if model_error <= 0.25 * change else max(0.25 * radius, 1e-4)
+        radius = min(2.0 * radius, 1.0) if np.all(model_error <= 0.25 * change) else max(0.25 * radius, 1e-4)
         if accept and previous is not None and np.dot(step, previous) < 0:
             # A step that turns back: the constraint's curvature, which the linear model lacks,
             # makes the iterates zig-zag along it; halving the region damps that.
@@ -232,26 +318,27 @@ def sequential_design(
         if accept:
             previous = step
             kept.append(cost(z))
-        met = f <= requirement * (1 + tol)
-        active = f >= requirement * (1 - tol)
+        met = bool(np.all(f <= requirements * (1 + tol)))
+        active = bool(np.any(f >= requirements * (1 - tol)))
         widest = bool(np.all(z[n:] >= hi[n:] - step_tol * span[n:]))
-        rows.append((cost(z), f, f - requirement, lam, np.nan, np.nan if width is None else float(width), evaluations))
-        if f <= requirement * (1 + 0.1 * tol) and (best is None or rows[-1][0] <= best[0]):
+        rows.append((cost(z), reported(f), reported(f - requirements), reported(lam), np.nan, np.nan if width is None else float(width), evaluations))
+        if np.all(f <= requirements * (1 + 0.1 * tol)) and (best is None or rows[-1][0] <= best[0]):
             best = (rows[-1][0], len(rows) - 1, z, f, grad, lam)
         bar.update(1)
-        bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=f"{f:.1f}", requirement=f"{requirement:g}")
+        bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=np.array2string(f, precision=1), requirement=np.array2string(requirements))
         stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= cost_tol * kept[-1]
         if accept and met and (active or widest) and (
             (moved <= step_tol and not limited)
-            or _optimality(cost_model, size_mm, z, grad, lo, hi, n) <= optimality_tol
-            or (stationary and _optimality(cost_model, size_mm, z, grad, lo, hi, n, bands_only=True) <= band_tol)
+            or _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n) <= optimality_tol
+            or (stationary and _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n, bands_only=True) <= band_tol)
         ):
             converged = True
             break
     bar.close()
     chosen = len(rows) - 1
-    if best is not None:
-        # The cheapest iterate on the requirement (to a tenth of `tol`): on a rough objective a run
+    if best is not None and (not converged or best[0] < rows[-1][0]):
+        # The cheapest iterate on the requirement (to a tenth of `tol`), unless the converged one is
+        # cheaper (met to `tol`): on a rough objective a run
         # that ends on its budget can wander past cheaper designs it had already found.
         _, chosen, z, f, grad, lam = best
     x = Design(z[:n], z[n:])
@@ -263,13 +350,13 @@ def sequential_design(
         features=features,
         cost=jnp.sum(feature_cost),
         feature_cost=feature_cost,
-        objective=jnp.asarray(f),
-        constraint=jnp.asarray(f - requirement),
-        multiplier=jnp.asarray(lam),
-        constraint_active=jnp.asarray(f >= requirement * (1 - tol)),
+        objective=jnp.asarray(reported(f)),
+        constraint=jnp.asarray(reported(f - requirements)),
+        multiplier=jnp.asarray(reported(lam)),
+        constraint_active=jnp.asarray(reported(f >= requirements * (1 - tol))),
         at_lower=jax.tree.map(lambda v, bound: v <= bound, x, x_lo),
         at_upper=jax.tree.map(lambda v, bound: v >= bound, x, x_hi),
-        sensitivity=Design(grad[:n], grad[n:]),
+        sensitivity=Design(grad[0, :n], grad[0, n:]) if m == 1 else Design(grad[:, :n], grad[:, n:]),
         cost_gradient=Design(np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])),
         converged=jnp.asarray(converged),
         iteration=jnp.asarray(chosen),

@@ -1,0 +1,125 @@
+"""A tolerance design with a pointing-stability requirement beside the lost-motion one, at
+planetary fidelity, against the design made for lost motion alone (issue 30, must-show 3).
+
+    python benchmarks/design_stability.py [--yield 0.9] [--rms-fraction 0.7] [--jitter-fraction 0.8]
+        [--secant-units 12] [--verify-units 100] [--results DIR]
+
+Scene: `tolerax.scan("azimuth", fidelity=("planetary-scaled", "ideal"))` (the azimuth joint's
+full planetary stage, mass scaling `--mass-scaling`; +-0.5 deg, 1 s period, steady start, pitch
+rigid), Tsit5 at `--rtol` (jitter is a fraction of an arcsec: a loose tolerance would swamp it),
+smoothing `--width`. Over the window `[--settle, --horizon]` after the first reversal (0.25 s),
+saved at `--save-rate` per second: the RMS pointing error (the lost-motion part of the budget)
+and the jitter (`pointing_jitter`: RMS of the error less its slow part below `--cutoff` Hz).
+
+Why secants: `benchmarks/results/stability_gradient.md` measured the jitter's forward-mode
+derivatives against central differences: they disagree at every step, width and horizon (the
+tangents grow to 1e9-1e12 arcsec/um over 2 s: rattle is chaotic), so both metrics are
+linearised by a least-squares line through `--secant-units` units of the zone
+(`LinearisedYield(secant_units=...)`, forward solves only), and a design's yield on each is the
+marginal `--yield` quantile of that line.
+
+Two designs by `sequential_design` on the same problem (`design_problem`, lower limits >= 5 um,
+bands 1-50 um, ISO 286 cost): (a) the RMS requirement alone, (b) the RMS and the jitter
+requirements; requirements are fractions of the baseline's (scene values +- 10 um) linearised
+quantiles. Each is verified on `--verify-units` fresh planetary units (`tolerax.monte_carlo`,
+key 2026): the yield on each requirement with its 95 % Wilson interval, side by side.
+"""
+
+import time
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+import tolerax as tx
+from tolerax.design.propose import design_problem
+from tolerax.design.sequential import sequential_design
+
+import _design
+import harness
+
+OUTPUTS = ("pointing_rms", "pointing_jitter")
+
+
+def main():
+    parser = harness.argument_parser(__doc__)
+    parser.add_argument("--yield", dest="yield_", type=float, default=0.9)
+    parser.add_argument("--rms-fraction", type=float, default=0.7)
+    parser.add_argument("--jitter-fraction", type=float, default=0.8)
+    parser.add_argument("--secant-units", type=int, default=12)
+    parser.add_argument("--verify-units", type=int, default=100)
+    parser.add_argument("--max-iterations", type=int, default=20)
+    parser.add_argument("--horizon", type=float, default=0.6)
+    parser.add_argument("--settle", type=float, default=0.3)
+    parser.add_argument("--save-rate", type=float, default=500.0)
+    parser.add_argument("--cutoff", type=float, default=20.0)
+    parser.add_argument("--rtol", type=float, default=1e-6)
+    parser.add_argument("--width", type=float, default=1e-7)
+    parser.add_argument("--mass-scaling", type=float, default=1000.0)
+    parser.add_argument("--chunk", type=int, default=10)
+    args = harness.parse_args(parser)
+    start = time.perf_counter()
+    scene = tx.scan("azimuth", fidelity=("planetary-scaled", "ideal"))
+    scene = eqx.tree_at(lambda s: s.azimuth.mass_scaling, scene, jnp.asarray(float(args.mass_scaling)))
+    pointing = tx.PointingObjective(scene, duration=args.horizon, settle=args.settle, start="steady",
+                                    n_save=int(round(args.save_rate * args.horizon)) + 1, rtol=args.rtol, atol=1e-3 * args.rtol,
+                                    jitter_cutoff=args.cutoff)
+    both = design_problem(pointing, yield_=args.yield_, secant_units=args.secant_units, output=OUTPUTS)
+    alone = design_problem(pointing, yield_=args.yield_, secant_units=args.secant_units, output="pointing_rms")
+    width = jnp.asarray(args.width)
+    baseline = np.asarray(eqx.filter_jit(lambda o, x, d, w: o(x, d, w))(both.objective, both.x0, both.draws, width))
+    R = np.array([args.rms_fraction, args.jitter_fraction]) * baseline
+    print(f"baseline {args.yield_:.0%} quantiles: RMS {baseline[0]:.1f}, jitter {baseline[1]:.3f} arcsec; requirements {R}", flush=True)
+
+    designs = {}
+    for label, problem, requirement in (("lost motion alone", alone, float(R[0])), ("lost motion and stability", both, tuple(R))):
+        wall, result = harness.wall(
+            sequential_design, problem.objective, problem.features, requirement=requirement, lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=problem.x0, cost_model=problem.cost_model, width=width, max_iterations=args.max_iterations,
+            progress=True,
+        )
+        middle = np.asarray(result.x.nominal) + np.asarray(result.x.band)
+        quantiles = np.asarray(eqx.filter_jit(lambda o, x, d, w: o(x, d, w))(both.objective, result.x, both.draws, width))
+        designs[label] = dict(result=result, middle=middle, band=np.asarray(result.x.band), wall=wall, quantiles=quantiles)
+        print(f"{label}: cost {float(result.cost):.3f}, converged {bool(result.converged)}, quantiles {quantiles}, "
+              f"bands {np.round(np.asarray(result.x.band) * 1e6, 1)} um, {wall:.0f} s", flush=True)
+
+    rows = []
+    for label, d in designs.items():
+        tolerances = tx.Tolerances(tx.design_names(scene), d["middle"], d["band"])
+        wall, mc = harness.wall(tx.monte_carlo, _design.at_width(pointing, args.width), tolerances, args.verify_units, jax.random.key(2026),
+                                chunk_size=args.chunk, progress=True, requirement=dict(zip(OUTPUTS, map(float, R))))
+        summary = mc.summary()
+        ok = mc.dataset["success"].values
+        cells = []
+        for name in OUTPUTS:
+            s = summary[name]
+            q = float(np.quantile(mc.dataset[name].values[ok], args.yield_)) if np.any(ok) else float("nan")
+            cells += [f"{s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}]", f"{q:.3f}"]
+        r = d["result"]
+        rows.append((label, f"{float(r.cost):.3f}", "yes" if bool(r.converged) else "no", f"{int(np.asarray(r.history.steps)[-1])}",
+                     f"{r.optimality:.2g}", f"{d['quantiles'][0]:.1f} / {d['quantiles'][1]:.3f}", *cells,
+                     " ".join(f"{b * 1e6:.1f}" for b in d["band"]), f"{d['wall']:.0f}", f"{wall:.0f}"))
+        print(rows[-1], flush=True)
+    total = time.perf_counter() - start
+    harness.write_table(
+        "design_stability",
+        "A stability (jitter) requirement beside the lost-motion one, at planetary fidelity",
+        harness.command(args),
+        ["design", "cost (IT7 = 1 per feature)", "converged", "simulation batches", "optimality residual",
+         f"linearised {args.yield_:.0%} quantiles RMS / jitter (arcsec)",
+         f"verified RMS yield [95 % Wilson] (<= {R[0]:.1f})", f"verified RMS {args.yield_:.0%} quantile",
+         f"verified jitter yield [95 % Wilson] (<= {R[1]:.3f})", f"verified jitter {args.yield_:.0%} quantile",
+         "bands +- (um): " + ", ".join(tx.design_names(scene)), "design wall (s)", "verification wall (s)"],
+        rows,
+        about=(f"Azimuth scan, planetary-scaled joint (mass scaling {args.mass_scaling:g}), window {args.settle}-{args.horizon} s, "
+               f"{args.save_rate:g} saves/s, jitter above {args.cutoff:g} Hz; requirements at yield {args.yield_:.0%}: RMS <= {R[0]:.1f} "
+               f"({args.rms_fraction:g} x baseline {baseline[0]:.1f}), jitter <= {R[1]:.3f} ({args.jitter_fraction:g} x baseline "
+               f"{baseline[1]:.3f}) arcsec; both linearised by secants over {args.secant_units} units; "
+               f"{args.verify_units} fresh units verify each design. Total wall {total:.0f} s, compilation included."),
+    )
+
+
+if __name__ == "__main__":
+    main()
