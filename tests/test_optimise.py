@@ -377,12 +377,12 @@ def test_optimality_residual_is_zero_at_kkt_with_lower_limits_held_on_their_boun
         lo, hi = rng.random(6) < 0.3, rng.random(6) < 0.3
         hi &= ~lo
 
-        def projected(m, dc=dc, grad=grad, lo=lo, hi=hi):
-            g = dc + m * grad
-            return np.linalg.norm(np.where(lo, np.minimum(g, 0), np.where(hi, np.maximum(g, 0), g)))
+        def projected(m, dc=dc, grad=grad, lo=lo, hi=hi):  # m: an array of multipliers
+            g = dc + m[:, None] * grad
+            return np.linalg.norm(np.where(lo, np.minimum(g, 0), np.where(hi, np.maximum(g, 0), g)), axis=1)
 
-        scale = projected(0.0)
-        scan = min(projected(m) for m in np.linspace(0.0, 50.0, 200_001)) / scale if scale > 0 else 0.0
+        scale = projected(np.zeros(1))[0]
+        scan = np.min(projected(np.linspace(0.0, 50.0, 200_001))) / scale if scale > 0 else 0.0
         assert optimality_residual(dc, grad, lo, hi) == pytest.approx(scan, abs=1e-6)
 
 
