@@ -131,18 +131,16 @@ def _subproblem2(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, require
     n = a.shape[1]
     scale = np.where(b_box[1] > b_box[0], b_box[1] - b_box[0], 1.0)
     l_span = np.where(l_box[1] > l_box[0], l_box[1] - l_box[0], 1.0)
-    total = jax.jit(lambda b: cost_model.total(b, size_mm))
-    grad = jax.jit(jax.grad(lambda b: cost_model.total(b, size_mm)))
-    c0 = max(abs(float(total(jnp.asarray(b_k)))), 1e-300)
+    c0 = max(abs(float(_cost_and_gradient(cost_model, size_mm, jnp.asarray(b_k))[0])), 1e-300)
 
     def unpack(y):  # unit-box coordinates -> (l, b)
         return l_box[0] + y[:n] * l_span, b_box[0] + y[n:] * scale
 
     def cost(y):
-        return float(total(jnp.asarray(unpack(y)[1]))) / c0
+        return float(_cost_and_gradient(cost_model, size_mm, jnp.asarray(unpack(y)[1]))[0]) / c0
 
     def cost_grad(y):
-        return np.concatenate([np.zeros(n), np.asarray(grad(jnp.asarray(unpack(y)[1]))) * scale]) / c0
+        return np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, unpack(y)[1]) * scale]) / c0
 
     def linear(y):
         l, b = unpack(y)
@@ -163,24 +161,31 @@ def _subproblem2(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, require
     free = (b > b_box[0] + 1e-9 * scale) & (b < b_box[1] - 1e-9 * scale)
     multipliers = np.zeros(2)
     if np.any(free):
-        multipliers = scipy.optimize.nnls(d[:, free].T, -np.asarray(grad(jnp.asarray(b)))[free])[0]
+        multipliers = scipy.optimize.nnls(d[:, free].T, -_cost_gradient(cost_model, size_mm, b)[free])[0]
     predicted = linear(y)
     # A constraint that even this design does not meet: infeasible within the region (as `_subproblem`'s inf).
     multipliers = np.where(predicted > requirement * (1 + 1e-6), np.inf, multipliers)
     return l, b, multipliers, predicted
 
 
+@eqx.filter_jit
+def _cost_and_gradient(cost_model, size_mm, band):
+    """The total cost and $\\partial C/\\partial b$ (cost/m) at the bands `band`: one program per
+    cost model, shared by the subproblem, the stopping test and the result."""
+    return jax.value_and_grad(lambda b: cost_model.total(b, size_mm))(band)
+
+
 def _cost_gradient(cost_model, size_mm, band) -> np.ndarray:
     """$\\partial C/\\partial b$ (cost/m) at the bands `band`."""
-    return np.asarray(jax.grad(lambda b: cost_model.total(b, size_mm))(jnp.asarray(band)))
+    return np.asarray(_cost_and_gradient(cost_model, size_mm, jnp.asarray(band))[1])
 
 
-def _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n, bands_only=False) -> float:
-    """`optimality_residual` at box point `z` (flat lower limits then bands) with the gradients
-    `grad` (m, 2n) of the constraints values `f`: over the active ones (to `tol`) where there
-    are several, an inactive constraint's multiplier being 0; `bands_only`: over the bands, the
-    lower limits held where they are."""
-    dc = np.concatenate([np.zeros(n), _cost_gradient(cost_model, size_mm, z[n:])])
+def _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=False) -> float:
+    """`optimality_residual` at box point `z` (flat lower limits then bands) with the cost's
+    gradient over the bands `dc` (n,) and the gradients `grad` (m, 2n) of the constraints values
+    `f`: over the active ones (to `tol`) where there are several, an inactive constraint's
+    multiplier being 0; `bands_only`: over the bands, the lower limits held where they are."""
+    dc = np.concatenate([np.zeros(n), dc])
     keep = slice(n, None) if bands_only else slice(None)
     rows = grad if grad.shape[0] == 1 else grad[f >= requirements * (1 - tol)]
     return optimality_residual(dc[keep], rows[:, keep], (z <= lo)[keep], (z >= hi)[keep])
@@ -265,7 +270,7 @@ def sequential_design(
         return float(v[0]) if m == 1 else np.asarray(v)
 
     def cost(z):
-        return float(cost_model.total(jnp.asarray(z[n:]), size_mm))
+        return float(_cost_and_gradient(cost_model, size_mm, jnp.asarray(z[n:]))[0])
 
     z = np.clip(np.concatenate([np.asarray(x0.nominal), np.asarray(x0.band)]), lo, hi)
     f, grad = evaluate(z)
@@ -327,19 +332,21 @@ def sequential_design(
         bar.update(1)
         bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=np.array2string(f, precision=1), requirement=np.array2string(requirements))
         stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= cost_tol * kept[-1]
-        if accept and met and (active or widest) and (
-            (moved <= step_tol and not limited)
-            or _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n) <= optimality_tol
-            or (stationary and _optimality(cost_model, size_mm, z, grad, f, requirements, tol, lo, hi, n, bands_only=True) <= band_tol)
-        ):
-            converged = True
-            break
+        if accept and met and (active or widest):
+            dc = _cost_gradient(cost_model, size_mm, z[n:])
+            if (
+                (moved <= step_tol and not limited)
+                or _optimality(dc, z, grad, f, requirements, tol, lo, hi, n) <= optimality_tol
+                or (stationary and _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=True) <= band_tol)
+            ):
+                converged = True
+                break
     bar.close()
     chosen = len(rows) - 1
     if best is not None and (not converged or best[0] < rows[-1][0]):
-        # The cheapest iterate on the requirement (to a tenth of `tol`), unless the converged one is
-        # cheaper (met to `tol`): on a rough objective a run
-        # that ends on its budget can wander past cheaper designs it had already found.
+        # The cheapest iterate on the requirement (to a tenth of `tol`), unless the converged one
+        # is cheaper (met to `tol`): on a rough objective a run that ends on its budget can wander
+        # past cheaper designs it had already found.
         _, chosen, z, f, grad, lam = best
     x = Design(z[:n], z[n:])
     x_lo, x_hi = Design(lo[:n], lo[n:]), Design(hi[:n], hi[n:])
