@@ -429,3 +429,6 @@ def test_sequential_with_two_requirements_against_scipy_slsqp(requirements, weig
     np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-3)
     assert np.all(np.asarray(result.multiplier) > 0) and np.all(np.asarray(result.constraint_active))
     assert result.optimality < 1e-3
+    for bad in ((1e-6, 1e-6, 1e-6), (1e-6, 0.0), 1.5):  # one tolerance, or one per requirement, each in (0, 1)
+        with pytest.raises(ValueError, match="tol must be in"):
+            sequential_design(both, FEATURES, requirement=requirements, lower=lower, upper=upper, draws=draws, x0=x0, cost_model=model, tol=bad)

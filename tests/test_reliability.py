@@ -177,6 +177,17 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units(scan_pointin
     q2 = np.asarray(eqx.filter_jit(pair)(x, draws, 1e-6))
     q1 = float(eqx.filter_jit(objective)(x, draws, 1e-6))
     assert q2.shape == (2,) and q2[0] == pytest.approx(q1, rel=1e-9) and q2[1] > q2[0]  # the peak exceeds the RMS
+    # The fit's noise (`secant_standard_error`): the residual standard deviation times
+    # sqrt([(X^T X)^-1]_00), the textbook standard error of a least-squares intercept, from the
+    # units simulated one by one (rows in metres here, in bands in the library: the intercept's
+    # error does not depend on the slopes' units).
+    resid = values - rows @ coef
+    se = float(np.sqrt(resid @ resid / (8 - 5) * np.linalg.inv(rows.T @ rows)[0, 0]))
+    assert se > 0 and rel.secant_standard_error(objective, x, 1e-6) == pytest.approx(se, rel=1e-5)
+    se2 = rel.secant_standard_error(pair, x, 1e-6)
+    assert se2.shape == (2,) and se2[0] == pytest.approx(se, rel=1e-5)
+    with pytest.raises(ValueError, match="fits no secant"):
+        rel.secant_standard_error(rel.LinearisedYield(scan_pointing, q=0.9), x, 1e-6)
     with pytest.raises(ValueError, match="at least 5 units"):
         rel.secant_draws(4, 4)
     with pytest.raises(ValueError, match="not both"):

@@ -149,6 +149,14 @@ class DesignReport:
     checks: tuple[YieldCheck, ...] = ()
     lost_motion: np.ndarray | None = None
 
+    @property
+    def target(self) -> float:
+        """The requirement (arcsec) the optimiser met with the returned design: `requirement`
+        itself, or, where a Monte Carlo check found the linear model under- or over-reading
+        the quantile and the design was solved again, the requirement shifted by that check
+        (`requirement - shift`, the SORA correction)."""
+        return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
+
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature."""
         geometric = self.lost_motion is not None
@@ -170,7 +178,8 @@ class DesignReport:
         head = (
             f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
-            f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
+            + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
+            + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
             f"{self._iteration_text()}; {'converged' if bool(self.result.converged) else 'not converged'}; first-order "
             f"optimality residual {self.result.optimality:.2g} (bands alone {self.result.band_optimality:.2g})."
         )

@@ -233,6 +233,35 @@ def _simulate_units(pointing, output, values, width):
     return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
 
 
+def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
+    """The standard error (output units) of the value $f$ that `objective`'s secant fit finds
+    at the design `x` (`Design(middle, half-width)`, m): the residual standard deviation of the
+    least-squares line through its `secant_units` units, times
+    $\\sqrt{[(X^T X)^{-1}]_{00}}$ ($X$ the fit's design matrix). Where the response scatters about
+    its trend from unit to unit (chaotic rattle: the jitter), the linearised quantile moves by
+    about this much from one design to the next for no other reason; a tolerance on that
+    constraint below it makes an optimiser chase noise (`sequential_design(tol=...)`). One batch
+    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`."""
+    if objective.secant_units is None:
+        raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
+    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
+    n = middle.shape[0]
+    units = realise(Design(middle, band), secant_draws(n, objective.secant_units))
+    width = None if width is None else jnp.asarray(width, dtype=float)
+    values = np.asarray(_simulate_units(objective.pointing, objective.output, units, width)).reshape(units.shape[0], -1)
+    ok = np.all(np.isfinite(values), axis=1)
+    scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
+    rows = np.concatenate([np.ones((units.shape[0], 1)), (np.asarray(units) - np.asarray(middle)) / scale], axis=1)[ok]
+    dof = rows.shape[0] - np.linalg.matrix_rank(rows)
+    if dof < 1:
+        raise ValueError(f"secant_standard_error: {int(ok.sum())} successful units leave no residual to estimate the noise from "
+                         f"({n} features): use more secant_units.")
+    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]
+    sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)
+    se = sigma * np.sqrt(np.linalg.pinv(rows.T @ rows)[0, 0])
+    return se if isinstance(objective.output, tuple) else float(se[0])
+
+
 def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: int, key, width=None, chunk: int = 50) -> YieldCheck:
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m; draws from
     `unit_draws(key, ...)`) with `objective`'s pointing model, and compare them with its

@@ -204,7 +204,7 @@ def sequential_design(
     width=None,
     max_iterations: int = 20,
     trust_region: float = 0.5,
-    tol: float = 0.01,
+    tol: float | tuple[float, float] = 0.01,
     step_tol: float = 1e-3,
     optimality_tol: float = 1e-3,
     cost_tol: float = 1e-3,
@@ -227,7 +227,10 @@ def sequential_design(
       to the objective (e.g. a smoothing width, m), fixed here.
     - `max_iterations`: gradient evaluations at most (one per iteration).
     - `trust_region`: the starting trust-region half-width, as a fraction of each variable's range.
-    - `tol`: relative tolerance on the constraint ($|f - R| \\le$ `tol`$\\cdot R$ for an active one).
+    - `tol`: relative tolerance on the constraint ($|f - R| \\le$ `tol`$\\cdot R$ for an active one);
+      with two requirements one each, e.g. a noisy constraint's at its estimate's own noise (a
+      stability metric fitted over a few chaotic units: `secant_standard_error`), which a model
+      error below does not shrink the trust region for.
     - `step_tol`: the design has stopped moving when no variable moves by more than this fraction
       of its range.
     - `optimality_tol`: or has stopped improving: the first-order optimality residual (see
@@ -256,6 +259,10 @@ def sequential_design(
     m = requirements.shape[0]
     if m > 2 or requirements.ndim != 1 or not np.all(requirements > 0):
         raise ValueError(f"sequential_design: one or two requirements > 0 (arcsec), got {requirement!r}.")
+    tols = np.asarray(tol, dtype=float)
+    if tols.ndim > 1 or tols.size not in (1, m) or not np.all((tols > 0) & (tols < 1)):
+        raise ValueError(f"sequential_design: tol must be in (0, 1), one value or one per requirement ({m}), got {tol!r}.")
+    tol = np.broadcast_to(tols, (m,))
 
     def evaluate(z):
         """`(f, grad)`: the constraints' values (m,) and gradients (m, 2n)."""
