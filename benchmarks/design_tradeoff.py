@@ -2,6 +2,7 @@
 pointing accuracy, one `propose_design` run per requirement (issue 12, item 8).
 
     python benchmarks/design_tradeoff.py [--requirements 300 500 800] [--method sequential] [--results DIR]
+    python benchmarks/design_tradeoff.py --yields 0.9 0.99 0.999 --requirements 400 550 700 1000 [--secant-units 9]
 
 Same problem as `benchmarks/design_comparison.py` (`_design.py`): the azimuth scan (lumped, 0.6 s, steady start),
 mean + 1 std of the RMS pointing error over 4 fixed manufactured units, lower limits of every
@@ -31,31 +32,40 @@ def main():
     parser.add_argument("--yields", type=float, nargs="+", default=None,
                         help="one curve per yield Y (propose_design(yield_=Y), with its 200-unit Monte Carlo check), written as "
                         "design_tradeoff_yield.*; default: the robust statistic (mean + 1 std over --draws units)")
+    parser.add_argument("--secant-units", type=int, default=None,
+                        help="with --yields: fit the linearised yield's value and slopes over this many units of the zone "
+                        "(LinearisedYield's secant_units, at least one more than the features) instead of tangents at the middle")
     _design.add_arguments(parser)
     args = harness.parse_args(parser)
+    if args.secant_units is not None and args.yields is None:
+        parser.error("--secant-units needs --yields (it linearises the yield objective)")
     pointing = _design.pointing(args)
     rows, points, curve = [], [], []
     for target in args.yields or [None]:
         for requirement in args.requirements:
-            options = {} if target is None else {"yield_": target}
+            options = {} if target is None else {"yield_": target, "secant_units": args.secant_units}
             wall, report = _design.propose(pointing, requirement, args, **options)
             print(report.table(), flush=True)
-            met = report.objective <= requirement * (1 + 1e-2)  # the sequential method's tolerance
+            # Met to the sequential method's tolerance: against the requirement the optimiser saw
+            # (shifted by a Monte Carlo check where the linear model misread the quantile).
+            met = report.objective <= report.target * (1 + 1e-2)
             check = report.checks[-1] if report.checks else None
             points.append((target, requirement, report.cost, met))
             curve.append(dict(
-                yield_=target, requirement=requirement, objective=report.objective, met=bool(met), cost=report.cost,
+                yield_=target, requirement=requirement, target=report.target, objective=report.objective, met=bool(met), cost=report.cost,
                 baseline_cost=report.baseline[2], baseline_objective=report.baseline[3], names=list(report.names),
                 nominal=report.nominal.tolist(), band=report.band.tolist(), grade=report.grade.tolist(), wall=wall,
                 converged=bool(report.result.converged), optimality=report.result.optimality,
-                check=None if check is None else dict(n=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
+                check=None if check is None else dict(n=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval),
+                                                       quantile=check.quantile_simulated, shift=check.shift),
             ))
             rows.append((
-                "mean + 1 std" if target is None else f"{target:.1%}", f"{requirement:g}", f"{report.objective:.0f}", "yes" if met else "no",
+                "mean + 1 std" if target is None else f"{target:.1%}", f"{requirement:g}" + ("" if report.target == requirement else f" (shifted to {report.target:.0f})"), f"{report.objective:.0f}", "yes" if met else "no",
                 "yes" if bool(report.result.converged) else "no", f"{report.cost:.3g}", f"{report.baseline[2]:.3g}",
                 ", ".join(f"{b * 1e6:.1f}" for b in report.band),
                 ", ".join(f"{(n - b) * 1e6:.0f}" for n, b in zip(report.nominal, report.band)),
                 "" if check is None else f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] of {check.n - check.n_failed}",
+                "" if check is None else f"{check.quantile_simulated:.0f}",
                 f"{wall:.0f}",
             ))
     name = "design_tradeoff" if args.yields is None else "design_tradeoff_yield"
@@ -78,12 +88,14 @@ def main():
         "Tolerance cost against required pointing accuracy",
         harness.command(args),
         ["statistic", "requirement (arcsec)", "objective (arcsec)", "met (1 %)", "converged", "cost", "baseline cost", "bands +- (um)",
-         "lower limits (um)", "Monte Carlo check: yield [95 % Wilson]", "wall (s)"],
+         "lower limits (um)", "Monte Carlo check: yield [95 % Wilson]", "check: simulated quantile (arcsec)", "wall (s)"],
         rows,
         about=(
             f"Features in order: {', '.join(tx.design_names(pointing.scene))}. method {args.method} (max_outer {args.outer}, inner {args.inner}). "
             f"Figure: `{png.name}`. With a yield, the objective is the linearised quantile (`propose_design(yield_=)`) and the "
-            "check simulates 200 fresh units at the proposal."
+            "check simulates 200 fresh units at the proposal; where its quantile differs from the linear model's by more than its noise "
+            "the design is solved again against the requirement shifted by the difference, and 'met' is judged against that shifted "
+            "requirement (the check's own quantile is in its column; at 99.9 % 200 units cannot resolve it)."
         ),
     )
 
