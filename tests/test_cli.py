@@ -167,3 +167,96 @@ def test_studies_reject_a_bad_horizon(extra, capsys):
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert "usage: tolerax" in err and ("settle" in err or "duration" in err)
+
+
+# A mechanism that is not the paper's: other tooth counts (18/27/72), a heavier reflector further
+# out, a faster and smaller scan; a short horizon (these tests check the wiring).
+OWN_MECHANISM = """
+title = "My drive: azimuth scanning +-0.3 deg at 1.25 Hz"
+
+[scene]
+kind = "scan"
+mode = "azimuth"
+fidelity = ["lumped", "ideal"]
+amplitude = 0.005235987755982988
+period = 0.8
+
+[scene.azimuth_stage]
+sun_teeth = 18
+planet_teeth = 27
+ring_teeth = 72
+backlash = 4e-05
+planet_clearance = 3e-05
+carrier_clearance = 6e-05
+
+[scene.inertias]
+reflector_mass = 12.0
+reflector_inertia = [1.1, 1.6, 1.1]
+
+[scene.geometry]
+reflector_centre = [0.0, 0.32, 0.0]
+
+[run]
+duration = 0.25
+settle = 0.0
+start = "steady"
+n_save = 26
+
+[tolerances]
+band = 5e-06
+requirement = 400.0
+"""
+
+
+def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_path, capsys):
+    """The engineer's path in three commands on a scene file of their own mechanism: `design
+    --verify` writes proposal.toml and simulates units of it; `montecarlo proposal.toml` on the
+    same units gives the same yield (the same samples, bitwise); the proposal reads back as the
+    designed zones."""
+    scene = tmp_path / "my_drive.toml"
+    scene.write_text(OWN_MECHANISM)
+    model = tx.load_scene(scene).build()
+    assert float(model.inertias.reflector_mass) == 12.0 and int(model.azimuth.stage.ring_teeth) == 72
+    design = tmp_path / "design"
+    assert cli.main(["design", str(scene), "--yield", "0.9", "--secant-units", "5", "--check", "0", "--outer", "2",
+                     "--verify", "6", "--chunk", "3", "--out", str(design)]) == 0
+    printed = capsys.readouterr().out
+    assert "tolerax design --verify: yield" in printed
+    proposal = tx.load_scene(design / "proposal.toml")
+    assert proposal.requirement == 400.0 and "Proposal" in proposal.title
+    # The proposal's zones are the report's (design.md prints them to 0.1 um).
+    zones = proposal.tolerances()
+    table = (design / "design.md").read_text()
+    for name, nominal, band in zip(zones.names, np.asarray(zones.nominal), np.asarray(zones.band)):
+        assert f"| {name} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table
+    verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_rms"]
+    assert verify["n_used"] == 6
+    # Verify it as a user would: the same seed and chunk give the same units and the same yield.
+    mc = tmp_path / "mc"
+    assert cli.main(["montecarlo", str(design / "proposal.toml"), "--n", "6", "--chunk", "3", "--out", str(mc)]) == 0
+    again = json.loads((mc / "summary.json").read_text())["pointing_rms"]
+    assert again["yield"] == verify["yield"] and again["mean"] == verify["mean"]
+    # run and design read it back unchanged.
+    assert tx.load_scene(mc / "scene.toml") == proposal
+
+
+def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
+    """An --out that is a file, a band reaching below zero, a misspelt scene name: exit 2 with
+    a message saying what to change, nothing computed."""
+    afile = tmp_path / "taken"
+    afile.write_text("")
+    for argv in (["montecarlo", "--out", str(afile)], ["design", "--requirement", "500", "--out", str(afile)],
+                 ["run", "scan-azimuth", "--out", str(afile)], ["demo", "--out", str(afile)]):
+        with pytest.raises(SystemExit) as info:
+            cli.main(argv)
+        assert info.value.code == 2 and "is an existing file, not a folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        cli.main(["montecarlo", "--band", "500", "--out", str(tmp_path / "mc")])  # um: a slip for 5
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "clipped to 0 um" in err and "--allow-clip" in err
+    assert not (tmp_path / "mc" / "chunks").exists()
+    assert cli.main(["montecarlo", "scan-azimut", "--out", str(tmp_path / "mc")]) == 2
+    assert "(did you mean 'scan-azimuth'?)" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        cli.main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"tolerax {tx.__version__}"

@@ -95,6 +95,8 @@ def test_every_key_is_documented():
     for cls in schema.CONTACT_LAWS.values():
         keys |= set(inspect.signature(cls.__init__).parameters) - {"self"}
     keys |= set(schema.CONTACT_LAWS) | {"kind", "law"}
+    for cls in schema.STRUCTURE_KEYS.values():
+        keys |= set(inspect.signature(cls.__init__).parameters) - {"self"}
     missing = sorted(k for k in keys if f"`{k}`" not in doc)
     assert not missing, f"undocumented scene-file keys: {missing}"
     for name in tx.builtin_scenes():

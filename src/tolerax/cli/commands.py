@@ -1,11 +1,13 @@
 """`tolerax run`, `design`, `montecarlo` and `studies`."""
 
+import copy
+import inspect
 import json
 import pathlib
 import sys
 import time
 
-from .common import command_line, has_features, load_average, read_scene_file, with_tolerances
+from .common import check_clipping, check_out, command_line, has_features, load_average, read_scene_file, with_tolerances
 
 
 def studies_command(parser, args) -> int:
@@ -42,6 +44,26 @@ def studies_command(parser, args) -> int:
 
 
 def montecarlo_command(parser, args) -> int:
+    out = check_out(parser, args.out)
+    scene_file = read_scene_file(parser, args)
+    if scene_file is None:
+        return 2
+    scene_file = with_tolerances(scene_file, args.band, args.distribution)
+    if not has_features(scene_file, "montecarlo"):
+        return 2
+    requirement = args.requirement if args.requirement is not None else scene_file.requirement
+    summary = run_monte_carlo(parser, scene_file, out, n=args.n, seed=args.seed, backend=args.backend, chunk=args.chunk,
+                              requirement=requirement, allow_clip=args.allow_clip, command="montecarlo")
+    if summary is None:
+        return 2
+    return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
+
+
+def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command):
+    """`n` units of `scene_file` (its [tolerances] around its design) into the folder `out`:
+    montecarlo.nc, summary.json, histogram.png and the scene; the summary (`None` where the
+    checkpoints in `out` belong to other settings: the message is printed). What `tolerax
+    montecarlo` runs, and `tolerax design --verify` on the proposal it wrote."""
     import jax
     import matplotlib
 
@@ -52,28 +74,22 @@ def montecarlo_command(parser, args) -> int:
     from ..io import scenefile as F
     from ..design.objectives import UNITS
 
-    scene_file = read_scene_file(parser, args)
-    if scene_file is None:
-        return 2
-    scene_file = with_tolerances(scene_file, args.band, args.distribution)
-    if not has_features(scene_file, "montecarlo"):
-        return 2
-    requirement = args.requirement if args.requirement is not None else scene_file.requirement
     pointing = scene_file.objective()
     tolerances = scene_file.tolerances(pointing.scene)
-    out = pathlib.Path(args.out)
+    check_clipping(parser, tolerances, allow_clip)
     out.mkdir(parents=True, exist_ok=True)
-    bands = ", ".join(f"{n} +-{b * 1e6:.3g}" for n, b in zip(tolerances.names, tolerances.band.tolist()))
-    print(f"tolerax montecarlo: {args.n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
-          f"window from {pointing.settle} s; features at nominal {bands} um ({tolerances.distribution}); "
-          f"checkpoints in {out / 'chunks'} (rerun to resume).")
+    bands = ", ".join(f"{name} {m * 1e6:.4g} +- {b * 1e6:.3g}" for name, m, b in
+                      zip(tolerances.names, tolerances.nominal.tolist(), tolerances.band.tolist()))
+    print(f"tolerax {command}: {n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
+          f"window from {pointing.settle} s; features (um) {bands} ({tolerances.distribution}); "
+          f"checkpoints in {out / 'chunks'} (rerun to resume)." + ("" if requirement is not None else
+          " No requirement: give --requirement (arcsec, RMS pointing) for a yield."))
     try:
-        res = MC.monte_carlo(pointing, tolerances, args.n, jax.random.key(args.seed), backend=args.backend,
-                             chunk_size=args.chunk, out=out / "chunks", units=UNITS,
-                             requirement=None if requirement is None else {"pointing_rms": requirement})
+        res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",
+                             units=UNITS, requirement=None if requirement is None else {"pointing_rms": requirement})
     except ValueError as err:  # e.g. checkpoints of other settings in the output folder
-        print(f"tolerax montecarlo: {err}", file=sys.stderr)
-        return 2
+        print(f"tolerax {command}: {err}", file=sys.stderr)
+        return None
     F.save_scene(scene_file, out / "scene.toml")  # after the checkpoints were accepted as this run's
     res.save(out / "montecarlo.nc")
     summary = res.summary()
@@ -83,7 +99,7 @@ def montecarlo_command(parser, args) -> int:
     plt.close(fig)
     print(res.report())
     print(f"wrote {out / 'scene.toml'}, {out / 'montecarlo.nc'}, {out / 'summary.json'} and {out / 'histogram.png'}")
-    return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
+    return summary
 
 
 def design_command(parser, args) -> int:
@@ -95,6 +111,7 @@ def design_command(parser, args) -> int:
     from ..design import propose as _propose
     from ..io import scenefile as F
 
+    out = check_out(parser, args.out)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return 2
@@ -114,13 +131,21 @@ def design_command(parser, args) -> int:
         parser.error("--yield needs --method sequential (its Monte Carlo check re-solves the design)")
     if args.check is not None and args.yield_ is None:
         parser.error("--check needs --yield (it checks the yield of the proposal)")
+    if args.verify_fidelity is not None and not args.verify:
+        parser.error("--verify-fidelity needs --verify N (the units to simulate)")
     pointing = scene_file.objective()
     statistic = (f"mean + 1 std over {args.draws} units drawn uniformly within the bands" if args.yield_ is None
                  else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {statistic}); method {args.method}.")
     start = time.perf_counter()
-    options = dict(n_draws=args.draws) if args.yield_ is None else dict(yield_=args.yield_, check_units=args.check)
+    if args.secant_units is not None and args.yield_ is None:
+        parser.error("--secant-units needs --yield (it linearises the yield objective)")
+    n_features = len(_feature_names(scene_file))
+    if args.secant_units is not None and args.secant_units <= n_features:
+        parser.error(f"--secant-units must exceed the scene's {n_features} design features (a line through K units), got {args.secant_units}")
+    options = (dict(n_draws=args.draws) if args.yield_ is None
+               else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
     try:
         report = _propose.propose_design(pointing, requirement, band=band, max_outer=args.outer, inner_steps=args.inner,
                                          method=args.method, progress=True, **options)
@@ -131,18 +156,74 @@ def design_command(parser, args) -> int:
         print(f"tolerax design: {err}", file=sys.stderr)
         return 3
     wall = time.perf_counter() - start
-    out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
+    proposal = F.save_scene(proposal_scene(scene_file, report, args.yield_), out / "proposal.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
-                      "Reproduce with:", "", "```", command_line(args), "```"])
+                      "Reproduce with:", "", "```", command_line(args), "```", "",
+                      f"The proposal as a scene file: `{proposal}` (verify it with `tolerax montecarlo {proposal} --n 200`)."])
     (out / "design.md").write_text(text + "\n")
     fig = report.plot()
     fig.savefig(out / "design.png", dpi=120)
     plt.close(fig)
     print(text)
-    print(f"wrote {out / 'scene.toml'}, {out / 'design.md'} and {out / 'design.png'}")
-    return 0
+    print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'} and {out / 'design.png'}")
+    if not args.verify:
+        return 0
+    verify = F.load_scene(proposal)
+    if args.verify_fidelity is not None:
+        verify = with_fidelity(verify, args.verify_fidelity)
+    summary = run_monte_carlo(parser, verify, out / "verify", n=args.verify, seed=args.seed, backend="vmap", chunk=args.chunk,
+                              requirement=requirement, allow_clip=False, command="design --verify")
+    if summary is None:
+        return 2
+    s = summary["pointing_rms"]
+    print(f"tolerax design --verify: yield {s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}] (95 % Wilson) of "
+          f"{int(s['n_used'])} units at RMS pointing <= {requirement:g} arcsec"
+          + (f" (proposed for {args.yield_:.1%})" if args.yield_ is not None else ""))
+    return 0 if s["n_failed"] == 0 else 3
+
+
+def _feature_names(scene_file):
+    from ..design.features import design_names
+
+    return design_names(scene_file.build())
+
+
+def proposal_scene(scene_file, report, yield_=None):
+    """`scene_file` with the proposal of `report` (a `DesignReport`) filled in: the nominal
+    clearances and backlash under `[design]`, the half-widths under `[tolerances.bands]`, the
+    requirement, uniform manufacturing (what the design assumed). `tolerax run`, `montecarlo`
+    and `design` read it back as any scene file."""
+    from ..io import scenefile as F
+
+    data = copy.deepcopy(scene_file.data)
+    data["design"] = {**data.get("design", {}), **{n: float(v) for n, v in zip(report.names, report.nominal)}}
+    tol = data.setdefault("tolerances", {})
+    tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(report.names, report.band)}}
+    tol["requirement"] = float(report.requirement)
+    tol["distribution"] = "uniform"
+    what = "mean + 1 std over a few units" if yield_ is None else f"{yield_:.1%} yield"
+    data["title"] = f"Proposal: {scene_file.title}"
+    data["description"] = (f"Written by tolerax design from {scene_file.source}: cost {report.cost:.4g} (baseline "
+                           f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
+                           f"({what}); {'converged' if bool(report.result.converged) else 'not converged'}.")
+    return F.SceneFile.from_data(data, "proposal", "<proposal>")
+
+
+def with_fidelity(scene_file, fidelity):
+    """`scene_file` with every joint that is not ideal at `fidelity` (e.g. a lumped design
+    verified at planetary fidelity; features the design did not model keep the scene's values
+    and its [tolerances] band)."""
+    from ..io import scenefile as F
+    from ..io.schema import BUILDERS
+
+    data = copy.deepcopy(scene_file.data)
+    scene = data["scene"]
+    current = scene.get("fidelity", inspect.signature(BUILDERS[scene["kind"]]).parameters["fidelity"].default)
+    current = [current, current] if isinstance(current, str) else list(current)
+    scene["fidelity"] = [f if f == "ideal" else fidelity for f in current]
+    return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
 
 
 def run_command(parser, args) -> int:
@@ -157,7 +238,7 @@ def run_command(parser, args) -> int:
     scene_file = read_scene_file(parser, args, n_save=args.n_save, start=args.start)
     if scene_file is None:
         return 2
-    out = pathlib.Path(args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name)
+    out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name)
     print(f"tolerax run: {scene_file.title} ({scene_file.source}); {scene_file.run['duration']} s simulated; results in {out}/")
     start = time.perf_counter()
     try:

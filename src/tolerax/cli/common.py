@@ -5,6 +5,7 @@ import argparse
 import copy
 import math
 import os
+import pathlib
 import shlex
 import sys
 
@@ -53,6 +54,28 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
     if distribution is not None:
         tol["distribution"] = distribution
     return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
+
+
+def check_out(parser, out) -> pathlib.Path:
+    """The output folder `out`, refused (exit 2, before any work) where it names an existing
+    file: results must never be computed and then lost for want of a place to write them."""
+    path = pathlib.Path(out)
+    if path.exists() and not path.is_dir():
+        parser.error(f"--out {str(out)!r} is an existing file, not a folder: name a folder (created if missing)")
+    return path
+
+
+def check_clipping(parser, tolerances, allow: bool):
+    """Refuse (exit 2) bands that reach below zero unless `allow`: units drawn there are
+    clipped to 0 um (line-to-line parts), almost always a slip in the band's unit (um)."""
+    import numpy as np
+
+    low = np.asarray(tolerances.nominal) - np.asarray(tolerances.band)
+    below = [f"{name} ({n * 1e6:.3g} - {b * 1e6:.3g} um)" for name, n, b, lo in
+             zip(tolerances.names, np.asarray(tolerances.nominal), np.asarray(tolerances.band), low) if lo < 0]
+    if below and not allow:
+        parser.error("the band reaches below zero for " + ", ".join(below) + ": units drawn there would be clipped to 0 um "
+                     "(line-to-line parts). Narrow the band (--band is a half-width in um) or pass --allow-clip to accept them")
 
 
 def has_features(scene_file, command) -> bool:

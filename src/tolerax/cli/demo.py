@@ -7,10 +7,11 @@ import pathlib
 import sys
 import time
 
-from .common import DEFAULT_SCENE, command_line, load_average
+from .common import DEFAULT_SCENE, check_out, command_line, load_average
 
 
 def demo_command(parser, args) -> int:
+    check_out(parser, args.out)
     if args.bench:
         return _demo_bench(parser, args)
     given = [f"--{n}" for n in ("rate", "clearance", "backlash") if getattr(args, n) is not None]

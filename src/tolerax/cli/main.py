@@ -21,13 +21,21 @@ names the file, line and key), 3 a simulation or optimisation failed.
 import argparse
 import sys
 
+from .. import __version__
 from .commands import design_command, montecarlo_command, run_command, studies_command
 from .common import DEFAULT_SCENE, EPILOG, count, non_negative, positive, scene_options
 from .demo import demo_command
 
+# What an interrupted command has kept, and how to go on.
+RESUME = {
+    "montecarlo": "finished chunks are kept under OUT/chunks: rerun the same command to resume",
+    "studies": "finished rows are kept in OUT/STUDY-SIZE.json: rerun with --resume to go on",
+}
+
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tolerax", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"tolerax {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
         "demo", help="the dual-axis antenna: pointing error over time and a short tolerance proposal",
@@ -77,7 +85,8 @@ def main(argv=None) -> int:
         description="Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and "
         "half-width) of lowest cost (ISO 286 grades) whose mean + 1 std of the RMS pointing error over a few "
         "manufactured units meets the requirement (tolerax.propose_design). Starts from the scene's design and "
-        "its [tolerances] band. Writes scene.toml, design.md and design.png.",
+        "its [tolerances] band. Writes scene.toml, design.md, design.png and proposal.toml (the scene with the proposed "
+        "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.",
         epilog=EPILOG,
     )
     scene_options(design, "design")
@@ -97,6 +106,18 @@ def main(argv=None) -> int:
                         "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
     design.add_argument("--check", type=count(0), default=None,
                         help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
+    design.add_argument("--secant-units", type=count(2), default=None, metavar="K",
+                        help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
+                        "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
+                        "contacts rattle (propose_design's secant_units)")
+    design.add_argument("--verify", type=count(0), default=0, metavar="N",
+                        help="then simulate N units of the written proposal.toml (as `tolerax montecarlo OUT/proposal.toml --n N`, "
+                        "into OUT/verify) and report its yield with a 95 %% Wilson interval (default 0: none)")
+    design.add_argument("--verify-fidelity", choices=("lumped", "planetary", "planetary-scaled"), default=None,
+                        help="with --verify: simulate the units at this fidelity (every joint that is not ideal), e.g. a "
+                        "lumped design verified on the planetary stage")
+    design.add_argument("--seed", type=int, default=0, help="with --verify: the units' random seed (as montecarlo's)")
+    design.add_argument("--chunk", type=count(1), default=8, help="with --verify: units per chunk (default 8)")
     mc = sub.add_parser(
         "montecarlo", help="pointing-error distribution and yield over manufacturing errors",
         description="Simulate manufactured units of the scene, each clearance and backlash drawn within its "
@@ -115,6 +136,8 @@ def main(argv=None) -> int:
     mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
     mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
     mc.add_argument("--seed", type=int, default=0)
+    mc.add_argument("--allow-clip", action="store_true",
+                    help="accept bands reaching below zero (units drawn there are clipped to 0 um); refused otherwise")
     studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
@@ -132,7 +155,12 @@ def main(argv=None) -> int:
         "studies": (parser, studies_command),
     }
     command_parser, command = commands[args.command]
-    return command(command_parser, args)
+    try:
+        return command(command_parser, args)
+    except KeyboardInterrupt:
+        print(f"\ntolerax {args.command}: interrupted; " + RESUME.get(args.command, "nothing was written after the last 'wrote' line"),
+              file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -177,7 +177,8 @@ def load_scene(scene: str | os.PathLike) -> SceneFile:
         return parse_scene(text, name=path.stem, source=str(path))
     names = builtin_scenes()
     if text_arg not in names:
-        raise SceneFileError(f"no built-in scene {text_arg!r} and no such file; built-in scenes: {', '.join(names)}.", text_arg)
+        raise SceneFileError(f"no built-in scene {text_arg!r} and no such file{S._suggest(text_arg, names)}; built-in scenes: "
+                             f"{', '.join(names)}.", text_arg)
     return parse_scene(_builtin_text(text_arg), name=text_arg, source=f"builtin:{text_arg}")
 
 

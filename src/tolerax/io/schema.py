@@ -7,18 +7,21 @@ themselves, and every error naming the file, line, table and key (`SceneFileErro
 the text for it inside its table. The schema is documented in docs/scene_files.md.
 """
 
+import difflib
 import inspect
 import math
 import re
 import types
 import typing
 
+import jax.numpy as jnp
 
 from ..physics import contact as _contact
 from ..design import features as _design
 from ..physics import gears as _gears
 from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
+from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
 from ..solve import PID_RULES
 
@@ -27,6 +30,9 @@ from ..solve import PID_RULES
 
 BUILDERS = {"antenna": _scenes.antenna, "scan": _scenes.scan}
 STAGE_KEYS = tuple(f"{joint}_stage" for joint in Mechanism.JOINTS)
+# The structure's tables: their keys are the classes' constructor arguments; a mass is one
+# number (kg), an inertia (kg m^2) or an offset (m) three.
+STRUCTURE_KEYS = {"geometry": Geometry, "inertias": Inertias}
 # Contact laws a stage table may name; their constructor arguments are read from the signatures.
 CONTACT_LAWS = {cls.__name__: cls for cls in (_contact.BaiZhao, _contact.HertzLN, _contact.Flores, _contact.AdamsImpact)}
 
@@ -69,7 +75,7 @@ PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error"
 OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None)}
-TOP_KEYS = {"title": str, "description": str, "scene": dict, "run": dict, "outputs": dict, "tolerances": dict}
+TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict}
 
 
 class SceneFileError(ValueError):
@@ -182,6 +188,12 @@ def _for_call(value):
 # Validation
 
 
+def _suggest(word, choices) -> str:
+    """`" (did you mean 'x'?)"` for the closest of `choices`, or nothing."""
+    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 class Checker:
     def __init__(self, text: str, source: str):
         self.text, self.source = text, source
@@ -193,7 +205,7 @@ class Checker:
     def keys(self, data: dict, table: tuple[str, ...], allowed, required=()):
         for key in data:
             if key not in allowed:
-                raise self.error(f"unknown key {key!r}; allowed keys: {', '.join(allowed)}.", table, key)
+                raise self.error(f"unknown key {key!r}{_suggest(key, allowed)}; allowed keys: {', '.join(allowed)}.", table, key)
         for key in required:
             if key not in data:
                 raise self.error(f"missing key {key!r}.", table)
@@ -228,6 +240,20 @@ def _build_stage(chk: Checker, data: dict, table: tuple[str, ...]):
         kwargs[key] = _for_call(value)
     try:
         return _gears.default_stage(**kwargs)
+    except (ValueError, TypeError) as err:
+        raise chk.wrap(err, table, data) from None
+
+
+def _build_structure(chk: Checker, data, table: tuple[str, ...]):
+    cls = STRUCTURE_KEYS[table[-1]]
+    if not isinstance(data, dict):
+        raise chk.error(f"must be a table of {cls.__name__} arguments, got {data!r}.", table[:-1], table[-1])
+    params = _signature_keys(cls.__init__, skip=("self",))
+    chk.keys(data, table, list(params))
+    for key in data:
+        chk.typed(data, table, key, float if key.endswith("mass") else tuple[float, float, float])
+    try:
+        return cls(**{key: _for_call(value) for key, value in data.items()})
     except (ValueError, TypeError) as err:
         raise chk.wrap(err, table, data) from None
 
@@ -270,6 +296,9 @@ def build(chk: Checker, scene: dict):
             if not isinstance(value, dict):
                 raise chk.error(f"must be a table of default_stage arguments, got {value!r}.", table, key)
             kwargs[key] = _build_stage(chk, value, table + (key,))
+            continue
+        if key in STRUCTURE_KEYS:
+            kwargs[key] = _build_structure(chk, value, table + (key,))
             continue
         chk.typed(scene, table, key, params[key].annotation)
         kwargs[key] = _for_call(value)
@@ -341,9 +370,27 @@ def _check_tolerances(chk: Checker, tol: dict, model):
     sub = table + ("bands",)
     for name, value in tol.get("bands", {}).items():
         if name not in names:
-            raise chk.error(f"{name!r} is not a design feature of this scene; its features: {', '.join(names) or 'none'}.", sub, name)
+            raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
+                            f"{', '.join(names) or 'none'}.", sub, name)
         if not (_accepts(value, float) and math.isfinite(value) and value >= 0):
             raise chk.error(f"must be a non-negative finite half-width (m), got {value!r}.", sub, name)
+
+
+def _apply_design(chk: Checker, design: dict, model):
+    """`model` with the nominal clearances and backlash of `[design]` (m, by feature name: what
+    `tolerax design` writes into its proposal) set over the builder's values."""
+    if not design:
+        return model
+    names = _design.design_names(model)
+    values = [float(v) for v in _design.design_of(model)]
+    for name, value in design.items():
+        if name not in names:
+            raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
+                            f"{', '.join(names) or 'none'}.", ("design",), name)
+        if not (_accepts(value, float) and math.isfinite(value) and value >= 0):
+            raise chk.error(f"must be a non-negative finite clearance or backlash (m), got {value!r}.", ("design",), name)
+        values[names.index(name)] = float(value)
+    return _design.with_design(model, jnp.asarray(values))
 
 
 def validate(data: dict, text: str, source: str):
@@ -351,7 +398,7 @@ def validate(data: dict, text: str, source: str):
     chk = Checker(text, source)
     for key, value in data.items():
         if key not in TOP_KEYS:
-            raise chk.error(f"unknown key {key!r}; allowed at the top level: {', '.join(TOP_KEYS)}.", (), key)
+            raise chk.error(f"unknown key {key!r}{_suggest(key, TOP_KEYS)}; allowed at the top level: {', '.join(TOP_KEYS)}.", (), key)
         if not _accepts(value, TOP_KEYS[key]):
             raise chk.error(f"must be {_type_text(TOP_KEYS[key])}, got {_toml_type(value)}.", (), key)
     for key in ("scene", "run"):
@@ -359,6 +406,6 @@ def validate(data: dict, text: str, source: str):
             raise chk.error(f"missing table [{key}].")
     _check_run(chk, data["run"])
     _check_outputs(chk, data.get("outputs", {}))
-    model = build(chk, data["scene"])
+    model = _apply_design(chk, data.get("design", {}), build(chk, data["scene"]))
     _check_tolerances(chk, data.get("tolerances", {}), model)
     return model

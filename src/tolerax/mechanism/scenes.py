@@ -9,6 +9,7 @@ import numpy as np
 from .drives import ScanServo, SpeedServo, TorqueDrive
 from . import FIDELITIES
 from .mechanism import Mechanism
+from .structure import Geometry, Inertias
 from ..physics.stage import PlanetaryStage
 
 
@@ -32,6 +33,8 @@ def antenna(
     scan_amplitude: float = math.radians(0.5),
     scan_period: float = 2.0,
     mass_scaling: float | None = None,
+    geometry: Geometry | None = None,
+    inertias: Inertias | None = None,
 ) -> Mechanism:
     """A scene of the paper: driving `mode` `"azimuth"`, `"pitch"` (single-axis) or `"dual"`.
 
@@ -52,6 +55,9 @@ def antenna(
     - `servo_gains`: $(k_p, k_i)$ of the motor servos (N m s/rad, N m/rad).
     - `mass_scaling`: $s \\ge 1$ of every `"planetary-scaled"` joint (default: the class's,
       10); an error with no such joint.
+    - `geometry`, `inertias`: the structure (`Geometry`: offsets of the joints, links and
+      reflector, m; `Inertias`: masses, kg, and principal inertias, kg m^2); default the
+      paper's Table 1.
     """
     if mode not in DRIVE_MODES:
         raise ValueError(f"mode={mode!r} is unknown; use one of {DRIVE_MODES}.")
@@ -80,7 +86,7 @@ def antenna(
             drv = SpeedServo(rate if on else 0.0, *servo_gains)
         extra = scaling if fid == "planetary-scaled" else {}
         joints.append(FIDELITIES[fid](stage, drv, motor_inertia=motor_inertia, drag_torque=drag_torque, **extra))
-    return Mechanism(joints[0], joints[1], base=base)
+    return Mechanism(joints[0], joints[1], geometry=geometry, inertias=inertias, base=base)
 
 
 def scan(
@@ -95,6 +101,9 @@ def scan(
     servo_gains: tuple[float, float] = (2.0, 40.0),
     drag_torque: float = 0.05,
     motor_inertia: float = 2e-4,
+    mass_scaling: float | None = None,
+    geometry: Geometry | None = None,
+    inertias: Inertias | None = None,
 ) -> Mechanism:
     """The tolerance-design scene: the driven joints scan back and forth.
 
@@ -121,4 +130,7 @@ def scan(
         motor_inertia=motor_inertia,
         scan_amplitude=amplitude,
         scan_period=period,
+        mass_scaling=mass_scaling,
+        geometry=geometry,
+        inertias=inertias,
     )

@@ -114,12 +114,14 @@ class MonteCarloResult:
         """The summary as readable lines."""
         lines = []
         for output, row in self.summary(requirement).items():
+            unit = self.dataset[output].attrs.get("units")
+            u = f" {unit}" if unit else ""
             text = (f"{output}: {row['n_used']} of {row['n_samples']} samples used ({row['n_failed']} failed, "
-                    f"{row['n_nonfinite']} non-finite); mean {row['mean']:.6g}, std {row['std']:.6g}, "
-                    f"q50/q90/q95/q99 {row['q50']:.6g}/{row['q90']:.6g}/{row['q95']:.6g}/{row['q99']:.6g}")
+                    f"{row['n_nonfinite']} non-finite); mean {row['mean']:.6g}{u}, std {row['std']:.6g}{u}, "
+                    f"q50/q90/q95/q99 {row['q50']:.6g}/{row['q90']:.6g}/{row['q95']:.6g}/{row['q99']:.6g}{u}")
             if "yield" in row:
-                text += (f"; yield at <= {row['requirement']:.6g}: {row['yield']:.4f} "
-                         f"[{row['yield_low']:.4f}, {row['yield_high']:.4f}]")
+                text += (f"; yield at <= {row['requirement']:.6g}{u}: {row['yield']:.4f} "
+                         f"[{row['yield_low']:.4f}, {row['yield_high']:.4f}] (95 % Wilson)")
             lines.append(text)
         return "\n".join(lines)
 
