@@ -260,3 +260,22 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
         cli.main(["--version"])
     assert info.value.code == 0 and capsys.readouterr().out.strip() == f"tolerax {tx.__version__}"
+
+
+def test_tradeoff_writes_the_curve_and_one_proposal_per_requirement(tmp_path, capsys):
+    """`tolerax tradeoff` on the user's mechanism at two requirements: the table, the JSON, the
+    plot and a proposal per point, which loads as a scene file with its requirement; the looser
+    requirement costs no more."""
+    scene = tmp_path / "my_drive.toml"
+    scene.write_text(OWN_MECHANISM)
+    out = tmp_path / "trade"
+    assert cli.main(["tradeoff", str(scene), "--requirements", "450", "380", "--yield", "0.9", "--secant-units", "5",
+                     "--check", "0", "--outer", "2", "--out", str(out)]) == 0
+    points = json.loads((out / "tradeoff.json").read_text())["points"]
+    assert [p["requirement"] for p in points] == [380.0, 450.0]
+    assert points[1]["cost"] <= points[0]["cost"] * (1 + 1e-9)
+    for p in points:
+        assert tx.load_scene(p["proposal"]).requirement == p["requirement"]
+    table = (out / "tradeoff.md").read_text()
+    assert "| 380 |" in table and "| 450 |" in table and "proposal-380.toml" in table
+    assert (out / "tradeoff.png").stat().st_size > 10_000

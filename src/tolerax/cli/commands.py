@@ -102,28 +102,20 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     return summary
 
 
-def design_command(parser, args) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..design import propose as _propose
+def _design_setup(parser, args, command):
+    """The checks and inputs `design` and `tradeoff` share: `(scene_file, starting band, the
+    propose_design options)`, or `None` after printing why (exit 2)."""
     from ..io import scenefile as F
 
-    out = check_out(parser, args.out)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
-        return 2
-    requirement = args.requirement if args.requirement is not None else scene_file.requirement
-    if requirement is None:
-        parser.error(f"scene {scene_file.name!r} sets no [tolerances] requirement: give --requirement (arcsec, RMS pointing)")
-    if not has_features(scene_file, "design"):
-        return 2
+        return None
+    if not has_features(scene_file, command):
+        return None
     tol = scene_file.data.get("tolerances", {})
     band = tol.get("band", F.TOLERANCE_KEYS["band"][1])
     if tol.get("bands"):
-        print(f"tolerax design: the optimiser starts every feature at the scene's band +-{band * 1e6:g} um; "
+        print(f"tolerax {command}: the optimiser starts every feature at the scene's band +-{band * 1e6:g} um; "
               "the per-feature [tolerances.bands] are not used.")
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
@@ -131,31 +123,63 @@ def design_command(parser, args) -> int:
         parser.error("--yield needs --method sequential (its Monte Carlo check re-solves the design)")
     if args.check is not None and args.yield_ is None:
         parser.error("--check needs --yield (it checks the yield of the proposal)")
-    if args.verify_fidelity is not None and not args.verify:
-        parser.error("--verify-fidelity needs --verify N (the units to simulate)")
-    pointing = scene_file.objective()
-    statistic = (f"mean + 1 std over {args.draws} units drawn uniformly within the bands" if args.yield_ is None
-                 else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
-    print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
-          f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {statistic}); method {args.method}.")
-    start = time.perf_counter()
     if args.secant_units is not None and args.yield_ is None:
         parser.error("--secant-units needs --yield (it linearises the yield objective)")
     n_features = len(_feature_names(scene_file))
     if args.secant_units is not None and args.secant_units <= n_features:
         parser.error(f"--secant-units must exceed the scene's {n_features} design features (a line through K units), got {args.secant_units}")
-    options = (dict(n_draws=args.draws) if args.yield_ is None
-               else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
+    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True)
+    options.update(dict(n_draws=args.draws) if args.yield_ is None
+                   else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
+    return scene_file, options
+
+
+def _statistic(args) -> str:
+    return (f"mean + 1 std over {args.draws} units drawn uniformly within the bands" if args.yield_ is None
+            else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
+
+
+def _propose(pointing, requirement, options, command):
+    """`(report, wall seconds)` of `propose_design`, or an exit code after printing why."""
+    from ..design import propose as _p
+
+    start = time.perf_counter()
     try:
-        report = _propose.propose_design(pointing, requirement, band=band, max_outer=args.outer, inner_steps=args.inner,
-                                         method=args.method, progress=True, **options)
+        report = _p.propose_design(pointing, requirement, **options)
     except ValueError as err:  # e.g. a starting band outside the optimiser's range
-        print(f"tolerax design: {err}", file=sys.stderr)
+        print(f"tolerax {command}: {err}", file=sys.stderr)
         return 2
     except RuntimeError as err:  # a failed simulation makes the objective NaN
-        print(f"tolerax design: {err}", file=sys.stderr)
+        print(f"tolerax {command}: {err}", file=sys.stderr)
         return 3
-    wall = time.perf_counter() - start
+    return report, time.perf_counter() - start
+
+
+def design_command(parser, args) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..io import scenefile as F
+
+    out = check_out(parser, args.out)
+    setup = _design_setup(parser, args, "design")
+    if setup is None:
+        return 2
+    scene_file, options = setup
+    requirement = args.requirement if args.requirement is not None else scene_file.requirement
+    if requirement is None:
+        parser.error(f"scene {scene_file.name!r} sets no [tolerances] requirement: give --requirement (arcsec, RMS pointing)")
+    if args.verify_fidelity is not None and not args.verify:
+        parser.error("--verify-fidelity needs --verify N (the units to simulate)")
+    pointing = scene_file.objective()
+    print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
+          f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)}); method {args.method}.")
+    proposed = _propose(pointing, requirement, options, "design")
+    if isinstance(proposed, int):
+        return proposed
+    report, wall = proposed
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
     proposal = F.save_scene(proposal_scene(scene_file, report, args.yield_), out / "proposal.toml")
@@ -224,6 +248,77 @@ def with_fidelity(scene_file, fidelity):
     current = [current, current] if isinstance(current, str) else list(current)
     scene["fidelity"] = [f if f == "ideal" else fidelity for f in current]
     return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
+
+
+def tradeoff_command(parser, args) -> int:
+    """One proposal per requirement: the cost-against-requirement curve (tradeoff.md, .json,
+    .png) and each proposal as a scene file (proposal-R.toml)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..io import scenefile as F
+
+    out = check_out(parser, args.out)
+    setup = _design_setup(parser, args, "tradeoff")
+    if setup is None:
+        return 2
+    scene_file, options = setup
+    requirements = sorted(set(args.requirements))
+    pointing = scene_file.objective()
+    print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
+          f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
+    out.mkdir(parents=True, exist_ok=True)
+    points, rows = [], []
+    for requirement in requirements:
+        proposed = _propose(pointing, requirement, options, "tradeoff")
+        if isinstance(proposed, int):
+            return proposed
+        report, wall = proposed
+        path = F.save_scene(proposal_scene(scene_file, report, args.yield_), out / f"proposal-{requirement:g}.toml")
+        check = report.checks[-1] if report.checks else None
+        points.append(dict(
+            requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
+            baseline_cost=report.baseline[2], converged=bool(report.result.converged), names=list(report.names),
+            nominal_um=(report.nominal * 1e6).tolist(), band_um=(report.band * 1e6).tolist(), proposal=str(path), wall_s=wall,
+            check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
+        ))
+        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.cost:.3f} | {'yes' if points[-1]['converged'] else 'no'} | "
+                    + ", ".join(f"{b * 1e6:.1f}" for b in report.band) + " | "
+                    + ("" if check is None else f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}]")
+                    + f" | {path.name} | {wall:.0f} |")
+        # Written after every point: an interrupted run keeps the points it finished.
+        (out / "tradeoff.json").write_text(json.dumps(dict(command=command_line(args), scene=scene_file.source, points=points), indent=1))
+    what = "objective (arcsec)" if args.yield_ is None else f"linearised {args.yield_:.1%} quantile (arcsec)"
+    text = "\n".join([
+        f"# Tolerance cost against the pointing requirement: {scene_file.title}", "",
+        f"RMS pointing, {_statistic(args)}; cost relative, 1 per feature at IT7 (baseline {points[0]['baseline_cost']:.3f}). "
+        f"Features: {', '.join(points[0]['names'])}.", "",
+        f"| requirement (arcsec) | {what} | cost | converged | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
+        "|---|---|---|---|---|---|---|---|", *rows, "",
+        f"{load_average()}. Reproduce with:", "", "```", command_line(args), "```",
+    ])
+    (out / "tradeoff.md").write_text(text + "\n")
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    req = [p["requirement"] for p in points]
+    cost = [p["cost"] for p in points]
+    ax.plot(req, cost, "-", color="C0", lw=1)
+    for p in points:
+        ax.plot(p["requirement"], p["cost"], "o" if p["converged"] else "x", color="C0" if p["converged"] else "C3")
+    ax.plot([], [], "o", color="C0", label="converged")
+    ax.plot([], [], "x", color="C3", label="not converged")
+    ax.axhline(points[0]["baseline_cost"], color="0.5", ls=":", label="baseline bands")
+    ax.set_xlabel("RMS pointing requirement (arcsec)")
+    ax.set_ylabel("tolerance cost (1 per feature at IT7)")
+    ax.set_title(_statistic(args).split(":")[0], fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "tradeoff.png", dpi=120)
+    plt.close(fig)
+    print(text)
+    print(f"wrote {out / 'tradeoff.md'}, {out / 'tradeoff.json'}, {out / 'tradeoff.png'} and {len(points)} proposal-R.toml")
+    return 0
 
 
 def run_command(parser, args) -> int:

@@ -8,10 +8,18 @@
   pointing requirement at the lowest cost.
 - `tolerax montecarlo [SCENE]`: pointing-error distribution and yield over manufacturing errors
   (netCDF, summary JSON, histogram; resumable).
+- `tolerax tradeoff [SCENE] --requirements R1 R2 ...`: the cost-against-requirement curve, one
+  proposal per requirement.
 - `tolerax studies`: the reference paper's studies (a JSON table per study).
 
+The engineer's path in three commands (design, verify, trade off):
+
+    tolerax design my_drive.toml --requirement 700 --yield 0.99 --verify 200   # writes proposal.toml
+    tolerax montecarlo tolerax-out/proposal.toml --n 1000                     # verify it further
+    tolerax tradeoff my_drive.toml --yield 0.99 --requirements 400 700 1000   # what tighter pointing costs
+
 SCENE is a built-in scene name (`tolerax run --list`) or a path to a .toml scene file (schema:
-docs/scene_files.md); design and montecarlo default to `scan-azimuth`. `tolerax COMMAND --help`
+docs/scene_files.md); design, montecarlo and tradeoff default to `scan-azimuth`. `tolerax COMMAND --help`
 lists a command's options.
 
 Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
@@ -20,9 +28,10 @@ names the file, line and key), 3 a simulation or optimisation failed.
 
 import argparse
 import sys
+import textwrap
 
 from .. import __version__
-from .commands import design_command, montecarlo_command, run_command, studies_command
+from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
 from .common import DEFAULT_SCENE, EPILOG, count, non_negative, positive, scene_options
 from .demo import demo_command
 
@@ -31,6 +40,31 @@ RESUME = {
     "montecarlo": "finished chunks are kept under OUT/chunks: rerun the same command to resume",
     "studies": "finished rows are kept in OUT/STUDY-SIZE.json: rerun with --resume to go on",
 }
+
+
+def optimiser_options(parser):
+    """The proposal's options, shared by `design` and `tradeoff`."""
+    parser.add_argument("--draws", type=count(2), default=4,
+                        help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
+    parser.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
+                        help="optimiser (default sequential: a stack-up linearised from the simulation at each iterate, "
+                        "solved exactly in a trust region; see tolerax.propose_design)")
+    parser.add_argument("--outer", type=count(1), default=None,
+                        help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
+                        "iterations (default 6)")
+    parser.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
+    parser.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
+                        help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
+                        "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
+    parser.add_argument("--check", type=count(0), default=None,
+                        help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
+    parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
+                        help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
+                        "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
+                        "contacts rattle (propose_design's secant_units)")
+
+
+PATH = __doc__[__doc__.index("The engineer's path"):__doc__.index("SCENE is a built-in")].strip()
 
 
 def main(argv=None) -> int:
@@ -82,34 +116,18 @@ def main(argv=None) -> int:
     run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     design = sub.add_parser(
         "design", help="propose clearances, backlash and tolerance bands for a pointing requirement",
-        description="Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and "
-        "half-width) of lowest cost (ISO 286 grades) whose mean + 1 std of the RMS pointing error over a few "
-        "manufactured units meets the requirement (tolerax.propose_design). Starts from the scene's design and "
-        "its [tolerances] band. Writes scene.toml, design.md, design.png and proposal.toml (the scene with the proposed "
-        "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.",
-        epilog=EPILOG,
+        description=textwrap.fill(
+            "Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and half-width) of lowest "
+            "cost (ISO 286 grades) whose RMS pointing error meets the requirement: mean + 1 std over a few manufactured units, "
+            "or with --yield Y in a fraction Y of all units (tolerax.propose_design). Starts from the scene's design and its "
+            "[tolerances] band. Writes scene.toml, design.md, design.png and proposal.toml (the scene with the proposed "
+            "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", 100),
+        epilog=PATH + "\n\n" + EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     scene_options(design, "design")
     design.add_argument("--requirement", type=positive, default=None,
                         help="RMS pointing requirement, arcsec (default: the scene's [tolerances] requirement)")
-    design.add_argument("--draws", type=count(2), default=4,
-                        help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
-    design.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
-                        help="optimiser (default sequential: a stack-up linearised from the simulation at each iterate, "
-                        "solved exactly in a trust region; see tolerax.propose_design)")
-    design.add_argument("--outer", type=count(1), default=None,
-                        help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
-                        "iterations (default 6)")
-    design.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
-    design.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
-                        help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
-                        "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
-    design.add_argument("--check", type=count(0), default=None,
-                        help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
-    design.add_argument("--secant-units", type=count(2), default=None, metavar="K",
-                        help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
-                        "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
-                        "contacts rattle (propose_design's secant_units)")
+    optimiser_options(design)
     design.add_argument("--verify", type=count(0), default=0, metavar="N",
                         help="then simulate N units of the written proposal.toml (as `tolerax montecarlo OUT/proposal.toml --n N`, "
                         "into OUT/verify) and report its yield with a 95 %% Wilson interval (default 0: none)")
@@ -118,6 +136,17 @@ def main(argv=None) -> int:
                         "lumped design verified on the planetary stage")
     design.add_argument("--seed", type=int, default=0, help="with --verify: the units' random seed (as montecarlo's)")
     design.add_argument("--chunk", type=count(1), default=8, help="with --verify: units per chunk (default 8)")
+    tradeoff = sub.add_parser(
+        "tradeoff", help="the cost of the cheapest tolerances against the pointing requirement",
+        description="One proposal (as `tolerax design`) per requirement: writes tradeoff.md (the table), tradeoff.json, "
+        "tradeoff.png (cost against requirement) and each proposal as proposal-R.toml (verify one with "
+        "`tolerax montecarlo OUT/proposal-R.toml`). Every point reuses the compiled simulation: only the requirement changes.",
+        epilog=EPILOG,
+    )
+    scene_options(tradeoff, "design")
+    tradeoff.add_argument("--requirements", type=positive, nargs="+", required=True, metavar="R",
+                          help="RMS pointing requirements, arcsec, e.g. --requirements 400 550 700 1000")
+    optimiser_options(tradeoff)
     mc = sub.add_parser(
         "montecarlo", help="pointing-error distribution and yield over manufacturing errors",
         description="Simulate manufactured units of the scene, each clearance and backlash drawn within its "
@@ -152,6 +181,7 @@ def main(argv=None) -> int:
     args.argv = argv
     commands = {
         "demo": (demo, demo_command), "run": (run, run_command), "design": (design, design_command), "montecarlo": (mc, montecarlo_command),
+        "tradeoff": (tradeoff, tradeoff_command),
         "studies": (parser, studies_command),
     }
     command_parser, command = commands[args.command]
