@@ -205,6 +205,10 @@ n_save = 26
 [tolerances]
 band = 5e-06
 requirement = 400.0
+fixed = ["azimuth.carrier_clearance"]   # a bought-in output bearing: given, not designed
+
+[tolerances.bands]
+"azimuth.carrier_clearance" = 8e-06
 """
 
 
@@ -224,11 +228,14 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     assert "tolerax design --verify: yield" in printed
     proposal = tx.load_scene(design / "proposal.toml")
     assert proposal.requirement == 400.0 and "Proposal" in proposal.title
-    # The proposal's zones are the report's (design.md prints them to 0.1 um).
+    # The proposal's zones are the report's (design.md prints them to 0.1 um); the fixed
+    # feature kept its given zone, 60 +- 8 um.
     zones = proposal.tolerances()
     table = (design / "design.md").read_text()
     for name, nominal, band in zip(zones.names, np.asarray(zones.nominal), np.asarray(zones.band)):
-        assert f"| {name} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table
+        given = " (given)" if name == "azimuth.carrier_clearance" else ""
+        assert f"| {name}{given} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table
+    assert np.allclose([zones.nominal[0], zones.band[0]], [60e-6, 8e-6], rtol=1e-12)
     verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_rms"]
     assert verify["n_used"] == 6
     # Verify it as a user would: the same seed and chunk give the same units and the same yield.

@@ -121,6 +121,16 @@ def test_design_problem_is_the_set_of_buildable_fits():
         _propose.design_problem(pointing, min_clearance=-1e-6)
     with pytest.raises(ValueError, match="band_range"):
         _propose.design_problem(pointing, band=60e-6)
+    # Fixed features: the zone given (nominal +- its band, here 100 +- 70 um, outside the band
+    # range) is the whole box of that feature, its start included.
+    given = _propose.design_problem(pointing, band=10e-6, fixed={"azimuth.sun_backlash": 70e-6})
+    for box in (given.lower, given.upper, given.x0):
+        np.testing.assert_allclose([box.nominal[2], box.band[2]], [30e-6, 70e-6])
+    np.testing.assert_allclose(np.asarray(given.upper.band)[[0, 1, 3]], np.full(3, 50e-6))  # the others designed as before
+    by_name = _propose.design_problem(pointing, band=10e-6, fixed=["azimuth.sun_backlash"])
+    np.testing.assert_allclose([by_name.lower.band[2], by_name.upper.band[2]], [10e-6, 10e-6])
+    with pytest.raises(ValueError, match="not a design feature"):
+        _propose.design_problem(pointing, fixed=["azimuth.sun_clearance"])  # lumped joints have none
 
 
 def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):

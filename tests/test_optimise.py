@@ -370,6 +370,11 @@ def test_optimality_residual_is_zero_at_kkt_with_lower_limits_held_on_their_boun
     assert optimality_residual(dc, grad, at_lower, none) == pytest.approx(0.0, abs=1e-12)
     assert optimality_residual(dc, np.zeros(5), at_lower, none) == pytest.approx(1.0)
     assert optimality_residual(dc, grad, at_lower, ~at_lower) == 0.0  # every band on its (upper) bound
+    # A fixed feature (its band on both bounds, whatever its gradients) cannot move: left out.
+    fixed = np.array([False, False, False, False, True])
+    unbalanced = dc + np.array([0.0, 0.0, 0.0, 0.0, 0.5])
+    assert optimality_residual(unbalanced, grad, at_lower | fixed, fixed) == pytest.approx(0.0, abs=1e-12)
+    assert optimality_residual(unbalanced, grad, at_lower, none) > 0.01
     # Unbalanced bands: a positive residual that matches a brute-force scan over the multiplier.
     rng = np.random.default_rng(0)
     for _ in range(20):

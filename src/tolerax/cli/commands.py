@@ -114,9 +114,9 @@ def _design_setup(parser, args, command):
         return None
     tol = scene_file.data.get("tolerances", {})
     band = tol.get("band", F.TOLERANCE_KEYS["band"][1])
-    if tol.get("bands"):
-        print(f"tolerax {command}: the optimiser starts every feature at the scene's band +-{band * 1e6:g} um; "
-              "the per-feature [tolerances.bands] are not used.")
+    if set(tol.get("bands", {})) - set(tol.get("fixed", [])):
+        print(f"tolerax {command}: the optimiser starts every designed feature at the scene's band +-{band * 1e6:g} um; "
+              "the per-feature [tolerances.bands] are used for the fixed features only.")
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
     if args.yield_ is not None and args.method != "sequential":
@@ -128,7 +128,9 @@ def _design_setup(parser, args, command):
     n_features = len(_feature_names(scene_file))
     if args.secant_units is not None and args.secant_units <= n_features:
         parser.error(f"--secant-units must exceed the scene's {n_features} design features (a line through K units), got {args.secant_units}")
-    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True)
+    # Given, not designed: held at the scene's nominal +- its own band.
+    fixed = {name: tol.get("bands", {}).get(name, band) for name in tol.get("fixed", [])}
+    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed)
     options.update(dict(n_draws=args.draws) if args.yield_ is None
                    else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
     return scene_file, options

@@ -234,12 +234,14 @@ def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
     their bounds included, under-reads $\\lambda$ and reports a KKT point as far from one.
 
     Arguments are flat arrays over all variables: $\\nabla C$, $\\nabla f$ and whether each
-    variable sits on its lower or upper bound. Several (active) constraints: `gradient` of
+    variable sits on its lower or upper bound (on both: fixed, left out). Several (active) constraints: `gradient` of
     shape (m, n), one row each, and $\\lambda \\in \\mathbb{R}^m_{\\ge 0}$ found by bounded
     quasi-Newton (`scipy.optimize.minimize`, L-BFGS-B: the squared projected norm is convex and
     once differentiable); no rows: $\\lambda = 0$."""
     dc, grad = np.asarray(cost_gradient, dtype=float), np.asarray(gradient, dtype=float)
     at_lower, at_upper = np.asarray(at_lower, dtype=bool), np.asarray(at_upper, dtype=bool)
+    free = ~(at_lower & at_upper)  # a variable on both bounds (a fixed feature) cannot move at all
+    dc, grad, at_lower, at_upper = dc[free], grad[..., free], at_lower[free], at_upper[free]
 
     def project(g):
         return np.where(at_lower, np.minimum(g, 0.0), np.where(at_upper, np.maximum(g, 0.0), g))

@@ -7,6 +7,7 @@ and the augmented-Lagrangian optimiser on optax (`tolerax.design.optimise`), and
 """
 
 import dataclasses
+from collections.abc import Mapping
 import math
 
 import equinox as eqx
@@ -148,6 +149,7 @@ class DesignReport:
     yield_: float | None = None
     checks: tuple[YieldCheck, ...] = ()
     lost_motion: np.ndarray | None = None
+    fixed: tuple[str, ...] = ()
 
     @property
     def target(self) -> float:
@@ -168,7 +170,7 @@ class DesignReport:
         for k, name in enumerate(self.names):
             low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
-                f"| {name} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
+                f"| {name}{' (given)' if name in self.fixed else ''} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
                 + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
             )
@@ -260,6 +262,7 @@ def design_problem(
     n_yield_draws: int = 16384,
     slope_width: float | None = None,
     secant_units: int | None = None,
+    fixed=(),
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -291,6 +294,10 @@ def design_problem(
       rough there too. `secant_units` (optional, more than the features): fit the value and
       slopes by least squares over this many units of the zone instead (`LinearisedYield`:
       forward solves only; where tangents are noise, a line through the units is not).
+    - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
+      part already made): names, held at their nominal +- `band`, or a mapping name -> its
+      half-width (m), held at nominal +- that. Their lower limit and band are bounded to those
+      values (their cost is counted, constant).
     """
     scene = pointing.scene
     names = design_names(scene)
@@ -306,6 +313,16 @@ def design_problem(
         )
     key = jax.random.key(0) if key is None else key
     limit0 = np.maximum(nominal0 - band, min_clearance)
+    lower_limit, lower_band, upper_band, band0 = min_clearance.copy(), np.full(n, band_lo), np.full(n, band_hi), np.full(n, float(band))
+    given = dict(fixed) if isinstance(fixed, Mapping) else {name: float(band) for name in fixed}
+    for name, half in given.items():
+        if name not in names:
+            raise ValueError(f"propose_design: fixed feature {name!r} is not a design feature of this scene; its features: {', '.join(names)}.")
+        if not (np.isfinite(half) and half >= 0):
+            raise ValueError(f"propose_design: the fixed feature {name!r} needs a finite half-width >= 0 (m), got {half!r}.")
+        k = names.index(name)
+        limit0[k] = lower_limit[k] = max(float(nominal0[k]) - half, 0.0)
+        lower_band[k] = upper_band[k] = band0[k] = half
     if yield_ is None:
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
@@ -316,9 +333,9 @@ def design_problem(
         objective=FromLowerLimit(objective),
         features=Features(names, feature_sizes(scene)),
         draws=draws,
-        lower=Design(min_clearance, np.full(n, band_lo)),
-        upper=Design(limit0, np.full(n, band_hi)),
-        x0=Design(limit0, np.full(n, float(band))),
+        lower=Design(lower_limit, lower_band),
+        upper=Design(limit0, upper_band),
+        x0=Design(limit0, band0),
         cost_model=OnHalfWidth(IsoGrade() if cost_model is None else cost_model),
     )
 
@@ -412,7 +429,7 @@ def propose_design(
       (`method="sequential"` only).
     - `**problem`: the problem's options, as `design_problem` takes them (starting band,
       functional minima, band range, manufactured units, robust statistic or `yield_`, cost
-      model, gradient mode).
+      model, gradient mode, `fixed` features).
 
     **Returns:** a `DesignReport`.
     """
@@ -421,6 +438,7 @@ def propose_design(
     if callback is not None and method != "sequential":
         raise ValueError("propose_design: callback is supported by method='sequential' only.")
     yield_ = problem.get("yield_")
+    fixed = tuple(problem.get("fixed", ()))
     check_units = (200 if yield_ is not None else 0) if check_units is None else int(check_units)
     if check_units and yield_ is None:
         raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")
@@ -482,4 +500,5 @@ def propose_design(
         yield_=yield_,
         checks=tuple(checks),
         lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
+        fixed=fixed,
     )

@@ -74,7 +74,8 @@ SERIES = {
 PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error")
 OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
 DISTRIBUTIONS = ("uniform", "normal")
-TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None)}
+TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
+                  "fixed": (list, [])}
 TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict}
 
 
@@ -367,6 +368,10 @@ def _check_tolerances(chk: Checker, tol: dict, model):
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
         raise chk.error(f"must be a positive number of arcsec, got {tol['requirement']!r}.", table, "requirement")
     names = _design.design_names(model)
+    for name in tol.get("fixed", []):
+        if name not in names:
+            raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
+                            f"{', '.join(names) or 'none'}.", table, "fixed")
     sub = table + ("bands",)
     for name, value in tol.get("bands", {}).items():
         if name not in names:
