@@ -238,6 +238,10 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     assert np.allclose([zones.nominal[0], zones.band[0]], [60e-6, 8e-6], rtol=1e-12)
     verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_rms"]
     assert verify["n_used"] == 6
+    # One page for the design review: proposal, verification, scene, settings and versions.
+    report = (design / "report.md").read_text()
+    for part in ("## Proposal", "## Verification", "verify/histogram.png", "## Scene", "ring_teeth = 72", "jax ", "reproduce with"):
+        assert part in report, part
     # Verify it as a user would: the same seed and chunk give the same units and the same yield.
     mc = tmp_path / "mc"
     assert cli.main(["montecarlo", str(design / "proposal.toml"), "--n", "6", "--chunk", "3", "--out", str(mc)]) == 0

@@ -35,3 +35,29 @@ def test_speed_and_error_notebook_executes(monkeypatch):
     steps = [_number(rf"rtol {r}: [\d.]+ s, (\d+) steps", outputs) for r in ("0.0001", "1e-06")]
     errors = [_number(rf"rtol {r}: .*output angle error \(arcsec\) ([\d.e+-]+),", outputs) for r in ("0.0001", "1e-06")]
     assert steps[1] > steps[0] and errors[1] < errors[0], (steps, errors)
+
+
+def test_own_mechanism_notebook_executes(monkeypatch, tmp_path):
+    """The engineer's path on a mechanism of their own: scene file -> 99 % design -> proposal.toml
+    read back -> verified yield -> trade-off points (small size: the wiring, not the numbers)."""
+    monkeypatch.setenv("TOLERAX_OUT", str(tmp_path))
+    outputs = "".join(_execute(monkeypatch, "own_mechanism.ipynb", "TOLERAX_OWN_SIZE"))
+    assert "small {" in outputs and "reflector mass 12.0 kg" in outputs
+    assert "azimuth.carrier_clearance (given) | 60.0 | 8.0 |" in outputs  # the bought-in bearing kept its zone
+    assert (tmp_path / "proposal.toml").exists() and "verified yield" in outputs
+    assert outputs.count("requirement ") >= 2 and "6 of 6 samples used" in outputs
+
+
+def test_every_notebook_is_stored_with_its_outputs():
+    """GitHub shows a notebook's stored outputs: every notebook is committed executed (at the
+    size it defaults to), with at least one plot and no error."""
+    import nbformat
+
+    from _notebooks import NOTEBOOKS
+
+    for path in sorted(NOTEBOOKS.glob("*.ipynb")):
+        nb = nbformat.read(path, as_version=4)
+        outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+        assert all(c.get("execution_count") for c in nb.cells if c.cell_type == "code"), f"{path.name}: a cell not executed"
+        assert not [o for o in outputs if o.get("output_type") == "error"], f"{path.name}: stored with an error"
+        assert any("image/png" in o.get("data", {}) for o in outputs), f"{path.name}: no stored plot"

@@ -7,7 +7,8 @@ import pathlib
 import sys
 import time
 
-from .common import check_clipping, check_out, command_line, has_features, load_average, read_scene_file, with_tolerances
+from .common import (check_clipping, check_out, command_line, has_features, load_average, read_scene_file, settings, versions,
+                     with_tolerances)
 
 
 def studies_command(parser, args) -> int:
@@ -184,7 +185,7 @@ def design_command(parser, args) -> int:
     report, wall = proposed
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
-    proposal = F.save_scene(proposal_scene(scene_file, report, args.yield_), out / "proposal.toml")
+    proposal = F.save_scene(scene_file.with_proposal(report), out / "proposal.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       f"The proposal as a scene file: `{proposal}` (verify it with `tolerax montecarlo {proposal} --n 200`)."])
@@ -193,7 +194,14 @@ def design_command(parser, args) -> int:
     fig.savefig(out / "design.png", dpi=120)
     plt.close(fig)
     print(text)
-    print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'} and {out / 'design.png'}")
+    sections = [
+        f"# Tolerance proposal: {scene_file.title}", "",
+        f"Requirement: RMS pointing error <= {requirement:g} arcsec, {_statistic(args)}. Scene `{scene_file.source}`; "
+        f"the proposal as a scene file: [proposal.toml](proposal.toml).", "",
+        "## Proposal", "", report.table(), "", "![optimiser history and sensitivities](design.png)", "",
+    ]
+    _write_report(out, sections, scene_file, args, wall)
+    print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'}, {out / 'design.png'} and {out / 'report.md'}")
     if not args.verify:
         return 0
     verify = F.load_scene(proposal)
@@ -204,37 +212,34 @@ def design_command(parser, args) -> int:
     if summary is None:
         return 2
     s = summary["pointing_rms"]
-    print(f"tolerax design --verify: yield {s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}] (95 % Wilson) of "
-          f"{int(s['n_used'])} units at RMS pointing <= {requirement:g} arcsec"
-          + (f" (proposed for {args.yield_:.1%})" if args.yield_ is not None else ""))
+    line = (f"yield {s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}] (95 % Wilson) of {int(s['n_used'])} units "
+            f"at RMS pointing <= {requirement:g} arcsec" + (f" (proposed for {args.yield_:.1%})" if args.yield_ is not None else "")
+            + (f", simulated at {args.verify_fidelity} fidelity" if args.verify_fidelity else ""))
+    print(f"tolerax design --verify: {line}")
+    sections += ["## Verification", "", f"{args.verify} fresh units of the proposal (seed {args.seed}, uniform within the zones): {line}; "
+                 f"mean {s['mean']:.1f} arcsec, 99 % quantile {s['q99']:.1f} arcsec ({int(s['n_failed'])} failed solves).", "",
+                 "![yield histogram against the requirement](verify/histogram.png)", ""]
+    _write_report(out, sections, scene_file, args, wall)
     return 0 if s["n_failed"] == 0 else 3
+
+
+def _write_report(out, sections, scene_file, args, wall):
+    """`OUT/report.md`: one self-contained page per job for a design review (its figures beside it)."""
+    from ..io import scenefile as F
+
+    text = "\n".join([
+        *sections, "## Scene", "", "```toml", F.SceneFile.to_toml(scene_file).rstrip(), "```", "",
+        "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}",
+        f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
+        f"- reproduce with: `{command_line(args)}`", "",
+    ])
+    (out / "report.md").write_text(text)
 
 
 def _feature_names(scene_file):
     from ..design.features import design_names
 
     return design_names(scene_file.build())
-
-
-def proposal_scene(scene_file, report, yield_=None):
-    """`scene_file` with the proposal of `report` (a `DesignReport`) filled in: the nominal
-    clearances and backlash under `[design]`, the half-widths under `[tolerances.bands]`, the
-    requirement, uniform manufacturing (what the design assumed). `tolerax run`, `montecarlo`
-    and `design` read it back as any scene file."""
-    from ..io import scenefile as F
-
-    data = copy.deepcopy(scene_file.data)
-    data["design"] = {**data.get("design", {}), **{n: float(v) for n, v in zip(report.names, report.nominal)}}
-    tol = data.setdefault("tolerances", {})
-    tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(report.names, report.band)}}
-    tol["requirement"] = float(report.requirement)
-    tol["distribution"] = "uniform"
-    what = "mean + 1 std over a few units" if yield_ is None else f"{yield_:.1%} yield"
-    data["title"] = f"Proposal: {scene_file.title}"
-    data["description"] = (f"Written by tolerax design from {scene_file.source}: cost {report.cost:.4g} (baseline "
-                           f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
-                           f"({what}); {'converged' if bool(report.result.converged) else 'not converged'}.")
-    return F.SceneFile.from_data(data, "proposal", "<proposal>")
 
 
 def with_fidelity(scene_file, fidelity):
@@ -278,7 +283,7 @@ def tradeoff_command(parser, args) -> int:
         if isinstance(proposed, int):
             return proposed
         report, wall = proposed
-        path = F.save_scene(proposal_scene(scene_file, report, args.yield_), out / f"proposal-{requirement:g}.toml")
+        path = F.save_scene(scene_file.with_proposal(report), out / f"proposal-{requirement:g}.toml")
         check = report.checks[-1] if report.checks else None
         points.append(dict(
             requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
@@ -299,7 +304,8 @@ def tradeoff_command(parser, args) -> int:
         f"Features: {', '.join(points[0]['names'])}.", "",
         f"| requirement (arcsec) | {what} | cost | converged | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
         "|---|---|---|---|---|---|---|---|", *rows, "",
-        f"{load_average()}. Reproduce with:", "", "```", command_line(args), "```",
+        "![cost against requirement](tradeoff.png)", "",
+        f"Solver (`[run]`): {settings(scene_file)}. {versions()}. {load_average()}. Reproduce with:", "", "```", command_line(args), "```",
     ])
     (out / "tradeoff.md").write_text(text + "\n")
     fig, ax = plt.subplots(figsize=(5.5, 3.8))

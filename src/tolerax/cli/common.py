@@ -17,6 +17,28 @@ def command_line(args) -> str:
     return shlex.join(["tolerax", *(sys.argv[1:] if args.argv is None else args.argv)])
 
 
+def versions() -> str:
+    """The versions a result depends on, for a report."""
+    import platform
+
+    import diffrax
+    import equinox
+    import jax
+
+    from .. import __version__
+
+    return (f"tolerax {__version__}, jax {jax.__version__} ({jax.default_backend()}, x64 "
+            f"{'on' if jax.config.jax_enable_x64 else 'off'}), diffrax {diffrax.__version__}, equinox {equinox.__version__}, "
+            f"Python {platform.python_version()}")
+
+
+def settings(scene_file) -> str:
+    """The solver settings of a scene's `[run]`, for a report."""
+    run = scene_file.run
+    keys = ("duration", "settle", "start", "n_save", "rtol", "atol", "pcoeff", "icoeff", "dtmax", "max_steps")
+    return ", ".join(f"{k} {run[k]}" for k in keys if run.get(k) is not None)
+
+
 def load_average() -> str:
     return "load average (1, 5, 15 min): " + ", ".join(f"{x:.2f}" for x in os.getloadavg()) + f" on {os.cpu_count()} CPUs"
 

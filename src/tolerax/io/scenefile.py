@@ -121,6 +121,25 @@ class SceneFile:
         band = [tol.get("bands", {}).get(n, tol.get("band", TOLERANCE_KEYS["band"][1])) for n in names]
         return _design.tolerances_of(scene, np.asarray(band, dtype=float), tol.get("distribution", "uniform"))
 
+    def with_proposal(self, report) -> "SceneFile":
+        """This scene with a tolerance proposal (`tolerax.propose_design`'s `DesignReport`)
+        filled in: the nominal clearances and backlash under `[design]`, the half-widths under
+        `[tolerances.bands]`, the requirement, uniform manufacturing (what the design assumed),
+        and a description with the cost. `tolerax design` writes it as `proposal.toml`;
+        `tolerax run`, `montecarlo` and `design` read it back as any scene file."""
+        data = copy.deepcopy(self.data)
+        data["design"] = {**data.get("design", {}), **{n: float(v) for n, v in zip(report.names, report.nominal)}}
+        tol = data.setdefault("tolerances", {})
+        tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(report.names, report.band)}}
+        tol["requirement"] = float(report.requirement)
+        tol["distribution"] = "uniform"
+        what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
+        data["title"] = f"Proposal: {self.title}"
+        data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "
+                               f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
+                               f"({what}); {'converged' if bool(report.result.converged) else 'not converged'}.")
+        return SceneFile.from_data(data, "proposal", "<proposal>")
+
     @property
     def requirement(self) -> float | None:
         """RMS pointing requirement (arcsec) of `[tolerances]`, if given."""

@@ -147,16 +147,19 @@ class MonteCarloResult:
 
         return plt.subplots()[1] if ax is None else ax
 
-    def plot_histogram(self, output: str, *, requirement=None, units=None, bins: int = 50, ax=None):
-        """Histogram of `output` over the used samples, with the requirement as a vertical line."""
+    def plot_histogram(self, output: str, *, requirement=None, units=None, bins="auto", ax=None):
+        """Histogram of `output` over the used samples, with the requirement as a vertical line
+        (and the yield in the legend). `bins`: as `numpy.histogram`'s (default `"auto"`: a few
+        bins for a few samples, more for many)."""
         ax = self._axes(ax)
         y, used = self._used(output)
         ax.hist(y[used], bins=bins)
         requirement = self.requirement if requirement is None else requirement
         limit = requirement.get(output) if isinstance(requirement, Mapping) else requirement
         if limit is not None:
-            ax.axvline(limit, color="k", linestyle="--", label="requirement")
-            ax.legend()
+            passed = float(np.mean(y[used] <= limit)) if used.any() else float("nan")
+            ax.axvline(limit, color="k", linestyle="--", label=f"requirement {limit:g} (yield {passed:.3f})")
+            ax.legend(fontsize=8)
         ax.set_xlabel(self._label(output, units))
         ax.set_ylabel("samples")
         ax.set_title(f"{used.sum()} of {y.size} samples ({(~self.success).sum()} failed)")
