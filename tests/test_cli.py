@@ -290,3 +290,18 @@ def test_tradeoff_writes_the_curve_and_one_proposal_per_requirement(tmp_path, ca
     table = (out / "tradeoff.md").read_text()
     assert "| 380 |" in table and "| 450 |" in table and "proposal-380.toml" in table
     assert (out / "tradeoff.png").stat().st_size > 10_000
+
+
+def test_ctrl_c_ends_with_one_line_saying_how_to_resume(monkeypatch, capsys):
+    """Ctrl-C: no traceback, exit 130, one line on what was kept and how to go on."""
+    import importlib
+
+    main_module = importlib.import_module("tolerax.cli.main")  # the module (tolerax.cli.main is also the function)
+
+    def interrupted(parser, args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(main_module, "montecarlo_command", interrupted)
+    assert cli.main(["montecarlo", "--n", "4"]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["tolerax montecarlo: interrupted; finished chunks are kept under OUT/chunks: rerun the same command to resume"]

@@ -178,7 +178,7 @@ class DesignReport:
             rows += ["", self._weights_text()]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         head = (
-            f"Proposed design: cost {self.cost:.4g} (baseline {self.baseline[2]:.4g}); {what} "
+            f"Proposed design: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
             + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
@@ -215,16 +215,21 @@ class DesignReport:
         it = np.arange(1, len(np.asarray(hist.cost)) + 1)
         axes[0].plot(it, np.asarray(hist.cost), "o-", label="cost")
         ax2 = axes[0].twinx()
-        ax2.plot(it, np.asarray(hist.objective), "s--", color="C1", label="objective (arcsec)")
-        ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":")
-        axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--")  # the proposed iterate
-        axes[0].set_xlabel("outer iteration")
-        axes[0].set_ylabel("cost (model units)")
-        ax2.set_ylabel(f"robust pointing error ({UNITS['pointing_rms']})")
+        what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
+        ax2.plot(it, np.asarray(hist.objective), "s--", color="C1", label=f"{what}, arcsec")
+        ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
+        axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
+        axes[0].set_xlabel("iteration (one gradient each)")
+        axes[0].set_ylabel("tolerance cost (1 per feature at IT7)")
+        ax2.set_ylabel(f"RMS pointing error ({UNITS['pointing_rms']})")
+        lines = axes[0].get_legend_handles_labels()
+        more = ax2.get_legend_handles_labels()
+        axes[0].legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper right")
         y = np.arange(len(self.names))
         axes[1].barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
         axes[1].set_yticks(y, self.names, fontsize=7)
         axes[1].set_xlabel("d objective / d nominal (arcsec/µm)")
+        axes[1].set_title("simulated sensitivity at the proposal", fontsize=9)
         fig.tight_layout()
         return fig
 
