@@ -298,6 +298,29 @@ def test_interrupted_driver_resumes_exactly(tmp_path):
         monte_carlo(helpers.Linear(jnp.ones(2)), TOLERANCES, 30, KEY, chunk_size=4, out=out, **QUIET)
 
 
+def test_a_finished_run_grows_to_a_larger_n(tmp_path):
+    """Calling again with a larger `n` extends a run: the full chunks are kept (not rerun), the
+    short last chunk of the smaller run is run again whole, and the result equals a run made at
+    the larger `n` from the start, bitwise; the Wilson interval of the yield narrows."""
+    model = helpers.Nonlinear()
+    out = tmp_path / "run"
+    small = monte_carlo(model, TOLERANCES, 10, KEY, chunk_size=4, out=out, **QUIET)  # chunks of 4, 4, 2
+    ran = []
+    grown = monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, out=out, callback=lambda k, ds: ran.append(k), **QUIET)
+    assert ran == [2, 3, 4, 5, 6, 7]  # chunks 0 and 1 kept; chunk 2 (2 of 4 samples before) run again
+    fresh = monte_carlo(model, TOLERANCES, 30, KEY, chunk_size=4, **QUIET)
+    assert grown.dataset.identical(fresh.dataset)
+    assert json.loads((out / "manifest.json").read_text())["n"] == 30
+    name = next(v for v in small.dataset.data_vars if v not in small.features and v != "success")
+    threshold = float(np.median(fresh.dataset[name].values))
+    lo_small, hi_small = (small.summary({name: threshold})[name][k] for k in ("yield_low", "yield_high"))
+    lo_grown, hi_grown = (grown.summary({name: threshold})[name][k] for k in ("yield_low", "yield_high"))
+    assert hi_grown - lo_grown < hi_small - lo_small
+    # Shrinking is refused, and says how a run may change.
+    with pytest.raises(ValueError, match="grows to a larger n"):
+        monte_carlo(model, TOLERANCES, 20, KEY, chunk_size=4, out=out, **QUIET)
+
+
 # ---------------------------------------------------------------------------------------------
 # Sobol indices
 

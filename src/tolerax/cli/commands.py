@@ -83,7 +83,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
                       zip(tolerances.names, tolerances.nominal.tolist(), tolerances.band.tolist()))
     print(f"tolerax {command}: {n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
           f"window from {pointing.settle} s; features (um) {bands} ({tolerances.distribution}); "
-          f"checkpoints in {out / 'chunks'} (rerun to resume)." + ("" if requirement is not None else
+          f"checkpoints in {out / 'chunks'} (rerun to resume, or with a larger --n to extend the run)." + ("" if requirement is not None else
           " No requirement: give --requirement (arcsec, RMS pointing) for a yield."))
     try:
         res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",

@@ -152,7 +152,7 @@ def main(argv=None) -> int:
         description="Simulate manufactured units of the scene, each clearance and backlash drawn within its "
         "[tolerances] band, and write their pointing statistics (montecarlo.nc), a summary (summary.json, with "
         "the yield when a requirement is known) and a histogram. Chunks are checkpointed under OUT/chunks: "
-        "rerun the same command to resume.",
+        "rerun the same command to resume, or with a larger --n to extend a finished run (its first units kept, bitwise).",
         epilog=EPILOG,
     )
     scene_options(mc, "per-unit")

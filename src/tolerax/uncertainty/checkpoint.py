@@ -14,9 +14,10 @@ def chunk_path(out: pathlib.Path, k: int) -> pathlib.Path:
     return out / f"chunk-{k:05d}.nc"
 
 
-def open_folder(out, settings: dict) -> tuple[pathlib.Path, dict[int, xr.Dataset]]:
+def open_folder(out, settings: dict, grow: bool = False) -> tuple[pathlib.Path, dict[int, xr.Dataset]]:
     """Create `out` with its manifest, or check that the manifest there matches; load the chunks
-    already finished there."""
+    already finished there. `grow`: a manifest that differs only by a smaller `n` is a run being
+    extended: the manifest takes the new `n` (the caller decides which chunks still hold)."""
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     manifest = out / "manifest.json"
@@ -24,10 +25,14 @@ def open_folder(out, settings: dict) -> tuple[pathlib.Path, dict[int, xr.Dataset
     if manifest.exists():
         previous = json.loads(manifest.read_text())
         if previous != settings:
-            raise ValueError(
-                f"{out} holds a run with other settings ({'; '.join(_differences(previous, settings))}). "
-                "Resume with the same arguments, or give another `out` folder."
-            )
+            differ = {k for k in previous.keys() | settings.keys() if previous.get(k) != settings.get(k)}
+            if not (grow and differ == {"n"} and settings["n"] > previous["n"]):
+                hint = (" A run grows to a larger n, not a smaller one." if differ == {"n"} else "")
+                raise ValueError(
+                    f"{out} holds a run with other settings ({'; '.join(_differences(previous, settings))}).{hint} "
+                    "Resume with the same arguments (or a larger n to extend it), or give another `out` folder."
+                )
+            atomic_write(manifest, lambda tmp: tmp.write_text(json.dumps(settings, indent=1)))
     else:
         if any(out.glob("chunk-*.nc")):
             raise ValueError(f"{out} holds chunk files but no manifest.json; give an empty or new `out` folder.")

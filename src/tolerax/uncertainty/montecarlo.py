@@ -246,9 +246,16 @@ def run_samples(
     _check_outputs(model, plan)
     settings = dict(plan.settings, format=_FORMAT, names=list(plan.names), n=plan.n, chunk_size=plan.chunk_size)
     settings["model_sha256"] = _fingerprint(model)
-    folder, chunks = (None, {}) if out is None else open_folder(out, settings)
-    for k, ds in chunks.items():
-        if k >= plan.n_chunks or not np.array_equal(ds["sample"].values, np.arange(*plan.span(k))):
+    grow = settings.get("kind") == "monte_carlo"  # sample i depends on (key, i) alone: a run can grow
+    folder, chunks = (None, {}) if out is None else open_folder(out, settings, grow=grow)
+    for k, ds in list(chunks.items()):
+        samples, span = ds["sample"].values, np.arange(*plan.span(k))
+        if grow and k < plan.n_chunks and 0 < samples.size < span.size and np.array_equal(samples, span[: samples.size]):
+            # The short last chunk of a run being extended: its samples begin this chunk, but a
+            # batch of another size rounds otherwise; run the whole chunk again.
+            chunk_path(folder, k).unlink()
+            del chunks[k]
+        elif k >= plan.n_chunks or not np.array_equal(samples, span):
             raise ValueError(f"{chunk_path(folder, k)} does not hold the samples of chunk {k}; is `out` shared?")
     bar = tqdm(total=plan.n_chunks, initial=len(chunks), disable=not progress, unit="chunk", desc="Monte Carlo")
 
@@ -361,8 +368,12 @@ def monte_carlo(
     each chunk `k` as `chunk-0000k.nc` (netCDF, written to a temporary file then renamed) when it
     completes. Calling again with the same arguments loads the finished chunks and runs only the
     others: after Ctrl-C, a broken process pool or a lost node, nothing finished is lost or run
-    twice. Different settings (n, chunk size, key, tolerances, or a differently pickled model)
-    are refused.
+    twice. Calling again with a **larger `n`** and otherwise the same arguments **extends** the
+    run (when its yield interval is too wide): the finished full chunks are kept, bitwise the
+    ones a run at the larger `n` would compute (sample $i$ depends on `(key, i)` alone, and a
+    chunk's batch is the same), the short last chunk of the smaller run is run again whole, and
+    the new chunks are added. Other changes (a smaller n, chunk size, key, tolerances, or a
+    differently pickled model) are refused.
 
     **Arguments:**
 
