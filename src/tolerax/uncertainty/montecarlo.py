@@ -60,7 +60,11 @@ def _sharded(n_devices: int):
     def run(model, values):
         # shard_map rather than a sharded jit: each device runs its own (while-)loops, so a
         # device whose samples finish early does not step in lockstep with the others.
-        return jax.shard_map(lambda v: jax.vmap(model)(v), mesh=mesh, in_specs=spec, out_specs=spec)(values)
+        # check_vma=False: JAX's varying-manual-axes check rejects diffrax's solve inside
+        # shard_map ("Primitive mul requires varying manual axes to match": a loop constant
+        # multiplied by a per-device value), though every device computes its own samples with
+        # no collective, which is what the check guards; JAX's message names this workaround.
+        return jax.shard_map(lambda v: jax.vmap(model)(v), mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)(values)
 
     return run
 
