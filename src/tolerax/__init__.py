@@ -11,6 +11,7 @@ import jax as _jax
 # SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
 _jax.config.update("jax_enable_x64", True)
 
+from .cache import enable_compilation_cache as enable_compilation_cache
 from .physics import contact as contact, mesh as mesh, planetary as planetary, smooth as smooth
 from .physics.contact import (
     AbstractContactLaw as AbstractContactLaw,

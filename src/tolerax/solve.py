@@ -6,6 +6,7 @@ save times, in one compiled program per scene *structure* (values are passed as 
 call `tolerax.simulate`, which builds the scene's result with `SolverReport.from_solution`.
 """
 
+import contextlib
 import diffrax
 import equinox as eqx
 import jax
@@ -71,7 +72,33 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
 
 
+@contextlib.contextmanager
+def _checks_without_host_callbacks():
+    """diffrax checks its arguments at run time (save times increasing and within [t0, t1], the
+    sign of dt0) with equinox's `error_if`, which by default raises through a host callback;
+    JAX never writes a program with host callbacks to its persistent compilation cache, so the
+    solve, the one program that takes seconds to compile, was compiled anew in every process.
+    `simulate` validates those inputs in Python before the solve, so inside it the checks are
+    traced in equinox's `"nan"` mode (a failing check returns NaN, which the solve reports as a
+    failure, not numbers). Equinox reads the mode at trace time from `equinox._errors`; where
+    that is not there (another equinox), nothing changes."""
+    errors = getattr(eqx, "_errors", None)
+    if getattr(errors, "EQX_ON_ERROR", None) != "raise":
+        yield
+        return
+    errors.EQX_ON_ERROR = "nan"
+    try:
+        yield
+    finally:
+        errors.EQX_ON_ERROR = "raise"
+
+
 def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid):
+    with _checks_without_host_callbacks():
+        return _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid)
+
+
+def _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid):
     if fixed:
         controller = diffrax.ConstantStepSize()
     else:

@@ -24,6 +24,9 @@ lists a command's options.
 
 Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
 names the file, line and key), 3 a simulation or optimisation failed.
+
+Compiled programs are kept in ~/.cache/tolerax/jax (TOLERAX_CACHE_DIR to move it,
+TOLERAX_CACHE=off to turn it off): a second command on the same scene structure starts faster.
 """
 
 import argparse
@@ -185,6 +188,9 @@ def main(argv=None) -> int:
         "studies": (parser, studies_command),
     }
     command_parser, command = commands[args.command]
+    from ..cache import enable_compilation_cache
+
+    enable_compilation_cache()  # a later command on the same scene structure skips its compilation (TOLERAX_CACHE=off: not)
     try:
         return command(command_parser, args)
     except KeyboardInterrupt:

@@ -33,6 +33,7 @@ import xarray as xr
 from jax.sharding import Mesh, PartitionSpec
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
+from ..cache import compilation_cache_dir, enable_compilation_cache
 from .checkpoint import atomic_write, chunk_path, open_folder
 from .results import MonteCarloResult
 from .sampling import Tolerances, sample
@@ -86,10 +87,13 @@ def evaluate(model, values: np.ndarray, size: int | None = None) -> dict[str, np
 _MODELS: dict[str, object] = {}  # per worker process: unpickle (and so compile) each model once
 
 
-def _evaluate_payload(payload: bytes, x64: bool, values: np.ndarray, size: int) -> dict[str, np.ndarray]:
+def _evaluate_payload(payload: bytes, x64: bool, values: np.ndarray, size: int, cache_dir: str | None = None) -> dict[str, np.ndarray]:
     """Worker entry point (processes, Dask). The model travels pickled and is unpickled here after
-    float64 is set as in the driver, so its arrays keep their dtype."""
+    float64 is set as in the driver, so its arrays keep their dtype; the worker uses the driver's
+    persistent compilation cache folder (`tolerax.enable_compilation_cache`) where it has one."""
     jax.config.update("jax_enable_x64", x64)
+    if cache_dir is not None and not jax.config.jax_compilation_cache_dir:
+        enable_compilation_cache(cache_dir)
     digest = hashlib.sha256(payload).hexdigest()
     if digest not in _MODELS:
         _MODELS[digest] = cloudpickle.loads(payload)
@@ -204,7 +208,8 @@ def _run_chunks(model, plan: Plan, backend, todo, handle, save, client, workers,
         return
     payload = cloudpickle.dumps(model)
     x64 = bool(jax.config.read("jax_enable_x64"))
-    args = lambda k: (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size)  # noqa: E731
+    cache_dir = compilation_cache_dir()
+    args = lambda k: (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size, cache_dir)  # noqa: E731
     if backend == "processes":
         context = multiprocessing.get_context("spawn")
         pinning = {}
