@@ -131,6 +131,10 @@ def test_design_problem_is_the_set_of_buildable_fits():
     np.testing.assert_allclose([by_name.lower.band[2], by_name.upper.band[2]], [10e-6, 10e-6])
     with pytest.raises(ValueError, match="not a design feature"):
         _propose.design_problem(pointing, fixed=["azimuth.sun_clearance"])  # lumped joints have none
+    with pytest.raises(ValueError, match="half-width > 0"):
+        _propose.design_problem(pointing, fixed={"azimuth.sun_backlash": 0.0})
+    # The robust statistic's k is untouched by a fixed feature (mean + k std).
+    assert _propose.design_problem(pointing, k=2.0, fixed=["azimuth.ring_backlash"]).objective.objective.k == 2.0
 
 
 def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):

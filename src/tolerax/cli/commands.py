@@ -104,8 +104,9 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
 
 
 def _design_setup(parser, args, command):
-    """The checks and inputs `design` and `tradeoff` share: `(scene_file, starting band, the
-    propose_design options)`, or `None` after printing why (exit 2)."""
+    """The checks and inputs `design` and `tradeoff` share: `(scene_file, propose_design's
+    options)` (the starting band and the fixed features among them), or `None` after printing
+    why (exit 2)."""
     from ..io import scenefile as F
 
     scene_file = read_scene_file(parser, args)
@@ -225,10 +226,8 @@ def design_command(parser, args) -> int:
 
 def _write_report(out, sections, scene_file, args, wall):
     """`OUT/report.md`: one self-contained page per job for a design review (its figures beside it)."""
-    from ..io import scenefile as F
-
     text = "\n".join([
-        *sections, "## Scene", "", "```toml", F.SceneFile.to_toml(scene_file).rstrip(), "```", "",
+        *sections, "## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
         "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}",
         f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
         f"- reproduce with: `{command_line(args)}`", "",

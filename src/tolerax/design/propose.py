@@ -323,11 +323,11 @@ def design_problem(
     for name, half in given.items():
         if name not in names:
             raise ValueError(f"propose_design: fixed feature {name!r} is not a design feature of this scene; its features: {', '.join(names)}.")
-        if not (np.isfinite(half) and half >= 0):
-            raise ValueError(f"propose_design: the fixed feature {name!r} needs a finite half-width >= 0 (m), got {half!r}.")
-        k = names.index(name)
-        limit0[k] = lower_limit[k] = max(float(nominal0[k]) - half, 0.0)
-        lower_band[k] = upper_band[k] = band0[k] = half
+        if not (np.isfinite(half) and half > 0):  # a zero band would cost infinitely much (ISO 286)
+            raise ValueError(f"propose_design: the fixed feature {name!r} needs a finite half-width > 0 (m), got {half!r}.")
+        j = names.index(name)  # not `k`: that is the robust statistic's
+        limit0[j] = lower_limit[j] = max(float(nominal0[j]) - half, 0.0)
+        lower_band[j] = upper_band[j] = band0[j] = half
     if yield_ is None:
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
