@@ -93,7 +93,10 @@ def _evaluate_payload(payload: bytes, x64: bool, values: np.ndarray, size: int, 
     persistent compilation cache folder (`tolerax.enable_compilation_cache`) where it has one."""
     jax.config.update("jax_enable_x64", x64)
     if cache_dir is not None and not jax.config.jax_compilation_cache_dir:
-        enable_compilation_cache(cache_dir)
+        try:
+            enable_compilation_cache(cache_dir)
+        except OSError:  # a Dask worker on another machine where that folder cannot be made: compile
+            pass
     digest = hashlib.sha256(payload).hexdigest()
     if digest not in _MODELS:
         _MODELS[digest] = cloudpickle.loads(payload)
