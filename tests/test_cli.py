@@ -247,6 +247,8 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     assert cli.main(["montecarlo", str(design / "proposal.toml"), "--n", "6", "--chunk", "3", "--out", str(mc)]) == 0
     again = json.loads((mc / "summary.json").read_text())["pointing_rms"]
     assert again["yield"] == verify["yield"] and again["mean"] == verify["mean"]
+    mc_report = (mc / "report.md").read_text()
+    assert "Yield at RMS pointing <= 400 arcsec" in mc_report and "Spearman" in mc_report and "histogram.png" in mc_report
     # run and design read it back unchanged.
     assert tx.load_scene(mc / "scene.toml") == proposal
 

@@ -99,8 +99,36 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     fig.savefig(out / "histogram.png", dpi=120)
     plt.close(fig)
     print(res.report())
-    print(f"wrote {out / 'scene.toml'}, {out / 'montecarlo.nc'}, {out / 'summary.json'} and {out / 'histogram.png'}")
+    _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed, command)
+    print(f"wrote {out / 'scene.toml'}, {out / 'montecarlo.nc'}, {out / 'summary.json'}, {out / 'histogram.png'} and {out / 'report.md'}")
     return summary
+
+
+def _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed, command):
+    """`OUT/report.md` of a Monte Carlo run: the yield with its interval, the statistics with their
+    units, what drives the pointing error (rank correlations), the histogram, the scene."""
+    from ..design.objectives import UNITS
+
+    rows = ["| output | units used | mean | std | q50 | q90 | q99 | unit |", "|---|---|---|---|---|---|---|---|"]
+    for name, row in summary.items():
+        rows.append(f"| {name} | {row['n_used']} of {row['n_samples']} | {row['mean']:.4g} | {row['std']:.4g} | {row['q50']:.4g} | "
+                    f"{row['q90']:.4g} | {row['q99']:.4g} | {UNITS.get(name, '')} |")
+    s = summary["pointing_rms"]
+    verdict = ("No requirement given (--requirement, arcsec, RMS pointing): no yield." if requirement is None else
+               f"Yield at RMS pointing <= {requirement:g} arcsec: **{s['yield']:.3f}** [{s['yield_low']:.3f}, {s['yield_high']:.3f}] "
+               f"(95 % Wilson) over {int(s['n_used'])} units ({int(s['n_failed'])} failed solves).")
+    drivers = res.drivers("pointing_rms")
+    sections = [
+        f"# Monte Carlo: {scene_file.title}", "", f"{n} manufactured units (seed {seed}) of `{scene_file.source}`, every feature "
+        "drawn within its [tolerances] zone.", "", verdict, "", *rows, "",
+        "What drives the RMS pointing error (Spearman rank correlation with each feature): "
+        + ", ".join(f"{name} {rho:+.2f}" for name, rho in drivers.items()) + ".", "",
+        "![histogram of the RMS pointing error against the requirement](histogram.png)", "",
+        "## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
+        "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}",
+        f"- {load_average()}", f"- `tolerax {command}`; rerun the same command to resume, or with a larger --n to extend", "",
+    ]
+    (out / "report.md").write_text("\n".join(sections))
 
 
 def _design_setup(parser, args, command):
