@@ -280,15 +280,22 @@ def test_tradeoff_writes_the_curve_and_one_proposal_per_requirement(tmp_path, ca
     plot and a proposal per point, which loads as a scene file with its requirement; the looser
     requirement costs no more."""
     scene = tmp_path / "my_drive.toml"
-    scene.write_text(OWN_MECHANISM)
+    # The shop's own price per grade (grinding below IT7): [tolerances.cost], after [tolerances.bands].
+    scene.write_text(OWN_MECHANISM + "\n[tolerances.cost]\ngrades = [5, 6, 7, 8, 9]\ncosts = [5.0, 2.5, 1.0, 0.8, 0.7]\n")
     out = tmp_path / "trade"
     assert cli.main(["tradeoff", str(scene), "--requirements", "450", "380", "--yield", "0.9", "--secant-units", "5",
                      "--check", "0", "--outer", "2", "--out", str(out)]) == 0
     points = json.loads((out / "tradeoff.json").read_text())["points"]
     assert [p["requirement"] for p in points] == [380.0, 450.0]
     assert points[1]["cost"] <= points[0]["cost"] * (1 + 1e-9)
+    from tolerax.design.propose import feature_sizes
+
+    shop = tx.GradeTable([5, 6, 7, 8, 9], [5.0, 2.5, 1.0, 0.8, 0.7])
+    sizes = feature_sizes(tx.load_scene(scene).build())
     for p in points:
         assert tx.load_scene(p["proposal"]).requirement == p["requirement"]
+        # The cost reported is the shop's, of each zone's full width.
+        assert p["cost"] == pytest.approx(float(shop.total(2e-6 * np.asarray(p["band_um"]), sizes)), rel=1e-9)
     table = (out / "tradeoff.md").read_text()
     assert "| 380 |" in table and "| 450 |" in table and "proposal-380.toml" in table
     assert (out / "tradeoff.png").stat().st_size > 10_000

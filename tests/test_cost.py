@@ -13,6 +13,7 @@ from tolerax.design.cost import (
     GRADE_RATIO,
     AbstractCostModel,
     Exponential,
+    GradeTable,
     IsoGrade,
     ReciprocalPower,
     effective_band,
@@ -195,3 +196,25 @@ def test_user_cost_model_by_subclassing():
 def test_bad_parameters_name_the_field(build, field):
     with pytest.raises((ValueError, TypeError), match=field.replace(".", r"\.")):
         build()
+
+
+def test_grade_table_is_iso_grade_for_a_constant_factor_and_interpolates_a_quote():
+    """A shop's price per grade: with a constant factor per grade it is `IsoGrade` exactly (value
+    and gradient, 0.5-300 um, inside and beyond the table); a quote that bends is met at its
+    grades, log-linear between them, non-increasing in the band; bad tables are named."""
+    grades = np.arange(5, 12)
+    table, iso = GradeTable(grades, GRADE_RATIO ** (7.0 - grades)), IsoGrade()
+    bands, size = jnp.geomspace(0.5e-6, 300e-6, 60), jnp.full(60, 40.0)
+    np.testing.assert_allclose(table(bands, size), iso(bands, size), rtol=1e-12)
+    np.testing.assert_allclose(jax.grad(lambda b: table.total(b, size))(bands), jax.grad(lambda b: iso.total(b, size))(bands), rtol=1e-10)
+    quote = GradeTable([6, 7, 8, 9], [3.0, 1.0, 0.8, 0.75])  # grinding below IT7, cheap turning above
+    # The bands of grades 6 ... 9 on the ideal R5 progression through IT7 (the smooth grade the
+    # cost is read at; ISO's multipliers 10, 16, 25, 40 round it by up to 1 %).
+    at = jnp.array([float(it_tolerance(7, 40.0)) * GRADE_RATIO ** (g - 7) for g in (6, 7, 8, 9)])
+    np.testing.assert_allclose(quote(at, jnp.full(4, 40.0)), [3.0, 1.0, 0.8, 0.75], rtol=1e-6)
+    mid = float(quote(jnp.sqrt(at[0] * at[1])[None], jnp.array([40.0]))[0])  # grade 6.5: the geometric mean
+    assert mid == pytest.approx(math.sqrt(3.0 * 1.0), rel=1e-6)
+    assert np.all(np.diff(np.asarray(quote(bands, size))) <= 0)
+    for grades_, costs in (([7], [1.0]), ([7, 6], [1.0, 2.0]), ([6, 7], [1.0, 2.0]), ([6, 7], [2.0, 0.0])):
+        with pytest.raises(ValueError, match="GradeTable"):
+            GradeTable(grades_, costs)

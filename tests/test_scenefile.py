@@ -312,3 +312,18 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     summary = json.loads((tmp_path / "fail" / "summary.json").read_text())
     assert summary["result"] == "failed" and summary["t_reached_s"] < 0.05
     assert "Failure:" in (tmp_path / "fail" / "summary.md").read_text()
+
+
+def test_a_shop_cost_table_is_checked_where_it_is_written():
+    """`[tolerances.cost]`: a shop's price per grade loads as `tolerax.GradeTable`; a bad one is
+    refused naming the file, line and key."""
+    from tolerax.io.schema import cost_model
+
+    text = tx.load_scene("scan-azimuth").to_toml() + "\n[tolerances.cost]\ngrades = [6, 7, 8]\ncosts = [2.0, 1.0, 0.8]\n"
+    scene_file = tx.parse_scene(text)
+    assert isinstance(cost_model(None, scene_file.data["tolerances"]["cost"]), tx.GradeTable)
+    for bad, match in ((text.replace("[2.0, 1.0, 0.8]", "[2.0, 1.0, 1.2]"), "not increase with the grade"),
+                       (text.replace("costs =", "cots ="), "unknown key 'cots'")):
+        with pytest.raises(tx.SceneFileError, match=match) as info:
+            tx.parse_scene(bad)
+        assert "[tolerances.cost]" in str(info.value)

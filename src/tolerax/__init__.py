@@ -76,6 +76,7 @@ from .uncertainty.sensitivity import SobolResult as SobolResult, sobol_indices a
 from .design.cost import (
     AbstractCostModel as AbstractCostModel,
     Exponential as Exponential,
+    GradeTable as GradeTable,
     IsoGrade as IsoGrade,
     ReciprocalPower as ReciprocalPower,
     grade_of as grade_of,

@@ -161,6 +161,10 @@ def _design_setup(parser, args, command):
     # Given, not designed: held at the scene's nominal +- its own band.
     fixed = {name: tol.get("bands", {}).get(name, band) for name in tol.get("fixed", [])}
     options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed)
+    if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
+        from ..io.schema import cost_model
+
+        options["cost_model"] = cost_model(None, tol["cost"])
     options.update(dict(n_draws=args.draws) if args.yield_ is None
                    else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
     return scene_file, options

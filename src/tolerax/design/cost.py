@@ -287,3 +287,50 @@ class IsoGrade(AbstractCostModel):
             raise ValueError("IsoGrade needs the nominal size (mm) of every feature, got size_mm=None.")
         reference = it_tolerance(self.reference_grade, size_mm)
         return self.fixed + (reference / effective_band(band, self.floor)) ** self.exponent
+
+
+class GradeTable(AbstractCostModel):
+    """A shop's own prices per ISO grade: relative cost $c_j$ at grade IT$g_j$, interpolated
+    log-linearly in the grade $g(t)$ (the smooth R5 grade of `IsoGrade`, anchored on IT7) and
+    extended beyond the table along its end segments. Between two quoted grades the law is a
+    reciprocal power of the band, so a table with a constant factor per grade is `IsoGrade`
+    exactly (`tests/test_cost.py`); a real quote bends where the process changes (turning to
+    grinding, say).
+
+    **Arguments:**
+
+    - `grades`: the quoted grades, increasing (e.g. 5 ... 11); at least two.
+    - `costs`: the relative cost at each grade, > 0 and not increasing with the grade (a looser
+      grade never costs more), e.g. a quote per part normalised to the IT7 price.
+    - `floor`: $t_\\mathrm{floor}$ (m); $> 0$.
+    """
+
+    grades: Float[Array, " k"]
+    log_costs: Float[Array, " k"]
+    floor: Float[Array, ""]
+
+    def __init__(self, grades, costs, floor=DEFAULT_FLOOR):
+        g, c = np.asarray(grades, dtype=float), np.asarray(costs, dtype=float)
+        if g.ndim != 1 or g.shape != c.shape or g.size < 2:
+            raise ValueError(f"GradeTable: grades and costs must be two lists of the same length >= 2, got {grades!r} and {costs!r}.")
+        if not (np.all(np.isfinite(g)) and np.all(np.diff(g) > 0)):
+            raise ValueError(f"GradeTable: grades must be finite and increasing, got {grades!r}.")
+        if not (np.all(np.isfinite(c)) and np.all(c > 0) and np.all(np.diff(c) <= 0)):
+            raise ValueError(f"GradeTable: costs must be finite, > 0 and not increase with the grade (a looser grade never "
+                             f"costs more), got {costs!r}.")
+        self.grades, self.log_costs = jnp.asarray(g), jnp.asarray(np.log(c))
+        self.floor = V.real("GradeTable", "floor", floor, "m")
+
+    def __check_init__(self):
+        V.check(self, floor=V.POSITIVE("m"))
+
+    def __call__(self, band, size_mm):
+        if size_mm is None:
+            raise ValueError("GradeTable needs the nominal size (mm) of every feature, got size_mm=None.")
+        reference = it_tolerance(7, size_mm)
+        grade = 7.0 + jnp.log(effective_band(band, self.floor) / reference) / math.log(GRADE_RATIO)
+        g, lc = self.grades, self.log_costs
+        # Piecewise linear in the grade, the end segments extended.
+        k = jnp.clip(jnp.searchsorted(g, grade) - 1, 0, g.shape[0] - 2)
+        slope = (lc[k + 1] - lc[k]) / (g[k + 1] - g[k])
+        return jnp.exp(lc[k] + slope * (grade - g[k]))

@@ -17,7 +17,7 @@ import typing
 import jax.numpy as jnp
 
 from ..physics import contact as _contact
-from ..design import features as _design
+from ..design import cost as _cost, features as _design
 from ..physics import gears as _gears
 from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
@@ -75,7 +75,7 @@ PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error"
 OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
-                  "fixed": (list, [])}
+                  "fixed": (list, []), "cost": (dict, {})}
 TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict}
 
 
@@ -372,6 +372,8 @@ def _check_tolerances(chk: Checker, tol: dict, model):
         if name not in names:
             raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
                             f"{', '.join(names) or 'none'}.", table, "fixed")
+    if tol.get("cost"):
+        cost_model(chk, tol["cost"])
     sub = table + ("bands",)
     for name, value in tol.get("bands", {}).items():
         if name not in names:
@@ -379,6 +381,23 @@ def _check_tolerances(chk: Checker, tol: dict, model):
                             f"{', '.join(names) or 'none'}.", sub, name)
         if not (_accepts(value, float) and math.isfinite(value) and value >= 0):
             raise chk.error(f"must be a non-negative finite half-width (m), got {value!r}.", sub, name)
+
+
+def cost_model(chk: Checker | None, cost: dict):
+    """The `GradeTable` of a `[tolerances.cost]` table (`grades`, `costs`: a shop's relative
+    price per ISO grade); with a checker, its errors name the line."""
+    table = ("tolerances", "cost")
+    try:
+        if chk is not None:
+            chk.keys(cost, table, ["grades", "costs"], required=("grades", "costs"))
+            for key in ("grades", "costs"):
+                if not (isinstance(cost[key], list) and all(_accepts(v, float) for v in cost[key])):
+                    raise chk.error(f"must be a list of numbers, got {cost[key]!r}.", table, key)
+        return _cost.GradeTable(cost["grades"], cost["costs"])
+    except ValueError as err:
+        if chk is None or isinstance(err, SceneFileError):
+            raise
+        raise chk.wrap(err, table, cost) from None
 
 
 def _apply_design(chk: Checker, design: dict, model):
