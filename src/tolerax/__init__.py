@@ -27,6 +27,7 @@ from .physics.planetary import AddedInertia as AddedInertia
 from .physics.modes import Modes as Modes, natural_frequencies as natural_frequencies
 from .mechanism.drives import (
     AbstractServo as AbstractServo,
+    ProfileServo as ProfileServo,
     ScanServo as ScanServo,
     SpeedServo as SpeedServo,
     TorqueDrive as TorqueDrive,

@@ -159,6 +159,9 @@ def _accepts(value, ann) -> bool:
     if origin is tuple:
         args = typing.get_args(ann)
         return isinstance(value, list) and len(value) == len(args) and all(_accepts(v, a) for v, a in zip(value, args))
+    if origin is list:
+        (item,) = typing.get_args(ann)
+        return isinstance(value, list) and all(_accepts(v, item) for v in value)
     return False
 
 
@@ -169,6 +172,8 @@ def _type_text(ann) -> str:
     if origin is tuple:
         args = typing.get_args(ann)
         return f"a list of {len(args)} ({', '.join(_type_text(a) for a in args)})"
+    if origin is list:
+        return f"a list of {_type_text(typing.get_args(ann)[0]).removeprefix('a ').removeprefix('an ')}s"
     return {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list", dict: "a table"}.get(
         ann, getattr(ann, "__name__", str(ann))
     )

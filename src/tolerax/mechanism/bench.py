@@ -60,7 +60,7 @@ class TestBench(AbstractScene):
         if not isinstance(self.stage, PlanetaryStage):
             raise TypeError(f"TestBench.stage must be a PlanetaryStage, got {type(self.stage).__name__}.")
         if not isinstance(self.servo, AbstractServo):
-            raise TypeError(f"TestBench.servo must be a servo (SpeedServo, ScanServo), got {type(self.servo).__name__}.")
+            raise TypeError(f"TestBench.servo must be a servo (SpeedServo, ScanServo, ProfileServo), got {type(self.servo).__name__}.")
         V.check(
             self,
             load_torque=V.NONNEGATIVE("N m"),

@@ -119,6 +119,61 @@ class ScanServo(AbstractServo):
         return self.amplitude * (2.0 * jnp.pi / self.period) * jnp.cos(2.0 * jnp.pi * t / self.period)
 
 
+class ProfileServo(AbstractServo):
+    """A tabulated motion profile: the commanded output angle through the points $(t_k,
+    \theta_k)$, a step, a slew and settle, a measured scan, by shape-preserving piecewise-cubic
+    Hermite interpolation (PCHIP, Fritsch and Carlson: no overshoot between points, so a step
+    stays a step; the knot slopes are SciPy's `PchipInterpolator`'s); before the first time the
+    first angle, after the last the last angle held. The rate is the interpolant's derivative
+    (continuous).
+
+    - `times` (s, increasing, at least two), `angles` (rad), one per time.
+    - `proportional`: $k_p$ (N m s/rad); `integral`: $k_i$ (N m/rad).
+    """
+
+    times: Float[Array, " k"]
+    angles: Float[Array, " k"]
+    slopes: Float[Array, " k"]
+    proportional: Float[Array, ""]
+    integral: Float[Array, ""]
+
+    def __init__(self, times, angles, proportional=0.2, integral=2.0):
+        import numpy as np
+        import scipy.interpolate
+
+        t, a = np.asarray(times, dtype=float), np.asarray(angles, dtype=float)
+        if t.ndim != 1 or t.shape != a.shape or t.size < 2:
+            raise ValueError(f"ProfileServo: times and angles must be two lists of the same length >= 2, got {times!r} and {angles!r}.")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(a)) and np.all(np.diff(t) > 0)):
+            raise ValueError(f"ProfileServo: times must be finite and increasing and angles finite (s, rad), got {times!r} and {angles!r}.")
+        self.times, self.angles = jnp.asarray(t), jnp.asarray(a)
+        self.slopes = jnp.asarray(scipy.interpolate.PchipInterpolator(t, a).derivative()(t))
+        self.proportional, self.integral = _gains("ProfileServo", proportional, integral)
+
+    def __check_init__(self):
+        _check_gains(self)
+
+    def _segment(self, t):
+        t = jnp.asarray(t, dtype=float)
+        k = jnp.clip(jnp.searchsorted(self.times, t) - 1, 0, self.times.shape[0] - 2)
+        h = self.times[k + 1] - self.times[k]
+        inside = (t >= self.times[0]) & (t <= self.times[-1])
+        s = (t - self.times[k]) / h
+        s = jnp.where(inside, s, jnp.clip(s, 0.0, 1.0))  # held beyond the table (no clip inside: its derivative at a knot)
+        return k, h, s, inside
+
+    def angle(self, t):
+        k, h, s, _ = self._segment(t)
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        return h00 * self.angles[k] + h10 * h * self.slopes[k] + h01 * self.angles[k + 1] + h11 * h * self.slopes[k + 1]
+
+    def rate(self, t):
+        k, h, s, inside = self._segment(t)
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+        value = (d00 * self.angles[k] + d01 * self.angles[k + 1]) / h + d10 * self.slopes[k] + d11 * self.slopes[k + 1]
+        return jnp.where(inside, value, 0.0)
+
+
 class TorqueDrive(eqx.Module):
     """Prescribed drive torque $T(t) = A\\cos(2\\pi f t + \\varphi)$ at the joint output (N m).
 

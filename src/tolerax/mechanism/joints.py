@@ -72,7 +72,7 @@ class AbstractJoint(eqx.Module):
         self.stage = _gears.default_stage() if stage is None else stage
         self.drive = SpeedServo() if drive is None else drive
         if not isinstance(self.drive, (AbstractServo, TorqueDrive)):
-            raise TypeError(f"drive must be a servo (SpeedServo, ScanServo) or a TorqueDrive, got {type(self.drive).__name__}.")
+            raise TypeError(f"drive must be a servo (SpeedServo, ScanServo, ProfileServo) or a TorqueDrive, got {type(self.drive).__name__}.")
         owner = type(self).__name__
         self.motor_inertia = V.real(owner, "motor_inertia", motor_inertia, "kg m^2")
         self.drag_torque = V.real(owner, "drag_torque", drag_torque, "N m")

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .drives import ScanServo, SpeedServo, TorqueDrive
+from .drives import ProfileServo, ScanServo, SpeedServo, TorqueDrive
 from . import FIDELITIES
 from .mechanism import Mechanism
 from .structure import Geometry, Inertias
@@ -14,7 +14,7 @@ from ..physics.stage import PlanetaryStage
 
 
 DRIVE_MODES = ("azimuth", "pitch", "dual")
-DRIVES = ("speed", "scan", "torque")
+DRIVES = ("speed", "scan", "torque", "profile")
 
 
 def antenna(
@@ -35,6 +35,8 @@ def antenna(
     mass_scaling: float | None = None,
     geometry: Geometry | None = None,
     inertias: Inertias | None = None,
+    profile_times: list[float] | None = None,
+    profile_angles: list[float] | None = None,
 ) -> Mechanism:
     """A scene of the paper: driving `mode` `"azimuth"`, `"pitch"` (single-axis) or `"dual"`.
 
@@ -74,6 +76,8 @@ def antenna(
             raise ValueError(f"antenna({name}=...) must be a pair of numbers, got {pair!r}.")
     if mass_scaling is not None and "planetary-scaled" not in fids:
         raise ValueError(f"mass_scaling={mass_scaling!r} needs a 'planetary-scaled' joint; fidelity is {fidelity!r}.")
+    if (drive == "profile") != (profile_times is not None or profile_angles is not None):
+        raise ValueError("profile_times and profile_angles go with drive='profile' (and it needs both).")
     scaling = {} if mass_scaling is None else dict(mass_scaling=mass_scaling)
     driven = (mode in ("azimuth", "dual"), mode in ("pitch", "dual"))
     joints = []
@@ -82,6 +86,8 @@ def antenna(
             drv = TorqueDrive(torques[k])
         elif drive == "scan" and on:
             drv = ScanServo(scan_amplitude, scan_period, *servo_gains)
+        elif drive == "profile" and on:
+            drv = ProfileServo(profile_times, profile_angles, *servo_gains)
         else:
             drv = SpeedServo(rate if on else 0.0, *servo_gains)
         extra = scaling if fid == "planetary-scaled" else {}
@@ -104,6 +110,8 @@ def scan(
     mass_scaling: float | None = None,
     geometry: Geometry | None = None,
     inertias: Inertias | None = None,
+    profile_times: list[float] | None = None,
+    profile_angles: list[float] | None = None,
 ) -> Mechanism:
     """The tolerance-design scene: the driven joints scan back and forth.
 
@@ -116,12 +124,17 @@ def scan(
     servos are stiffer than the paper's speed loop ($k_p$ = 2 N m s/rad, $k_i$ = 40 N m/rad, a
     ~5 Hz position loop on the motor) so that they follow a 1 Hz scan and what remains of the
     pointing error is the joints' own: lost motion, compliance and rattle. Arguments as
-    `antenna`; verify a design at `fidelity="planetary"`.
+    `antenna`; verify a design at `fidelity="planetary"`. `profile_times`, `profile_angles`
+    (s, rad): the driven joints track this tabulated profile instead of the sine (a step, a
+    slew and settle: `ProfileServo`); `amplitude` and `period` are then unused.
     """
+    profile = profile_times is not None or profile_angles is not None
     return antenna(
         mode,
         fidelity=fidelity,
-        drive="scan",
+        drive="profile" if profile else "scan",
+        profile_times=profile_times,
+        profile_angles=profile_angles,
         base=base,
         azimuth_stage=azimuth_stage,
         pitch_stage=pitch_stage,
