@@ -206,6 +206,8 @@ n_save = 26
 band = 5e-06
 requirement = 400.0
 fixed = ["azimuth.carrier_clearance"]   # a bought-in output bearing: given, not designed
+min_clearance = 4e-06                   # no zone may start below 4 um (thermal growth, film)
+band_range = [1e-06, 30e-06]
 
 [tolerances.bands]
 "azimuth.carrier_clearance" = 8e-06
@@ -236,6 +238,8 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
         given = " (given)" if name == "azimuth.carrier_clearance" else ""
         assert f"| {name}{given} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table
     assert np.allclose([zones.nominal[0], zones.band[0]], [60e-6, 8e-6], rtol=1e-12)
+    # The scene's bounds: lower limits >= 4 um, half-widths within 1-30 um.
+    assert np.all(np.asarray(zones.nominal - zones.band) >= 4e-6 * (1 - 1e-9)) and np.all(np.asarray(zones.band) <= 30e-6 * (1 + 1e-9))
     verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_rms"]
     assert verify["n_used"] == 6
     # One page for the design review: proposal, verification, scene, settings and versions.

@@ -322,6 +322,12 @@ def test_a_shop_cost_table_is_checked_where_it_is_written():
     text = tx.load_scene("scan-azimuth").to_toml() + "\n[tolerances.cost]\ngrades = [6, 7, 8]\ncosts = [2.0, 1.0, 0.8]\n"
     scene_file = tx.parse_scene(text)
     assert isinstance(cost_model(None, scene_file.data["tolerances"]["cost"]), tx.GradeTable)
+    bounds = tx.load_scene("scan-azimuth").to_toml().replace("band = 1e-05", "band = 1e-05\nband_range = [2e-06, 1e-06]")
+    with pytest.raises(tx.SceneFileError, match="band_range"):
+        tx.parse_scene(bounds)
+    minima = tx.load_scene("scan-azimuth").to_toml() + '\n[tolerances.min_clearance]\n"azimuth.sun_backlsh" = 5e-06\n'
+    with pytest.raises(tx.SceneFileError, match="did you mean 'azimuth.sun_backlash'"):
+        tx.parse_scene(minima)
     for bad, match in ((text.replace("[2.0, 1.0, 0.8]", "[2.0, 1.0, 1.2]"), "not increase with the grade"),
                        (text.replace("costs =", "cots ="), "unknown key 'cots'")):
         with pytest.raises(tx.SceneFileError, match=match) as info:

@@ -160,7 +160,12 @@ def _design_setup(parser, args, command):
         parser.error(f"--secant-units must exceed the scene's {n_features} design features (a line through K units), got {args.secant_units}")
     # Given, not designed: held at the scene's nominal +- its own band.
     fixed = {name: tol.get("bands", {}).get(name, band) for name in tol.get("fixed", [])}
-    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed)
+    names = _feature_names(scene_file)
+    minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
+    if isinstance(minima, dict):
+        minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
+    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
+                   min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
     if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
         from ..io.schema import cost_model
 

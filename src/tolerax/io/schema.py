@@ -75,7 +75,7 @@ PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error"
 OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
-                  "fixed": (list, []), "cost": (dict, {})}
+                  "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6))}
 TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict}
 
 
@@ -373,6 +373,17 @@ def _check_tolerances(chk: Checker, tol: dict, model):
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
         raise chk.error(f"must be a positive number of arcsec, got {tol['requirement']!r}.", table, "requirement")
     names = _design.design_names(model)
+    minima = tol.get("min_clearance", 5e-6)
+    for name, value in (minima.items() if isinstance(minima, dict) else [(None, minima)]):
+        if name is not None and name not in names:
+            raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
+                            f"{', '.join(names) or 'none'}.", table + ("min_clearance",), name)
+        if not (_accepts(value, float) and math.isfinite(value) and value >= 0):
+            raise chk.error(f"must be a non-negative finite clearance (m), got {value!r}.", table + ("min_clearance",) if name else table,
+                            name or "min_clearance")
+    if "band_range" in tol and not (0 < tol["band_range"][0] <= tol["band_range"][1] and math.isfinite(tol["band_range"][1])):
+        raise chk.error(f"must be [smallest, largest] half-widths (m) with 0 < smallest <= largest, got {tol['band_range']!r}.",
+                        table, "band_range")
     for name in tol.get("fixed", []):
         if name not in names:
             raise chk.error(f"{name!r} is not a design feature of this scene{_suggest(name, names)}; its features: "
