@@ -42,6 +42,7 @@ from .demo import demo_command
 RESUME = {
     "montecarlo": "finished chunks are kept under OUT/chunks: rerun the same command to resume",
     "studies": "finished rows are kept in OUT/STUDY-SIZE.json: rerun with --resume to go on",
+    "tradeoff": "the points finished are in OUT/tradeoff.json and OUT/proposal-R.toml",
 }
 
 
