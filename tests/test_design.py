@@ -153,6 +153,20 @@ def test_propose_design_meets_a_loose_requirement_cheaper(scan_pointing):
     # The drawings' weights beside the simulated sensitivities: the scene's own geometry.
     np.testing.assert_allclose(report.lost_motion, tx.lost_motion_weights(scan_pointing.scene))
     assert "simulated / drawings" in report.table()
+    # The split of the objective's variation over the zones into lost motion and dynamics:
+    # sensitivities that are the drawings' weights scaled are all lost motion; adding a part
+    # orthogonal to them in the zones' metric (sum b^2 w r = 0) moves its share to dynamics.
+    import dataclasses
+
+    w, b = np.array([0.0, 8.25e6, 4.39e6, 4.39e6]), np.array([50e-6, 10e-6, 15e-6, 18e-6])
+    scaled = dataclasses.replace(report, lost_motion=w, band=b, sensitivity=tx.Design(0.7 * w, np.zeros(4)))
+    np.testing.assert_allclose(scaled.split, (1.0, 0.0, 0.7), atol=1e-12)
+    r = np.array([2e4, 1e6, -1e6, 0.0])
+    r = r - w * np.sum(b**2 * w * r) / np.sum(b**2 * w**2)  # orthogonal to w in the zones' metric
+    mixed = dataclasses.replace(scaled, sensitivity=tx.Design(0.7 * w + r, np.zeros(4)))
+    lost = np.sum(b**2 * (0.7 * w) ** 2) / np.sum(b**2 * (0.7 * w + r) ** 2)
+    np.testing.assert_allclose(mixed.split, (lost, 1 - lost, 0.7), rtol=1e-10)
+    assert 0.0 < lost < 1.0 and "is lost motion" in report.table()
 
 
 def test_sequential_proposal_lands_on_the_requirement(scan_pointing):
