@@ -1,14 +1,16 @@
 """Monte Carlo throughput: samples per second against backend and chunk (batch) size, measured
 through the public `tolerax.monte_carlo(...)` call, for the azimuth scan scene at lumped and at
-planetary fidelity.
+planetary fidelity, the latter in full and at the fast setting.
 
-    python benchmarks/monte_carlo_throughput.py [--scenes lumped planetary]
+    python benchmarks/monte_carlo_throughput.py [--scenes lumped planetary fast]
         [--backends vmap processes processes-free dask] [--chunks 1 4 16] [--worker-chunks 1 4] [--workers 2]
         [--output monte_carlo_throughput] [--results DIR]
 
 Model: `tolerax.PointingObjective` on `tolerax.scan("azimuth", fidelity=(f, "ideal"))`, steady
 start, 101 saves, the objective's solver defaults (Tsit5, rtol 1e-6, atol 1e-9), a short horizon
-(`--lumped-duration`, `--planetary-duration`) with the pointing window its second half. Samples:
+(`--lumped-duration`, `--planetary-duration`) with the pointing window its second half. `fast`:
+the planetary stage at the fast setting (the built-in scene `scan-azimuth-fast`: `planetary-scaled`
+with `mass_scaling` 1000, rtol 1e-3, atol 1e-6, PI controller 0.3/0.3), over `--fast-duration`. Samples:
 the scene's clearances and backlash drawn uniformly within `tolerax.tolerances_of(scene,
 band=--band)`, with one key for every configuration, so every configuration solves the same units.
 
@@ -35,6 +37,7 @@ vmap at the smallest chunk. Writes `benchmarks/results/monte_carlo_throughput.md
 status 1 if a backend disagreed with vmap at the same chunk size.
 """
 
+import dataclasses
 import os
 import sys
 import time
@@ -96,10 +99,15 @@ def _compare(res, ref) -> tuple[bool, float]:
 def measure(label, model, tolerances, n, key, args, client, chunks, worker_chunks):
     """Every configuration of one scene: a list of row dicts, and the disagreements found."""
     rows, refs, failures = [], {}, []
+    loads = []  # the load average before each configuration's calls
+
+    def timed_call(*a, **k):
+        loads.append(harness.load())
+        return _timed_call(*a, **k)
 
     def record(backend, chunk, warmup, res, wall, done, steady):
         row = dict(backend=backend, chunk=chunk, n=n, warmup=warmup, wall=wall, rate=n / wall, steady=steady,
-                   ok=int(res.success.sum()), load=harness.load(), per_chunk=np.diff([0.0] + [t for t, _ in done]),
+                   ok=int(res.success.sum()), load=f"{loads[-1]} / {harness.load()}", per_chunk=np.diff([0.0] + [t for t, _ in done]),
                    workers="1 (in process)" if backend == "vmap" else str(args.workers))
         row["same"] = None if backend == "vmap" or chunk not in refs else _compare(res, refs[chunk])
         row["across"] = _compare(res, refs[min(refs)])[1] if refs else None
@@ -110,22 +118,36 @@ def measure(label, model, tolerances, n, key, args, client, chunks, worker_chunk
 
     if "vmap" in args.backends:
         for chunk in chunks:
-            warmup, res, wall, done = _timed_call(model, tolerances, n, key, warmup=1, chunk_size=chunk)
+            warmup, res, wall, done = timed_call(model, tolerances, n, key, warmup=1, chunk_size=chunk)
             record("vmap", chunk, warmup, res, wall, done, n / wall)
             refs[chunk] = res
     for chunk in worker_chunks:  # pinned and free alternate, so a slow spell of the machine hits both
         for backend, pin in (("processes", None), ("processes-free", False)):
             if backend not in args.backends:
                 continue
-            _, res, wall, done = _timed_call(model, tolerances, n, key, chunk_size=chunk, backend="processes",
+            _, res, wall, done = timed_call(model, tolerances, n, key, chunk_size=chunk, backend="processes",
                                              workers=args.workers, pin_workers=pin)
             record(backend, chunk, None, res, wall, done, _rate_after_start(done, args.workers))
     if "dask" in args.backends:
         for chunk in worker_chunks:
-            warmup, res, wall, done = _timed_call(model, tolerances, n, key, warmup=chunk + 1, chunk_size=chunk,
+            warmup, res, wall, done = timed_call(model, tolerances, n, key, warmup=chunk + 1, chunk_size=chunk,
                                                   backend="dask", client=client)
             record("dask", chunk, warmup, res, wall, done, n / wall)
-    return rows, failures
+    return rows, failures, refs
+
+
+def solver_error_note(model, tolerances, n, key, rows, refs) -> str:
+    """The chunk-size differences beside the solver's own error: the same samples at vmap's
+    smallest chunk solved with rtol and atol 1000 times tighter."""
+    smallest = min(refs)
+    tight = dataclasses.replace(model, rtol=model.rtol * 1e-3, atol=model.atol * 1e-3)
+    reference = tolerax.monte_carlo(tight, tolerances, n, key, chunk_size=smallest, progress=False)
+    error = _compare(refs[smallest], reference)[1]
+    across = max((r["across"] for r in rows if r["across"] is not None), default=None)
+    return (f"Chunk size against the solver's error: the largest relative difference between chunk sizes above "
+            f"({_fmt(across, '.1e')}) against the solver's own error on these samples, vmap at chunk {smallest} against "
+            f"the same solve with rtol and atol 1000 times tighter ({model.rtol * 1e-3:g}, {model.atol * 1e-3:g}): "
+            f"{error:.1e}.")
 
 
 def _fmt(x, spec):
@@ -135,7 +157,7 @@ def _fmt(x, spec):
 COLUMNS = [
     "backend", "workers", "chunk", "samples", "warm-up call (s)", "timed call (s)", "samples/s, timed call",
     "samples/s after start-up", "succeeded", "outputs vs vmap, same chunk", "max rel. diff vs vmap, smallest chunk",
-    "load 1/5/15 min after",
+    "load 1/5/15 min before / after",
 ]
 
 
@@ -195,7 +217,7 @@ def which_backend(rows, cluster_start) -> str:
 
 def main():
     parser = harness.argument_parser(__doc__)
-    parser.add_argument("--scenes", nargs="+", choices=("lumped", "planetary"), default=["lumped", "planetary"])
+    parser.add_argument("--scenes", nargs="+", choices=("lumped", "planetary", "fast"), default=["lumped", "planetary", "fast"])
     parser.add_argument("--backends", nargs="+", choices=("vmap", "processes", "processes-free", "dask"),
                         default=["vmap", "processes", "dask"])
     parser.add_argument("--chunks", type=int, nargs="+", default=[1, 4, 16], help="vmap chunk sizes")
@@ -204,8 +226,10 @@ def main():
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--lumped-duration", type=float, default=0.6, help="simulated time per sample (s)")
     parser.add_argument("--planetary-duration", type=float, default=0.2, help="simulated time per sample (s)")
+    parser.add_argument("--fast-duration", type=float, default=0.6, help="simulated time per sample (s)")
     parser.add_argument("--lumped-samples", type=int, default=16)
     parser.add_argument("--planetary-samples", type=int, default=8)
+    parser.add_argument("--fast-samples", type=int, default=16)
     parser.add_argument("--band", type=float, default=10e-6, help="tolerance half-width of every feature (m)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--output", default="monte_carlo_throughput", help="results file name (without .md)")
@@ -226,15 +250,19 @@ def main():
     try:
         for fidelity in args.scenes:
             start = time.perf_counter()
-            duration = args.lumped_duration if fidelity == "lumped" else args.planetary_duration
-            n = args.lumped_samples if fidelity == "lumped" else args.planetary_samples
+            duration = getattr(args, f"{fidelity}_duration")
+            n = getattr(args, f"{fidelity}_samples")
             chunks = sorted(c for c in set(args.chunks) if c <= n)
             worker_chunks = sorted(c for c in set(args.worker_chunks) if -(-n // c) >= 2 * args.workers)
-            scene = tolerax.scan("azimuth", fidelity=(fidelity, "ideal"))
+            if fidelity == "fast":
+                scene = tolerax.scan("azimuth", fidelity=("planetary-scaled", "ideal"), mass_scaling=1000.0)
+                solver = dict(rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3)
+            else:
+                scene, solver = tolerax.scan("azimuth", fidelity=(fidelity, "ideal")), {}
             model = tolerax.PointingObjective(scene, duration=duration, settle=duration / 2, start="steady",
-                                              n_save=101)
+                                              n_save=101, **solver)
             tolerances = tolerax.tolerances_of(scene, band=args.band)
-            rows, bad = measure(fidelity, model, tolerances, n, key, args, client, chunks, worker_chunks)
+            rows, bad, refs = measure(fidelity, model, tolerances, n, key, args, client, chunks, worker_chunks)
             failures += bad
             notes = [
                 f"{n} samples per configuration; features {', '.join(tolerances.names)} at nominal ± "
@@ -254,8 +282,12 @@ def main():
                                          f"(x{r['wall'] / f['wall']:.2f}), rate after start-up "
                                          f"{_fmt(r['steady'], '.3f')} against {_fmt(f['steady'], '.3f')} samples/s"
                                          for r, f in pairs) + ".")
+            if refs:
+                notes.append(solver_error_note(model, tolerances, n, key, rows, refs))
             notes.append(which_backend(rows, cluster_start))
-            heading = f'{fidelity}: `scan("azimuth", fidelity=("{fidelity}", "ideal"))`, {duration} s per sample'
+            heading = (f'{fidelity}: `scan("azimuth", fidelity=("{fidelity}", "ideal"))`' if fidelity != "fast" else
+                       'fast: `scan("azimuth", fidelity=("planetary-scaled", "ideal"), mass_scaling=1000)`, rtol 1e-3, '
+                       'atol 1e-6, PI 0.3/0.3') + f", {duration} s per sample"
             sections.append(harness.Section(heading, COLUMNS, table_rows(rows), notes))
     finally:
         if client is not None:

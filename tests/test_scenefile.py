@@ -48,7 +48,7 @@ def test_builtin_round_trip(name, tmp_path):
 
 def test_builtins_cover_the_paper_and_design_scenes():
     names = set(tx.builtin_scenes())
-    assert {"scan", "scan-azimuth", "scan-pitch", "scan-azimuth-planetary", "paper-table2"} <= names
+    assert {"scan", "scan-azimuth", "scan-pitch", "scan-azimuth-planetary", "scan-azimuth-fast", "paper-table2"} <= names
     for table in ("table3", "table6", "table7"):
         assert sum(n.startswith(f"paper-{table}-") for n in names) == 6
 
@@ -84,6 +84,9 @@ def test_table2_and_design_scenes_are_the_builder_calls():
     _same_model(tx.load_scene("scan-azimuth").build(), tx.scan("azimuth", fidelity=("lumped", "ideal")))
     _same_model(tx.load_scene("scan-pitch").build(), tx.scan("pitch", fidelity=("ideal", "lumped")))
     _same_model(tx.load_scene("scan-azimuth-planetary").build(), tx.scan("azimuth", fidelity=("planetary", "ideal")))
+    fast = tx.load_scene("scan-azimuth-fast")
+    _same_model(fast.build(), tx.scan("azimuth", fidelity=("planetary-scaled", "ideal"), mass_scaling=1000.0))
+    assert (fast.run["rtol"], fast.run["atol"], fast.run["pcoeff"], fast.run["icoeff"]) == (1e-3, 1e-6, 0.3, 0.3)
 
 
 def test_every_key_is_documented():
