@@ -301,12 +301,14 @@ def main():
         "includes start-up and compilation in each worker and their rate after start-up is read from the "
         "chunk-completion times (the samples of the chunks that came back after the first one per worker, over "
         "the time from then to the last).",
-        "Reading it: wall-clock times on a shared machine. Where the load average is above the core count, "
-        "several worker processes get more of the machine's time slices than one process does, which favours "
+        "Reading it: wall-clock times. Each row gives the load average before and after its calls: the run's "
+        "own driver, workers and Dask cluster raise it to about 2-3 on 2 cores, so a figure is a quiet-machine "
+        "one where the load at the start was below 1.5 (nothing else running). Where other work shares the "
+        "machine, several worker processes get more of its time slices than one process does, which favours "
         "processes and dask over vmap. The processes rate after start-up rests on the chunks that came back "
-        "after each worker's first, and it is too low when the workers finish starting at different times. The "
-        "predicted cold-call times in each section's closing note are start-up + samples / rate after start-up, "
-        "with that section's figures.",
+        "after each worker's first: with few chunks it is noisy (too low when the workers finish starting at "
+        "different times). The predicted cold-call times in each section's closing note are start-up + "
+        "samples / rate after start-up, with that section's figures.",
     ]
     if jax.devices()[0].platform == "cpu":
         intro.append(

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 from . import _validate
+from .cache import exported_jit
 
 DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
@@ -145,7 +146,9 @@ def _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_
 
 
 _solve_jit = eqx.filter_jit(_solve)
-_solve_cpu = eqx.filter_jit(_solve, compiler_options=CPU_COMPILER_OPTIONS)
+# The top-level solve (concrete inputs): its traced program is kept between processes with the
+# compilation cache (`tolerax.cache.exported_jit`); under a caller's transformation, `_solve_jit`.
+_solve_cpu = exported_jit(_solve, compiler_options=CPU_COMPILER_OPTIONS)
 
 
 def solve(

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 from jaxtyping import Array
+from ..cache import exported_jit
 from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries, lost_motion_weights
 from .objectives import UNITS, PointingObjective, unit_output, value_and_jacobian
@@ -404,6 +405,13 @@ def _cheapest_accepted(costs, quantiles, requirement, tol=0.01):
     return min(ok, key=lambda k: costs[k]) if ok else None
 
 
+@exported_jit
+def _objective_value(objective, x, draws, width):
+    """The design objective at `x` (one program per objective structure, kept between processes
+    with the compilation cache: `tolerax.cache.exported_jit`)."""
+    return objective(x, draws, width)
+
+
 def propose_design(
     pointing: PointingObjective,
     requirement: float,
@@ -482,7 +490,7 @@ def propose_design(
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
-    baseline_objective = float(eqx.filter_jit(objective)(x0, draws, widths[-1]))
+    baseline_objective = float(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])))
     checks = []
     if method == "sequential":
         result = _sequential_continuation(problem, requirement, widths, max_outer, progress, callback)

@@ -49,6 +49,7 @@ import optimistix as optx
 import scipy.optimize
 import tqdm
 
+from ..cache import exported_jit
 from .cost import AbstractCostModel
 from .optimise import Design, Features, History, OptimisationResult, optimality_residual
 
@@ -70,10 +71,11 @@ def _bisect(fn, lower, upper):
     return jnp.clip(root, lower, upper)
 
 
-@eqx.filter_jit
+@exported_jit
 def _value_and_grad(objective, x, draws, width):
     # One program per objective structure, shared by every call (starts, smoothing widths): the
-    # width and the draws are arrays.
+    # width and the draws are arrays. Kept between processes with the compilation cache (its
+    # tracing through the solve is most of a warm design's start: `tolerax.cache.exported_jit`).
     return jax.value_and_grad(lambda x_: objective(x_, draws, width))(x)
 
 
@@ -84,7 +86,7 @@ def _value_and_jacobian(objective, x, draws, width):
     return f(x), jax.jacrev(f)(x)
 
 
-@eqx.filter_jit
+@exported_jit
 def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
     """Exact minimiser of the linearised problem over the boxes `l_box`, `b_box` (pairs of
     arrays): `(l, b, multiplier, predicted f)`; the multiplier is `inf` when even the tightest

@@ -33,7 +33,7 @@ import xarray as xr
 from jax.sharding import Mesh, PartitionSpec
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
-from ..cache import compilation_cache_dir, enable_compilation_cache
+from ..cache import compilation_cache_dir, enable_compilation_cache, exported_jit
 from .checkpoint import atomic_write, chunk_path, open_folder
 from .results import MonteCarloResult
 from .sampling import Tolerances, sample
@@ -47,8 +47,10 @@ _FORMAT = "tolerax-samples/1"
 # Evaluating a chunk: vmap inside, sharded over the local devices.
 
 
-@eqx.filter_jit
+@exported_jit
 def _vmapped(model, values):
+    # Kept between processes with the compilation cache (`tolerax.cache.exported_jit`): a warm
+    # driver or worker neither traces nor compiles the chunk's program.
     return jax.vmap(model)(values)
 
 
