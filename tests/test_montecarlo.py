@@ -199,6 +199,37 @@ def test_sharded_over_four_devices_equals_one(tmp_path):
     assert sharded.dataset.identical(one.dataset)
 
 
+def test_sharded_run_takes_a_model_pinned_to_one_device():
+    """A model holding an array committed to one device (`jax.device_put(w, device)`) runs sharded
+    over 4 devices (the engine replicates the model's arrays over the mesh; it raised
+    "incompatible devices" before) and gives the closed form w . v for every unit."""
+    script = textwrap.dedent(
+        """
+        import equinox as eqx, jax, jax.numpy as jnp, numpy as np
+        from tolerax.uncertainty.montecarlo import monte_carlo
+        from tolerax.uncertainty.sampling import Tolerances, sample
+        assert jax.local_device_count() == 4, jax.devices()
+
+        class Pinned(eqx.Module):
+            w: jax.Array
+
+            def __call__(self, v):
+                return {"y": jnp.dot(self.w, v), "success": jnp.array(True)}
+
+        t = Tolerances(("a", "b"), [1.0, 2.0], [0.1, 0.1])
+        model = Pinned(jax.device_put(jnp.array([1.0, 2.0]), jax.devices()[2]))
+        r = monte_carlo(model, t, 10, jax.random.key(0), chunk_size=3, progress=False)
+        expected = np.asarray(sample(t, jax.random.key(0), 10)) @ np.array([1.0, 2.0])
+        np.testing.assert_allclose(r.dataset["y"].values, expected, rtol=1e-15)
+        print("ok")
+        """
+    )
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu",
+               PYTHONPATH=os.pathsep.join(sys.path))
+    out = subprocess.run([sys.executable, "-c", script], env=env, check=True, timeout=120, capture_output=True, text=True)
+    assert out.stdout.strip().endswith("ok")
+
+
 def test_sharded_physical_scan_objective_equals_one_device(tmp_path):
     """The project's own objective (the lumped azimuth scan through diffrax) sharded over 4
     forced CPU devices equals one device (issue 32: it failed inside the solve's loop with JAX's

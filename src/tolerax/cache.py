@@ -174,7 +174,7 @@ def exported_jit(fn, *, compiler_options: dict | None = None):
     on concrete arrays only (at the top level, not inside `jit`, `vmap` or `grad`): an exported
     program is not differentiated or batched here."""
     jitted = eqx.filter_jit(fn, compiler_options=compiler_options)
-    programs = {}  # key -> (Exported, output skeleton), this process
+    programs = {}  # key -> (the jitted exported program, its output structure), or False: this process
 
     @functools.wraps(fn)
     def call(*args):

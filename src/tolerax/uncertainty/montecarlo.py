@@ -30,7 +30,7 @@ import equinox as eqx
 import jax
 import numpy as np
 import xarray as xr
-from jax.sharding import Mesh, PartitionSpec
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
 from ..cache import compilation_cache_dir, enable_compilation_cache, exported_jit
@@ -56,6 +56,8 @@ def _vmapped(model, values):
 
 @functools.cache
 def _sharded(n_devices: int):
+    """The chunk's program over `n_devices` local devices, and the sharding that replicates an
+    array over them."""
     mesh = Mesh(np.array(jax.local_devices()[:n_devices]), ("sample",))
     spec = PartitionSpec("sample")
 
@@ -69,7 +71,7 @@ def _sharded(n_devices: int):
         # no collective, which is what the check guards; JAX's message names this workaround.
         return jax.shard_map(lambda v: jax.vmap(model)(v), mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)(values)
 
-    return run
+    return run, NamedSharding(mesh, PartitionSpec())
 
 
 def evaluate(model, values: np.ndarray, size: int | None = None) -> dict[str, np.ndarray]:
@@ -81,8 +83,24 @@ def evaluate(model, values: np.ndarray, size: int | None = None) -> dict[str, np
     size = max(size or n, n)
     size = -(-size // n_devices) * n_devices
     padded = np.concatenate([values, np.repeat(values[-1:], size - n, axis=0)])
-    run = _vmapped if n_devices == 1 else _sharded(n_devices)
-    out = jax.device_get(run(model, padded))
+    if n_devices == 1:
+        out = _vmapped(model, padded)
+    else:
+        run, replicated = _sharded(n_devices)
+        # The model's arrays go to every device: one committed to a single device (a user's
+        # `jax.device_put`) would otherwise clash with the mesh ("incompatible devices").
+        arrays, rest = eqx.partition(model, eqx.is_array)
+        try:
+            out = run(eqx.combine(jax.device_put(arrays, replicated), rest), padded)
+        except Exception as err:
+            raise RuntimeError(
+                f"monte_carlo: the model failed when its chunk was split over the {n_devices} local devices "
+                f"(jax.shard_map): {type(err).__name__}: {err}\nThe units are independent, so one device computes "
+                "them too (to the solver's error): make one device visible before starting Python "
+                "(CUDA_VISIBLE_DEVICES=0 on GPUs; on a CPU, no --xla_force_host_platform_device_count in XLA_FLAGS), "
+                "or run each chunk in a worker of its own (backend='processes' or 'dask' with one device per worker)."
+            ) from err
+    out = jax.device_get(out)
     return {name: np.asarray(x)[:n] for name, x in out.items()}
 
 
@@ -362,7 +380,9 @@ def monte_carlo(
 
     - `"vmap"`: in this process, `jax.vmap(model)` over each chunk, jit-compiled once; with
       several local devices (GPUs, or `XLA_FLAGS=--xla_force_host_platform_device_count=N` on a
-      CPU), each chunk is split over them with `jax.shard_map`. On GPUs take large chunks. On CPUs
+      CPU), each chunk is split over them with `jax.shard_map` (the model's arrays replicated on
+      every device; a model that fails there raises an error that says how to run it on one
+      device). On GPUs take large chunks. On CPUs
       a vmapped adaptive solve steps until its slowest sample is done, so batching gains most
       where samples cost alike (benchmarks/results/monte_carlo_throughput.md). For thousands of
       samples on a many-core machine `"processes"` wins once its start-up (one compile per
