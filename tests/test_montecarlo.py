@@ -188,6 +188,10 @@ def test_sharded_over_four_devices_equals_one(tmp_path):
         # chunk 6 is padded to 8 (a multiple of 4 devices); the last chunk holds 2 samples.
         r = monte_carlo(_mc_helpers.Nonlinear(), t, 20, jax.random.key(2024), chunk_size=6, progress=False)
         r.save({str(tmp_path / "sharded.nc")!r})
+        # Sobol indices run through the same engine: sharded too.
+        from tolerax.uncertainty.sensitivity import sobol_indices
+        s = sobol_indices(_mc_helpers.Nonlinear(), t, 16, jax.random.key(5), output="y", chunk_size=6, progress=False)
+        s.indices.to_netcdf({str(tmp_path / "sobol.nc")!r}, engine="h5netcdf")
         """
     )
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu",
@@ -197,6 +201,10 @@ def test_sharded_over_four_devices_equals_one(tmp_path):
     one = monte_carlo(helpers.Nonlinear(), TOLERANCES, 20, KEY, chunk_size=6, **QUIET)
     assert jax.local_device_count() == 1
     assert sharded.dataset.identical(one.dataset)
+    import xarray as xr
+
+    sobol_one = sobol_indices(helpers.Nonlinear(), TOLERANCES, 16, jax.random.key(5), output="y", chunk_size=6, **QUIET)
+    xr.testing.assert_identical(xr.load_dataset(tmp_path / "sobol.nc", engine="h5netcdf"), sobol_one.indices)
 
 
 def test_sharded_run_takes_a_model_pinned_to_one_device():
