@@ -132,11 +132,12 @@ def _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed
 
 
 def _design_setup(parser, args, command):
-    """The checks and inputs `design` and `tradeoff` share: `(scene_file, propose_design's
-    options)` (the starting band and the fixed features among them), or `None` after printing
-    why (exit 2)."""
+    """The checks and inputs `design` and `tradeoff` share: `(out, scene_file, propose_design's
+    options)` (the output folder checked; the starting band and the fixed features among the
+    options), or `None` after printing why (exit 2)."""
     from ..io import scenefile as F
 
+    out = check_out(parser, args.out)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return None
@@ -155,12 +156,11 @@ def _design_setup(parser, args, command):
         parser.error("--check needs --yield (it checks the yield of the proposal)")
     if args.secant_units is not None and args.yield_ is None:
         parser.error("--secant-units needs --yield (it linearises the yield objective)")
-    n_features = len(_feature_names(scene_file))
-    if args.secant_units is not None and args.secant_units <= n_features:
-        parser.error(f"--secant-units must exceed the scene's {n_features} design features (a line through K units), got {args.secant_units}")
+    names = _feature_names(scene_file)
+    if args.secant_units is not None and args.secant_units <= len(names):
+        parser.error(f"--secant-units must exceed the scene's {len(names)} design features (a line through K units), got {args.secant_units}")
     # Given, not designed: held at the scene's nominal +- its own band.
     fixed = {name: tol.get("bands", {}).get(name, band) for name in tol.get("fixed", [])}
-    names = _feature_names(scene_file)
     minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
     if isinstance(minima, dict):
         minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
@@ -172,7 +172,7 @@ def _design_setup(parser, args, command):
         options["cost_model"] = cost_model(None, tol["cost"])
     options.update(dict(n_draws=args.draws) if args.yield_ is None
                    else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
-    return scene_file, options
+    return out, scene_file, options
 
 
 def _statistic(args) -> str:
@@ -204,11 +204,10 @@ def design_command(parser, args) -> int:
 
     from ..io import scenefile as F
 
-    out = check_out(parser, args.out)
     setup = _design_setup(parser, args, "design")
     if setup is None:
         return 2
-    scene_file, options = setup
+    out, scene_file, options = setup
     requirement = args.requirement if args.requirement is not None else scene_file.requirement
     if requirement is None:
         parser.error(f"scene {scene_file.name!r} sets no [tolerances] requirement: give --requirement (arcsec, RMS pointing)")
@@ -303,11 +302,10 @@ def tradeoff_command(parser, args) -> int:
 
     from ..io import scenefile as F
 
-    out = check_out(parser, args.out)
     setup = _design_setup(parser, args, "tradeoff")
     if setup is None:
         return 2
-    scene_file, options = setup
+    out, scene_file, options = setup
     requirements = sorted(set(args.requirements))
     pointing = scene_file.objective()
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
