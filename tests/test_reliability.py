@@ -194,6 +194,48 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units(scan_pointin
         rel.LinearisedYield(scan_pointing, slope_width=1e-6, secant_units=8)
 
 
+def test_secant_gradient_noise_is_the_slopes_scatter_through_the_quantile(scan_pointing, monkeypatch):
+    """`secant_gradient_noise` on a response known exactly: a line in the features plus
+    independent noise of standard deviation sigma per unit (the simulation replaced). (1) The
+    slopes' standard errors equal the spread of the fitted slopes over 3000 noise realisations
+    (Monte Carlo, 5 %: its own sampling error is 1.3 %; the
+    squared errors averaged over the realisations). (2) The band's factor |1 + u_bar| equals
+    the ratio of the quantile's derivatives in band and lower limit, by central differences of
+    the linearised quantile (2e-3)."""
+    s_true = np.array([4.0e6, 8.0e6, 0.5e6])  # arcsec/m
+    sigma, rng = 2.0, [np.random.default_rng(7)]
+
+    def fake(pointing, output, units, width):
+        return jnp.asarray(100.0 + (np.asarray(units) - 40e-6) @ s_true + sigma * rng[0].standard_normal(units.shape[0]))
+
+    monkeypatch.setattr(rel, "_simulate_units", fake)
+    x = tx.Design(jnp.array([40e-6, 30e-6, 60e-6]), jnp.array([10e-6, 5e-6, 20e-6]))
+    objective = rel.LinearisedYield(scan_pointing, q=0.99, secant_units=12)
+    runs = [rel._secant_noise(objective, x, None) for _ in range(3000)]
+    fits, se = np.array([r[1][0] for r in runs]), np.array([r[3][0] for r in runs])
+    # Each fit's standard error rests on its own residuals (8 degrees of freedom: itself 25 %
+    # uncertain); its square is unbiased for the slope's variance, so compare their mean.
+    np.testing.assert_allclose(np.sqrt(np.mean(se**2, axis=0)), np.std(fits, axis=0, ddof=1), rtol=0.05)
+
+    draws = rel.yield_draws(3, 4096)
+    rng[0] = np.random.default_rng(11)
+    noise = rel.secant_gradient_noise(objective, x, draws)
+    assert noise.shape == (6,)
+    rng[0] = np.random.default_rng(11)  # the same fit again: its slopes
+    slopes = rel._secant_noise(objective, x, None)[1][0]
+
+    def quantile(l, b):  # the design objective of a line with these slopes, at lower limit l
+        return float(rel.linear_quantile(float(slopes @ (l + b)), jnp.asarray(slopes), tx.Design(l + b, b), draws, 0.99))
+
+    l, b, h = np.asarray(x.nominal - x.band), np.asarray(x.band), 1e-9
+    for i in range(3):
+        e = np.eye(3)[i] * h
+        d_l = (quantile(l + e, b) - quantile(l - e, b)) / (2 * h)
+        d_b = (quantile(l, b + e) - quantile(l, b - e)) / (2 * h)
+        assert d_l == pytest.approx(slopes[i], rel=1e-6)
+        assert noise[3 + i] / noise[i] == pytest.approx(abs(d_b / d_l), rel=2e-3), i
+
+
 def test_the_proposal_after_checks_is_the_cheapest_accepted():
     """After several Monte Carlo checks, the proposal is the cheapest design whose simulated
     quantile met the requirement (to 1 %), not the last re-solve; none accepted: `None` (the

@@ -182,7 +182,10 @@ class OptimisationResult(eqx.Module):
     - `history`: a `History`.
     - `optimality` (property): the first-order optimality residual at `x` (`optimality_residual`);
       `band_optimality`: the same over the bands alone, the lower limits held (they carry no
-      cost, and their derivative is noise on an objective rough at small scales).
+      cost, and their derivative is noise on an objective rough at small scales);
+      `band_optimality_within_noise`: the bands' residual within the sensitivities' noise.
+    - `sensitivity_se` (optional): standard errors of `sensitivity` where it is an estimate
+      (slopes fitted over a few simulated units: `sequential_design(gradient_noise=...)`).
     """
 
     x: Design
@@ -200,6 +203,7 @@ class OptimisationResult(eqx.Module):
     converged: Bool[Array, ""]
     iteration: Int[Array, ""]
     history: History
+    sensitivity_se: Design | None = None
 
     @property
     def optimality(self) -> float:
@@ -218,8 +222,21 @@ class OptimisationResult(eqx.Module):
             sensitivity = sensitivity[np.asarray(self.constraint_active, dtype=bool)]
         return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band), np.asarray(self.at_upper.band))
 
+    @property
+    def band_optimality_within_noise(self) -> float:
+        """`band_optimality` within 2 standard errors of the sensitivities (`sensitivity_se`,
+        where they are estimates: `optimality_residual(gradient_se=...)`); NaN without them."""
+        if self.sensitivity_se is None:
+            return float("nan")
+        sensitivity, se = np.asarray(self.sensitivity.band), np.asarray(self.sensitivity_se.band)
+        if sensitivity.ndim == 2:
+            active = np.asarray(self.constraint_active, dtype=bool)
+            sensitivity, se = sensitivity[active], se[active]
+        return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band),
+                                   np.asarray(self.at_upper.band), se)
 
-def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
+
+def optimality_residual(cost_gradient, gradient, at_lower, at_upper, gradient_se=None, k: float = 2.0) -> float:
     """The first-order (KKT) optimality residual of $\\min C$ s.t. $f \\le R$ in a box:
     $\\min_{\\lambda \\ge 0} \\|P(\\nabla C + \\lambda\\nabla f)\\| / \\|P(\\nabla C)\\|$, where $P$
     projects onto the directions the box lets the design move in (a variable on its lower bound
@@ -237,7 +254,16 @@ def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
     variable sits on its lower or upper bound (on both: fixed, left out). Several (active) constraints: `gradient` of
     shape (m, n), one row each, and $\\lambda \\in \\mathbb{R}^m_{\\ge 0}$ found by bounded
     quasi-Newton (`scipy.optimize.minimize`, L-BFGS-B: the squared projected norm is convex and
-    once differentiable); no rows: $\\lambda = 0$."""
+    once differentiable); no rows: $\\lambda = 0$.
+
+    `gradient_se` (optional, the shape of `gradient`): standard errors of the constraints'
+    gradients where they are estimates (slopes fitted over a few simulated units of a chaotic
+    response: `secant_gradient_noise`). The residual is then *within that noise*: each
+    component of $P(\\nabla C + \\lambda^T\\nabla f)$ is shrunk towards 0 by `k` standard errors
+    of $\\lambda^T\\nabla f$ there, $k\\,\\lambda^T \\sigma$ (soft thresholding), before the norm:
+    0 where some gradients within `k` standard errors of the estimates make the design a KKT
+    point, i.e. where no first-order improvement is distinguishable from the estimates' noise.
+    The shrunk squared norm is still convex in $\\lambda$ and once differentiable (L-BFGS-B)."""
     dc, grad = np.asarray(cost_gradient, dtype=float), np.asarray(gradient, dtype=float)
     at_lower, at_upper = np.asarray(at_lower, dtype=bool), np.asarray(at_upper, dtype=bool)
     free = ~(at_lower & at_upper)  # a variable on both bounds (a fixed feature) cannot move at all
@@ -249,6 +275,25 @@ def optimality_residual(cost_gradient, gradient, at_lower, at_upper) -> float:
     scale = np.linalg.norm(project(dc))
     if scale == 0.0:
         return 0.0
+    if gradient_se is not None:
+        se = np.asarray(gradient_se, dtype=float)
+        if se.shape != np.asarray(gradient).shape or not np.all(np.isfinite(se) & (se >= 0)):
+            raise ValueError(f"optimality_residual: gradient_se must be finite, >= 0 and shaped like gradient {np.shape(gradient)}, "
+                             f"got shape {se.shape}.")
+        rows, se = np.atleast_2d(grad), float(k) * np.atleast_2d(se[..., free])
+        if rows.shape[0] == 0:
+            return 1.0
+
+        def shrunk(lam):
+            p = project(dc + lam @ rows)
+            e = np.maximum(np.abs(p) - lam @ se, 0.0) * np.sign(p)
+            # d|p|/dlam = sign(p) rows where p is counted (project keeps it), d(threshold) = se
+            return e @ e, 2.0 * ((rows * np.sign(p)) - se) @ np.abs(e)
+
+        best = min((scipy.optimize.minimize(shrunk, np.full(rows.shape[0], start), jac=True, method="L-BFGS-B",
+                                            bounds=[(0.0, None)] * rows.shape[0], options=dict(ftol=1e-15, gtol=1e-14)).x
+                    for start in (0.0, float(np.linalg.norm(dc) / max(np.linalg.norm(rows), 1e-300)))), key=lambda lam: shrunk(lam)[0])
+        return float(np.sqrt(shrunk(best)[0]) / scale)
     if grad.ndim == 2 and grad.shape[0] == 1:
         grad = grad[0]
     if grad.ndim == 2:

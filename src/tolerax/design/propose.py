@@ -21,7 +21,7 @@ from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries, lost_motion_weights
 from .objectives import UNITS, PointingObjective, unit_output, value_and_jacobian
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
-from .reliability import LinearisedYield, YieldCheck, yield_check, yield_draws
+from .reliability import LinearisedYield, YieldCheck, secant_gradient_noise, yield_check, yield_draws
 from .sequential import sequential_design
 from ..uncertainty.sampling import unit_draws
 
@@ -276,6 +276,17 @@ class DesignProblem:
     upper: Design
     x0: Design
     cost_model: AbstractCostModel
+
+    @property
+    def gradient_noise(self):
+        """For `sequential_design(gradient_noise=...)`: `noise(x, width)`, the standard errors
+        (arcsec/m) of the objective's gradient at `x` (`Design(lower limit, band)`) where it is
+        fitted by secants over a few units (`secant_gradient_noise`); `None` where the gradient
+        is exact (tangents)."""
+        inner = self.objective.objective
+        if not isinstance(inner, LinearisedYield) or inner.secant_units is None:
+            return None
+        return lambda x, width: secant_gradient_noise(inner, Design(x.nominal + x.band, x.band), self.draws, width)
 
 
 def design_problem(

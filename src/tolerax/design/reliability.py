@@ -233,15 +233,12 @@ def _simulate_units(pointing, output, values, width):
     return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
 
 
-def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
-    """The standard error (output units) of the value $f$ that `objective`'s secant fit finds
-    at the design `x` (`Design(middle, half-width)`, m): the residual standard deviation of the
-    least-squares line through its `secant_units` units, times
-    $\\sqrt{[(X^T X)^{-1}]_{00}}$ ($X$ the fit's design matrix). Where the response scatters about
-    its trend from unit to unit (chaotic rattle: the jitter), the linearised quantile moves by
-    about this much from one design to the next for no other reason; a tolerance on that
-    constraint below it makes an optimiser chase noise (`sequential_design(tol=...)`). One batch
-    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`."""
+def _secant_noise(objective: LinearisedYield, x: Design, width):
+    """`(value, slopes, value_se, slope_se)` of the least-squares line `objective`'s secant fit
+    draws at the design `x` (`Design(middle, half-width)`, m), from one batch of its
+    `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
+    errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
+    fit's design matrix), slopes' in output units per m."""
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
@@ -256,10 +253,53 @@ def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
     if dof < 1:
         raise ValueError(f"secant_standard_error: {int(ok.sum())} successful units leave no residual to estimate the noise from "
                          f"({n} features): use more secant_units.")
-    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]
-    sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)
-    se = sigma * np.sqrt(np.linalg.pinv(rows.T @ rows)[0, 0])
+    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]  # (1 + n, k)
+    sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
+    root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
+    per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
+    return coef[0], coef[1:].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1:] * per_m
+
+
+def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
+    """The standard error (output units) of the value $f$ that `objective`'s secant fit finds
+    at the design `x` (`Design(middle, half-width)`, m): the residual standard deviation of the
+    least-squares line through its `secant_units` units, times
+    $\\sqrt{[(X^T X)^{-1}]_{00}}$ ($X$ the fit's design matrix). Where the response scatters about
+    its trend from unit to unit (chaotic rattle: the jitter), the linearised quantile moves by
+    about this much from one design to the next for no other reason; a tolerance on that
+    constraint below it makes an optimiser chase noise (`sequential_design(tol=...)`). One batch
+    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`."""
+    se = _secant_noise(objective, x, width)[2]
     return se if isinstance(objective.output, tuple) else float(se[0])
+
+
+def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=None, lower_limit: bool = True) -> np.ndarray:
+    """Standard errors of the gradient of `objective` (its linearised quantile) with respect to
+    the design variables, from the scatter of its secant fit: shape (2n,) (lower limits or
+    middles, then bands), or (k, 2n) for k outputs; arcsec/m.
+
+    The quantile's gradient is linear in the fitted slopes $s$: with the lower limit $l$ and the
+    half-width $b$ as variables (`FromLowerLimit`, `lower_limit=True`; the zone middle is
+    $l + b$), $\\partial Q/\\partial l_i = s_i$ and $\\partial Q/\\partial b_i = s_i(1 + \\bar u_i)$,
+    $\\bar u_i$ the Harrell–Davis-weighted mean of the standardised deviation $u_i$ of the units
+    at the quantile (in $[-1, 1]$; `lower_limit=False`: $s_i \\bar u_i$ for the middle held).
+    Their standard errors are those of $s$ (`_secant_noise`) times 1 and $|1 + \\bar u_i|$; the
+    dependence of $\\bar u$ on $s$ (which units sit at the quantile) is left out. Evaluated at
+    the zone `x` = `Design(middle, half-width)` (m), with the quantile draws `draws`
+    (`yield_draws`). For `sequential_design(gradient_noise=...)` and `optimality_residual`'s
+    `gradient_se`. One batch of `secant_units` forward solves."""
+    value, slopes, _, slope_se = _secant_noise(objective, x, width)
+    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
+    deltas = realise(Design(middle, band), draws) - middle
+    u = deltas / jnp.where(band > 0, band, 1.0)
+
+    def weights(f, s):  # d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
+        return jax.grad(lambda t: robust(f + u @ t, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
+
+    u_bar = np.asarray(jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes)))
+    band_factor = np.abs(1.0 + u_bar) if lower_limit else np.abs(u_bar)
+    noise = np.concatenate([slope_se, slope_se * band_factor], axis=1)
+    return noise if isinstance(objective.output, tuple) else noise[0]
 
 
 def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: int, key, width=None, chunk: int = 50) -> YieldCheck:
