@@ -21,7 +21,7 @@ from .cost import AbstractCostModel, IsoGrade, grade_of
 from .features import design_names, design_of, feature_entries, lost_motion_weights
 from .objectives import UNITS, PointingObjective, unit_output, value_and_jacobian
 from .optimise import Design, Features, OptimisationResult, optimise_design, realise, robust
-from .reliability import LinearisedYield, YieldCheck, secant_gradient_noise, yield_check, yield_draws
+from .reliability import LinearisedYield, YieldCheck, secant_gradient_noise, secant_standard_error, yield_check, yield_draws
 from .sequential import sequential_design
 from ..uncertainty.sampling import unit_draws
 
@@ -113,6 +113,33 @@ class FromLowerLimit(eqx.Module):
 
 
 @dataclasses.dataclass(frozen=True)
+class JitterRequirement:
+    """The pointing-stability part of a proposal with two requirements (`DesignReport.jitter`).
+
+    - `requirement` (arcsec): the jitter (RMS of the pointing error above `cutoff` Hz over the
+      window) that a fraction `yield_` of units must meet; `objective` (arcsec): its linearised
+      quantile at the proposal; `baseline` (arcsec): the same at the starting design.
+    - `constraint_active`, `multiplier` (cost per arcsec), `tol` (relative: the tolerance the
+      optimiser held it to, twice its secant fit's standard error).
+    - `sensitivity` (arcsec/m): d quantile / d (nominal, band), fitted over units (secants).
+    - `target` (arcsec): the (shifted) requirement the returned design was solved for;
+      `checks`: the Monte Carlo checks of the jitter (`YieldCheck`, the same units as the
+      lost-motion checks).
+    """
+
+    requirement: float
+    cutoff: float
+    objective: float
+    constraint_active: bool
+    multiplier: float
+    sensitivity: Design
+    baseline: float
+    tol: float
+    target: float
+    checks: tuple[YieldCheck, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
 class DesignReport:
     """What `propose_design` proposes, and why.
 
@@ -132,6 +159,11 @@ class DesignReport:
       whose simulated quantile met the requirement to 1 %, else the last one checked).
     - `lost_motion` (arcsec/m): the geometric stack-up's weight of each feature
       (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities.
+    - `jitter`: the stability requirement's part (`JitterRequirement`) where one was given
+      (`propose_design(jitter=...)`), else `None`; the fields above are then the lost-motion
+      requirement's.
+    - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
+      (`target`).
     """
 
     names: tuple[str, ...]
@@ -151,6 +183,8 @@ class DesignReport:
     checks: tuple[YieldCheck, ...] = ()
     lost_motion: np.ndarray | None = None
     fixed: tuple[str, ...] = ()
+    jitter: "JitterRequirement | None" = None
+    solved_for: float | None = None
 
     @property
     def target(self) -> float:
@@ -158,25 +192,28 @@ class DesignReport:
         itself, or, where a Monte Carlo check found the linear model under- or over-reading
         the quantile and the design was solved again, the requirement shifted by that check
         (`requirement - shift`, the SORA correction)."""
+        if self.solved_for is not None:
+            return self.solved_for
         return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature."""
-        geometric = self.lost_motion is not None
+        geometric, jitter = self.lost_motion is not None, self.jitter
         rows = [
             "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
-            + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
-            "|---|---|---|---|---|---|---|" + ("---|" if geometric else ""),
+            + (" d jitter / d nominal (arcsec/µm) |" if jitter else "") + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
+            "|---|---|---|---|---|---|---|" + ("---|" if jitter else "") + ("---|" if geometric else ""),
         ]
         for k, name in enumerate(self.names):
             low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
                 f"| {name}{' (given)' if name in self.fixed else ''} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
+                + (f" {float(jitter.sensitivity.nominal[k]) * 1e-6:.3g} |" if jitter else "")
                 + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
             )
         if geometric:
-            rows += ["", self._weights_text(), "", self._split_text()]
+            rows += ["", self._weights_text(), "", self._split_text()] + (["", self._split_text(jitter=True)] if jitter else [])
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         head = (
             f"Proposed design: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
@@ -188,6 +225,17 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
+        if jitter:
+            head += (
+                f"\n\nStability: jitter (RMS pointing error above {jitter.cutoff:g} Hz), {self.yield_:.1%} quantile (linearised, "
+                f"secants) {jitter.objective:.4g} arcsec against {jitter.requirement:.4g} arcsec "
+                + (f"(shifted to {jitter.target:.4g} by the check before) " if jitter.target != jitter.requirement else "")
+                + f"(baseline {jitter.baseline:.4g}): "
+                + ("met" if jitter.objective <= jitter.target * (1 + jitter.tol) else "**not met** (the tightest design the optimiser "
+                   "reached does not meet it)")
+                + f", constraint {'active' if jitter.constraint_active else 'inactive'} to {jitter.tol:.0%} (twice its fit's standard error)."
+                + (" Jitter check: " + jitter.checks[-1].text() + "." if jitter.checks else "")
+            )
         return head + "\n\n" + "\n".join(rows)
 
     def _weights_text(self) -> str:
@@ -212,7 +260,15 @@ class DesignReport:
         dynamics part $\\sum_i r_i^2 b_i^2/3$. The shares sum to 1; $c$ is the arcsec of the
         objective per arcsec of lost motion (e.g. 0.72 for the RMS on the design scan, issue 30).
         NaN where the drawings weigh nothing or the bands are all zero."""
-        s, w, b2 = (np.asarray(self.sensitivity.nominal, dtype=float), np.asarray(self.lost_motion, dtype=float),
+        return self._split_of(self.sensitivity.nominal)
+
+    @property
+    def jitter_split(self) -> tuple[float, float, float]:
+        """`split` of the jitter requirement's sensitivities (NaN without one)."""
+        return (math.nan,) * 3 if self.jitter is None else self._split_of(self.jitter.sensitivity.nominal)
+
+    def _split_of(self, sensitivity) -> tuple[float, float, float]:
+        s, w, b2 = (np.asarray(sensitivity, dtype=float), np.asarray(self.lost_motion, dtype=float),
                     np.asarray(self.band, dtype=float) ** 2)
         total, ww = float(np.sum(s * s * b2)), float(np.sum(w * w * b2))
         if total == 0.0 or ww == 0.0:
@@ -221,12 +277,14 @@ class DesignReport:
         lost = c * c * ww / total
         return lost, 1.0 - lost, c
 
-    def _split_text(self) -> str:
-        lost, dynamics, c = self.split
+    def _split_text(self, jitter: bool = False) -> str:
+        lost, dynamics, c = self.jitter_split if jitter else self.split
+        what = "jitter's" if jitter else "objective's"
         if not math.isfinite(lost):
-            return "Split into lost motion and dynamics: not defined (no feature moves the output by the drawings, or no band)."
-        return (f"Of the objective's variation over the zones, {lost:.0%} is lost motion (the drawings' weights, scaled by "
-                f"{c:.3g} arcsec per arcsec of lost motion) and {dynamics:.0%} dynamics (what those weights do not explain: `DesignReport.split`).")
+            return f"Split of the {what} variation into lost motion and dynamics: not defined (no feature moves the output by the drawings, or no band)."
+        return (f"Of the {what} variation over the zones, {lost:.0%} is lost motion (the drawings' weights, scaled by "
+                f"{c:.3g} arcsec per arcsec of lost motion) and {dynamics:.0%} dynamics (what those weights do not explain: "
+                f"`DesignReport.{'jitter_split' if jitter else 'split'}`).")
 
     def _iteration_text(self) -> str:
         chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
@@ -244,12 +302,19 @@ class DesignReport:
         axes[0].plot(it, np.asarray(hist.cost), "o-", label="cost")
         ax2 = axes[0].twinx()
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
-        ax2.plot(it, np.asarray(hist.objective), "s--", color="C1", label=f"{what}, arcsec")
-        ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
+        objective = np.asarray(hist.objective)
+        if self.jitter is None:
+            ax2.plot(it, objective, "s--", color="C1", label=f"{what}, arcsec")
+            ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
+            ax2.set_ylabel(f"RMS pointing error ({UNITS['pointing_rms']})")
+        else:  # two requirements of different sizes: each over its own
+            ax2.plot(it, objective[:, 0] / self.requirement, "s--", color="C1", label=f"RMS {what} / requirement")
+            ax2.plot(it, objective[:, 1] / self.jitter.requirement, "^--", color="C2", label=f"jitter {what} / requirement")
+            ax2.axhline(1.0, color="0.3", lw=0.8, ls=":", label="requirement")
+            ax2.set_ylabel("objective / requirement")
         axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
         axes[0].set_xlabel("iteration (one gradient each)")
         axes[0].set_ylabel("tolerance cost (1 per feature at IT7)")
-        ax2.set_ylabel(f"RMS pointing error ({UNITS['pointing_rms']})")
         lines = axes[0].get_legend_handles_labels()
         more = ax2.get_legend_handles_labels()
         axes[0].legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper right")
@@ -384,18 +449,20 @@ def design_problem(
     )
 
 
-def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5):
+def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5,
+                             tol=0.01):
     """`sequential_design` once per smoothing width, wide to narrow, each started from the
     last design with a smaller trust region (a wide width smooths the contact onsets that make
     a narrow width's gradients unreliable far from the optimum); one result whose history runs
-    over all of them."""
+    over all of them. Where the slopes are fitted over units, the optimiser is told their
+    noise (`DesignProblem.gradient_noise`)."""
     results, x = [], problem.x0 if x0 is None else x0
     for k, width in enumerate(widths):
         done = sum(int(np.asarray(r.history.steps)[-1]) for r in results)  # gradients before this width
         result = sequential_design(
             problem.objective, problem.features, requirement=requirement, lower=problem.lower, upper=problem.upper,
             draws=problem.draws, x0=x, cost_model=problem.cost_model, width=width, max_iterations=max_iterations,
-            trust_region=trust if k == 0 else 0.1, progress=progress,
+            trust_region=trust if k == 0 else 0.1, progress=progress, tol=tol, gradient_noise=problem.gradient_noise,
             callback=None if callback is None else (lambda i, *rest, done=done: callback(done + i, *rest)),
         )
         results.append(result)
@@ -410,9 +477,10 @@ def _sequential_continuation(problem: DesignProblem, requirement, widths, max_it
 
 
 def _cheapest_accepted(costs, quantiles, requirement, tol=0.01):
-    """Index of the cheapest design whose simulated quantile met `requirement` to `tol`, or
-    `None` where none did."""
-    ok = [k for k, q in enumerate(quantiles) if q <= requirement * (1 + tol)]
+    """Index of the cheapest design whose simulated quantile met `requirement` to `tol` (each
+    of them, with several requirements: `quantiles` one array per design), or `None` where none
+    did."""
+    ok = [k for k, q in enumerate(quantiles) if np.all(np.asarray(q) <= np.asarray(requirement) * (1 + np.asarray(tol)))]
     return min(ok, key=lambda k: costs[k]) if ok else None
 
 
@@ -437,6 +505,7 @@ def propose_design(
     check_units: int | None = None,
     max_checks: int = 3,
     check_key=None,
+    jitter: float | None = None,
     **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
@@ -478,6 +547,18 @@ def propose_design(
       twice the check's standard error, the requirement the optimiser sees is shifted by the
       difference and the design solved again from where it was, at most `max_checks` checks
       (`method="sequential"` only).
+    - `jitter` (arcsec, optional): a pointing-stability requirement beside the lost-motion one:
+      the `yield_` quantile of `pointing_jitter` (the RMS of the pointing error above
+      `pointing.jitter_cutoff` Hz over the window; set `PointingObjective(jitter_cutoff=...)`)
+      at most `jitter`. Needs `yield_`. Both metrics are linearised by secants over
+      `secant_units` units of the zone (default max(16, 2 x features + 2); jitter tangents are
+      not its slopes: rattle is chaotic, benchmarks/results/stability_gradient.md), from the same
+      solves, so at the pointing objective's fidelity: give a planetary one (lumped jitter does
+      not predict the planetary stage's: issue 30 measured a correlation of -0.07 unit by
+      unit). The jitter's tolerance is twice its fit's standard error at the start
+      (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
+      noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
+      units and may shift either requirement. The report's `jitter` holds that part.
     - `**problem`: the problem's options, as `design_problem` takes them (starting band,
       functional minima, band range, manufactured units, robust statistic or `yield_`, cost
       model, gradient mode, `fixed` features).
@@ -497,33 +578,64 @@ def propose_design(
         raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
+    if jitter is not None:
+        if yield_ is None or method != "sequential":
+            raise ValueError("propose_design: a jitter requirement needs a yield requirement (yield_=...) and method='sequential': "
+                             "the jitter is linearised by secants over units of the zone, not by tangents (rattle is chaotic).")
+        if pointing.jitter_cutoff is None:
+            raise ValueError("propose_design: a jitter requirement needs a pointing objective that measures it: "
+                             "PointingObjective(..., jitter_cutoff=20.0) (Hz, the start of the stability band).")
+        if not (math.isfinite(float(jitter)) and float(jitter) > 0):
+            raise ValueError(f"propose_design: the jitter requirement must be > 0 (arcsec), got {jitter!r}.")
+        problem["output"] = (problem.get("output", "pointing_rms"), "pointing_jitter")
+        if problem.get("secant_units") is None:
+            problem["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
     problem = design_problem(pointing, **problem)
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
-    baseline_objective = float(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])))
-    checks = []
+    baseline_objective = np.asarray(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])), dtype=float)
+    checks, stability, solved_for = [], None, None
+    requirements = np.asarray([requirement] if jitter is None else [requirement, jitter], dtype=float)
+    tol = np.full(requirements.shape, 0.01)
+    if jitter is not None:
+        # The jitter scatters about its trend from unit to unit (chaotic rattle), so its fitted
+        # value moves by about its standard error from one design to the next for no other
+        # reason: a tolerance below twice that makes the optimiser chase noise.
+        se = secant_standard_error(objective.objective, Design(x0.nominal + x0.band, x0.band), widths[-1])
+        tol[1] = min(max(0.01, 2.0 * float(se[1]) / float(jitter)), 0.5)
+    as_requirement = (lambda r: float(r[0])) if jitter is None else (lambda r: tuple(float(v) for v in r))  # noqa: E731
     if method == "sequential":
-        result = _sequential_continuation(problem, requirement, widths, max_outer, progress, callback)
-        target = float(requirement)
+        result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
+        target = requirements.copy()
         key = jax.random.key(1) if check_key is None else check_key
-        checked = []  # (result, its check)
+        checked = []  # (result, its checks: one per requirement)
         for _ in range(max_checks if check_units else 0):
             middle = Design(result.x.nominal + result.x.band, result.x.band)
-            checks.append(yield_check(objective.objective, middle, requirement, check_units, key, widths[-1]))
-            checked.append((result, checks[-1]))
-            corrected = float(requirement) - checks[-1].shift
-            noise = max(0.01 * float(requirement), 2.0 * checks[-1].shift_se)  # a shift within the check's own noise is not one
-            if not math.isfinite(corrected) or abs(corrected - target) <= noise or len(checks) == max_checks:
+            got = yield_check(objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
+            got = got if jitter is not None else (got,)
+            checked.append((result, got, target.copy()))
+            corrected = requirements - np.array([c.shift for c in got])
+            # a shift within the check's own noise (or the method's tolerance) is not one
+            noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
+            moved = np.abs(corrected - target) > noise
+            if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
                 break
-            target = corrected
-            result = _sequential_continuation(problem, target, widths[-1:], max_outer, progress, callback, x0=result.x, trust=0.1)
+            target = np.where(moved, corrected, target)
+            result = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
+                                              trust=0.1, tol=tuple(tol))
         # The proposal: the cheapest checked design whose simulated quantile met the requirement
-        # (to the method's 1 %), else the last one: a re-solve that did not land is not kept
-        # over a cheaper design the simulation already accepted.
-        k = _cheapest_accepted([float(r.cost) for r, _ in checked], [c.quantile_simulated for _, c in checked], float(requirement))
+        # (to the method's tolerance), else the last one: a re-solve that did not land is not
+        # kept over a cheaper design the simulation already accepted.
+        k = _cheapest_accepted([float(r.cost) for r, _, _ in checked], [[c.quantile_simulated for c in got] for _, got, _ in checked],
+                               requirements, tol)
         if k is not None:
-            result, checks = checked[k][0], checks[: k + 1]
+            checked = checked[: k + 1]
+            result = checked[-1][0]
+        checks = [got[0] for _, got, _ in checked]
+        solved_for = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
+        if jitter is not None:
+            stability = (tuple(got[1] for _, got, _ in checked), float(solved_for[1]), float(tol[1]))
     else:
         result = optimise_design(
             objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
@@ -534,6 +646,16 @@ def propose_design(
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
     # and at fixed nominal d/db = d/db|_l - d/dl.
     s_limit, s_band = np.asarray(result.sensitivity.nominal), np.asarray(result.sensitivity.band)
+    first = (lambda v: float(np.asarray(v).reshape(-1)[0]))  # noqa: E731
+    if jitter is not None:
+        jitter_checks, jitter_target, jitter_tol = stability if stability is not None else ((), float(jitter), float(tol[1]))
+        stability = JitterRequirement(
+            requirement=float(jitter), cutoff=float(pointing.jitter_cutoff), objective=float(np.asarray(result.objective)[1]),
+            constraint_active=bool(np.asarray(result.constraint_active)[1]), multiplier=float(np.asarray(result.multiplier)[1]),
+            sensitivity=Design(s_limit[1], s_band[1] - s_limit[1]), baseline=float(baseline_objective[1]), tol=jitter_tol,
+            target=jitter_target, checks=jitter_checks,
+        )
+        s_limit, s_band = s_limit[0], s_band[0]
     return DesignReport(
         names=features.names,
         nominal=np.asarray(result.x.nominal) + band_opt,
@@ -541,15 +663,18 @@ def propose_design(
         grade=np.asarray(grade_of(band_opt * 2, features.size_mm)),
         feature_cost=np.asarray(result.feature_cost),
         cost=float(result.cost),
-        objective=float(result.objective),
+        objective=first(result.objective),
         requirement=float(requirement),
-        constraint_active=bool(result.constraint_active),
-        multiplier=float(result.multiplier),
+        constraint_active=bool(np.asarray(result.constraint_active).reshape(-1)[0]),
+        multiplier=first(result.multiplier),
         sensitivity=Design(s_limit, s_band - s_limit),
-        baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)), baseline_objective),
+        baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)),
+                  first(baseline_objective)),
         result=result,
         yield_=yield_,
         checks=tuple(checks),
         lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
         fixed=fixed,
+        jitter=stability,
+        solved_for=float(solved_for[0]) if method == "sequential" else None,
     )

@@ -302,30 +302,39 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     return noise if isinstance(objective.output, tuple) else noise[0]
 
 
-def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: int, key, width=None, chunk: int = 50) -> YieldCheck:
+def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50):
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m; draws from
     `unit_draws(key, ...)`) with `objective`'s pointing model, and compare them with its
     linearised model on the same units (see `YieldCheck`). `width`: smoothing width (m);
-    `chunk`: units per compiled batch."""
+    `chunk`: units per compiled batch. A tuple `output` (two requirements, e.g. RMS and
+    jitter): `requirement` one per output, and one `YieldCheck` per output from the same units."""
     if int(n) < 2:
         raise ValueError(f"yield_check: n must be >= 2 units, got {n!r}.")
-    if isinstance(objective.output, tuple):
-        raise ValueError("yield_check: one output at a time; check each of a tuple's outputs with its own LinearisedYield.")
+    outputs = objective.output if isinstance(objective.output, tuple) else (objective.output,)
+    requirements = np.broadcast_to(np.asarray(requirement, dtype=float), (len(outputs),))
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
     width = None if width is None else jnp.asarray(width, dtype=float)
     values = realise(x, unit_draws(key, int(n), x.nominal.shape[0]))
     f, s = eqx.filter_jit(lambda o, x_, w: o.linear_model(x_, w))(objective, x, width)
-    linear = np.asarray(f + (values - x.nominal) @ s)
+    linear = np.asarray(jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T).reshape(int(n), len(outputs))
     simulated = np.concatenate([
-        np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)) for i in range(0, int(n), chunk)
+        np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)).reshape(-1, len(outputs))
+        for i in range(0, int(n), chunk)
     ])
-    ok = np.isfinite(simulated)
+    ok = np.all(np.isfinite(simulated), axis=1)
+    checks = tuple(_yield_check(simulated[:, k], linear[:, k], ok, objective.q, float(requirements[k])) for k in range(len(outputs)))
+    return checks if isinstance(objective.output, tuple) else checks[0]
+
+
+def _yield_check(simulated, linear, ok, q, requirement) -> YieldCheck:
+    """One output's `YieldCheck` from its simulated and linearised units (`ok`: the units whose
+    solves succeeded)."""
     sim, lin, used = simulated[ok], linear[ok], int(np.sum(ok))
     met = int(np.sum(sim <= requirement))
     low, high = wilson_interval(met, used)
 
     def hd(v):  # the Harrell-Davis q-quantile, as `robust(kind="quantile")` computes it
-        return float(scipy.stats.mstats.hdquantiles(v, prob=[objective.q])[0])
+        return float(scipy.stats.mstats.hdquantiles(v, prob=[q])[0])
 
     q_sim, q_lin, se = math.nan, math.nan, math.nan
     if used >= 2:
@@ -333,7 +342,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement: float, n: in
         rows = np.random.default_rng(0).integers(0, used, size=(400, used))
         se = float(np.std([hd(sim[r]) - hd(lin[r]) for r in rows], ddof=1))
     return YieldCheck(
-        n=int(n), n_failed=int(np.sum(~ok)), q=objective.q, requirement=float(requirement), simulated=simulated, linear=linear,
+        n=len(simulated), n_failed=int(np.sum(~ok)), q=q, requirement=float(requirement), simulated=simulated, linear=linear,
         yield_simulated=met / max(used, 1), interval=(float(low), float(high)),
         yield_linear=float(np.mean(lin <= requirement)) if used else math.nan,
         quantile_simulated=q_sim, quantile_linear=q_lin, shift=q_sim - q_lin, shift_se=se,
