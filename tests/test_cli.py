@@ -257,6 +257,32 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     assert tx.load_scene(mc / "scene.toml") == proposal
 
 
+def test_design_with_a_jitter_requirement_verifies_both(tmp_path, capsys):
+    """`tolerax design --yield Y --jitter J`: the report states the stability requirement and
+    its check, the lumped scene draws a note that lumped jitter does not predict the planetary
+    stage's, and `--verify` simulates the units' jitter too, with its yield against J (the
+    fraction of the verified units' jitter at most J, recomputed from montecarlo.nc). Without
+    --yield, --jitter is refused before any work."""
+    import xarray as xr
+
+    scene = tmp_path / "my_drive.toml"
+    scene.write_text(OWN_MECHANISM)
+    design = tmp_path / "design"
+    assert cli.main(["design", str(scene), "--yield", "0.9", "--jitter", "5.0", "--secant-units", "8", "--check", "4", "--outer", "2",
+                     "--verify", "4", "--chunk", "2", "--out", str(design)]) == 0
+    printed = capsys.readouterr().out
+    assert "lumped jitter does not predict" in printed and "jitter above 20 Hz <= 5.0 arcsec" in printed
+    table = (design / "design.md").read_text()
+    assert "Stability: jitter (RMS pointing error above 20 Hz)" in table and "Jitter check" in table and "d jitter / d nominal" in table
+    verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_jitter"]
+    jitter = xr.open_dataset(design / "verify" / "montecarlo.nc")["pointing_jitter"].values
+    assert verify["n_used"] == 4 and verify["yield"] == pytest.approx(np.mean(jitter <= 5.0))
+    assert "jitter yield" in printed and "and jitter (RMS pointing error above 20 Hz) <= 5 arcsec" in (design / "report.md").read_text()
+    with pytest.raises(SystemExit) as refused:
+        cli.main(["design", str(scene), "--jitter", "5.0", "--out", str(tmp_path / "no")])
+    assert refused.value.code == 2 and "--jitter needs --yield" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
 def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     """An --out that is a file, a band reaching below zero, a misspelt scene name: exit 2 with
     a message saying what to change, nothing computed."""

@@ -132,6 +132,13 @@ def main(argv=None) -> int:
     design.add_argument("--requirement", type=positive, default=None,
                         help="RMS pointing requirement, arcsec (default: the scene's [tolerances] requirement)")
     optimiser_options(design)
+    design.add_argument("--jitter", type=positive, default=None, metavar="J",
+                        help="with --yield: a pointing-stability requirement beside the RMS one: the jitter (RMS pointing error "
+                        "above --jitter-cutoff Hz over the window), arcsec, met by the same fraction Y of units. Both are "
+                        "linearised by secants over units (--secant-units, default max(16, 2 x features + 2)); design it at "
+                        "planetary fidelity (lumped jitter does not predict the planetary stage's) with a tight rtol")
+    design.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ",
+                        help="with --jitter: the start of the stability band, Hz (default 20)")
     design.add_argument("--verify", type=count(0), default=0, metavar="N",
                         help="then simulate N units of the written proposal.toml (as `tolerax montecarlo OUT/proposal.toml --n N`, "
                         "into OUT/verify) and report its yield with a 95 %% Wilson interval (default 0: none)")
