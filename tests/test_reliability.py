@@ -27,6 +27,30 @@ def test_linear_quantile_of_one_uniform_is_closed_form():
             assert got == pytest.approx(100.0 + abs(s) * 10e-6 * (2 * q - 1), abs=1e-3 * abs(s) * 10e-6)
 
 
+def test_linear_quantile_with_scatter_against_numerical_convolution():
+    """`scatter`: the quantile of $f + s b u + \\sigma z$ (u uniform on [-1, 1], z standard
+    normal, independent), against the root of its CDF $E_u[\\Phi((t - f - s b u)/\\sigma)]$
+    integrated by `scipy.integrate.quad`, at 90 and 99 %, to 0.5 % of the spread; with no
+    slope it is $f + \\sigma\\Phi^{-1}(q)$. The draws carry one more column for z."""
+    import scipy.integrate
+    import scipy.optimize
+    import scipy.stats
+
+    draws = rel.yield_draws(2)
+    x = tx.Design(jnp.array([50e-6]), jnp.array([10e-6]))
+    for s, sigma in ((3e6, 12.0), (0.0, 12.0), (3e6, 2.0)):
+        a = s * 10e-6
+        for q in (0.9, 0.99):
+            def cdf(t, a=a, sigma=sigma):
+                return 0.5 * scipy.integrate.quad(lambda u: scipy.stats.norm.cdf((t - a * u) / sigma), -1.0, 1.0)[0]
+
+            exact = 100.0 + scipy.optimize.brentq(lambda t: cdf(t) - q, -10 * (a + sigma), 10 * (a + sigma), xtol=1e-12)
+            got = float(rel.linear_quantile(100.0, jnp.array([s]), x, draws, q, scatter=sigma))
+            assert got == pytest.approx(exact, abs=5e-3 * (a + sigma)), (s, sigma, q)
+    got = float(rel.linear_quantile(100.0, jnp.array([0.0]), x, draws, 0.99, scatter=12.0))
+    assert got == pytest.approx(100.0 + 12.0 * scipy.stats.norm.ppf(0.99), rel=1e-3)
+
+
 def test_linear_quantile_matches_openturns_random_mixture():
     """Four features with unequal weights: the quantile of the sum of independent uniforms,
     against OpenTURNS' exact distribution of that linear combination (`LinearCombinationDistribution`, by its
@@ -195,6 +219,13 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units(scan_pointin
     assert se > 0 and rel.secant_standard_error(objective, x, 1e-6) == pytest.approx(se, rel=1e-5)
     se2 = rel.secant_standard_error(pair, x, 1e-6)
     assert se2.shape == (2,) and se2[0] == pytest.approx(se, rel=1e-5)
+    # The residual scatter a `scatter` objective adds to its quantile: the residual standard
+    # deviation of the same fit.
+    scattered = rel.LinearisedYield(scan_pointing, q=0.9, secant_units=8, scatter=True)
+    sigma = eqx.filter_jit(lambda o, x_: o.model(x_, 1e-6)[2])(scattered, x)
+    assert float(sigma) == pytest.approx(np.sqrt(resid @ resid / (8 - 5)), rel=1e-5)
+    with pytest.raises(ValueError, match="needs secant_units"):
+        rel.LinearisedYield(scan_pointing, q=0.9, scatter=True)
     with pytest.raises(ValueError, match="fits no secant"):
         rel.secant_standard_error(rel.LinearisedYield(scan_pointing, q=0.9), x, 1e-6)
     with pytest.raises(ValueError, match="at least 5 units"):
@@ -254,7 +285,7 @@ def test_jitter_requirement_beside_the_lost_motion_one(scan_pointing):
     without a jitter cutoff in the pointing objective, is refused."""
     pointing = tx.PointingObjective(scan_pointing.scene, duration=0.6, settle=0.0, start="steady", n_save=61, jitter_cutoff=20.0)
     options = dict(yield_=0.9, secant_units=12, widths=(1e-6,), max_outer=10)
-    pair = _propose.design_problem(pointing, yield_=0.9, secant_units=12, output=("pointing_rms", "pointing_jitter"))
+    pair = _propose.design_problem(pointing, yield_=0.9, secant_units=12, output=("pointing_rms", "pointing_jitter"), scatter=True)
     quantiles = eqx.filter_jit(pair.objective)
     baseline = np.asarray(quantiles(pair.x0, pair.draws, 1e-6))
     requirement = 0.6 * float(baseline[0])

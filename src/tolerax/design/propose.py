@@ -371,6 +371,7 @@ def design_problem(
     n_yield_draws: int = 16384,
     slope_width: float | None = None,
     secant_units: int | None = None,
+    scatter: bool = False,
     fixed=(),
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
@@ -402,7 +403,9 @@ def design_problem(
       converge (it stalled at cost 8.47 where a run without them reached 2.69): the value is
       rough there too. `secant_units` (optional, more than the features): fit the value and
       slopes by least squares over this many units of the zone instead (`LinearisedYield`:
-      forward solves only; where tangents are noise, a line through the units is not).
+      forward solves only; where tangents are noise, a line through the units is not);
+      `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
+      (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their nominal +- `band`, or a mapping name -> its
       half-width (m), held at nominal +- that. Their lower limit and band are bounded to those
@@ -436,8 +439,8 @@ def design_problem(
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
-                                    None if secant_units is None else int(secant_units))
-        draws = yield_draws(n, n_yield_draws)
+                                    None if secant_units is None else int(secant_units), bool(scatter))
+        draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
     return DesignProblem(
         objective=FromLowerLimit(objective),
         features=Features(names, feature_sizes(scene)),
@@ -553,7 +556,8 @@ def propose_design(
       at most `jitter`. Needs `yield_`. Both metrics are linearised by secants over
       `secant_units` units of the zone (default max(16, 2 x features + 2); jitter tangents are
       not its slopes: rattle is chaotic, benchmarks/results/stability_gradient.md), from the same
-      solves, so at the pointing objective's fidelity: give a planetary one (lumped jitter does
+      solves (their quantiles include the fits' residual scatter, `scatter=True`, unless
+      `scatter=False` is given), so at the pointing objective's fidelity: give a planetary one (lumped jitter does
       not predict the planetary stage's: issue 30 measured a correlation of -0.07 unit by
       unit). The jitter's tolerance is twice its fit's standard error at the start
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
@@ -590,6 +594,7 @@ def propose_design(
         problem["output"] = (problem.get("output", "pointing_rms"), "pointing_jitter")
         if problem.get("secant_units") is None:
             problem["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
+        problem.setdefault("scatter", True)
     problem = design_problem(pointing, **problem)
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)

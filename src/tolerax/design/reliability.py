@@ -31,6 +31,7 @@ import math
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jax.scipy.special
 import numpy as np
 import scipy.stats
 from jaxtyping import Array
@@ -53,15 +54,23 @@ def yield_draws(n_features: int, n: int = 16384, seed: int = 0) -> Array:
     return jnp.asarray(2.0 * points - 1.0)
 
 
-def linear_quantile(value, slopes, x: Design, draws, q: float) -> Array:
+def linear_quantile(value, slopes, x: Design, draws, q: float, scatter=None) -> Array:
     """The `q`-quantile (Harrell–Davis) of the linearised metric $f + s \\cdot (v - m)$ over the
     units $v$ = `realise(x, draws)`: `value` $f$ at the zone middles `x.nominal` $m$ (metric
     units), `slopes` $s$ (metric units per m). Several metrics: `value` of shape (k,), `slopes`
-    (k, n), and the quantile of each (their marginal quantiles, not a joint one)."""
-    deltas = realise(x, draws) - x.nominal
+    (k, n), and the quantile of each (their marginal quantiles, not a joint one).
+
+    `scatter` $\\sigma$ (metric units, one per metric; optional): add an independent normal term
+    $\\sigma z$ per unit, the unit-to-unit scatter the features do not explain (a secant fit's
+    residual: chaotic rattle). `draws` then has one more column than the features, whose
+    uniform draws give $z = \\Phi^{-1}((u + 1)/2)$."""
+    n = x.nominal.shape[0]
+    deltas = realise(x, draws[:, :n]) - x.nominal
+    noise = 0.0 if scatter is None else jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12))
     if jnp.ndim(value) == 1:
-        return jax.vmap(lambda f, s: robust(f + deltas @ s, kind="quantile", q=q))(value, slopes)
-    return robust(value + deltas @ slopes, kind="quantile", q=q)
+        sigma = jnp.zeros_like(value) if scatter is None else scatter
+        return jax.vmap(lambda f, s, sd: robust(f + deltas @ s + sd * noise, kind="quantile", q=q))(value, slopes, sigma)
+    return robust(value + deltas @ slopes + (0.0 if scatter is None else scatter * noise), kind="quantile", q=q)
 
 
 @eqx.filter_custom_vjp
@@ -97,28 +106,33 @@ def secant_draws(n_features: int, n_units: int, seed: int = 1) -> Array:
 
 @eqx.filter_custom_vjp
 def value_and_secants(middle, band, positions, pointing, output, width):
-    """`(f, s)`: the least-squares line $f + s \\cdot (v - m)$ through `output` at the units
+    """`(f, s, sigma)`: the least-squares line $f + s \\cdot (v - m)$ through `output` at the units
     $v$ = `realise(Design(middle, band), positions)` (m; `positions` from `secant_draws`): the
     statistical linearisation of the response over the zone, from forward solves only (no
     tangents). Failed solves are left out of the fit. The derivative passed back is $s$ for the
     middle (as `value_and_slopes`; the band's effect on the fit, i.e. curvature, is not
     differentiated: pass the band through `jax.lax.stop_gradient`). A tuple of outputs: `f` of
-    shape (k,) and `s` (k, n), all fitted from the same solves."""
+    shape (k,) and `s` (k, n), all fitted from the same solves. `sigma`: the residual standard
+    deviation about the line (output units; the unit-to-unit scatter the features do not
+    explain), not differentiated."""
     units = realise(Design(middle, band), positions)
     values = jax.vmap(lambda v: unit_output(v, pointing, output, width))(units)
     values = values.reshape(units.shape[0], -1)  # (units, outputs)
     ok = jnp.all(jnp.isfinite(values), axis=1)
     scale = jnp.where(band > 0, band, 1.0)
     rows = jnp.concatenate([jnp.ones((units.shape[0], 1)), (units - middle) / scale], axis=1)
-    coef = jnp.linalg.lstsq(jnp.where(ok[:, None], rows, 0.0), jnp.where(ok[:, None], values, 0.0))[0]
+    rows, values = jnp.where(ok[:, None], rows, 0.0), jnp.where(ok[:, None], values, 0.0)
+    coef = jnp.linalg.lstsq(rows, values)[0]
     value, slopes = coef[0], jnp.where(band > 0, coef[1:].T / scale, 0.0)
-    return (value, slopes) if isinstance(output, tuple) else (value[0], slopes[0])
+    dof = jnp.maximum(jnp.sum(ok) - rows.shape[1], 1)  # the design matrix has full column rank (Latin hypercube)
+    sigma = jnp.sqrt(jnp.sum(jnp.where(ok[:, None], values - rows @ coef, 0.0) ** 2, axis=0) / dof)
+    return (value, slopes, sigma) if isinstance(output, tuple) else (value[0], slopes[0], sigma[0])
 
 
 @value_and_secants.def_fwd
 def _value_and_secants_fwd(perturbed, middle, band, positions, pointing, output, width):
-    value, slopes = value_and_secants(middle, band, positions, pointing, output, width)
-    return (value, slopes), slopes
+    value, slopes, sigma = value_and_secants(middle, band, positions, pointing, output, width)
+    return (value, slopes, sigma), slopes
 
 
 @value_and_secants.def_bwd
@@ -155,13 +169,22 @@ class LinearisedYield(eqx.Module):
 
     A tuple `output` (e.g. `("pointing_rms", "pointing_jitter")`, a lost-motion and a stability
     metric) gives one quantile per output from the same solves: a vector objective for two
-    requirements (`sequential_design`), each met at yield `q` on its own (marginal yields)."""
+    requirements (`sequential_design`), each met at yield `q` on its own (marginal yields).
+
+    `scatter` (with `secant_units`): the quantile includes the fit's residual scatter $\\sigma$ as
+    an independent normal term per unit (`linear_quantile(scatter=...)`; `draws` then carry one
+    more column: `yield_draws(n_features + 1)`). Where the response scatters about its trend from
+    unit to unit for reasons the features do not carry (the jitter of a rattling stage: a line
+    in the features explains 3-18 % of its variance, issue 30), the line's quantile alone
+    under-reads the units' (measured on the stability design: linearised 0.146 arcsec, 100
+    fresh units 0.196). $\\sigma$ is held fixed in the derivative, like the slopes."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
     q: float = eqx.field(static=True, default=0.99)
     slope_width: float | None = eqx.field(static=True, default=None)
     secant_units: int | None = eqx.field(static=True, default=None)
+    scatter: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -170,24 +193,32 @@ class LinearisedYield(eqx.Module):
             raise ValueError(f"LinearisedYield: slope_width must be > 0 (m), got {self.slope_width!r}.")
         if self.secant_units is not None and self.slope_width is not None:
             raise ValueError("LinearisedYield: give slope_width (tangents at a wider smoothing) or secant_units (a fit over units), not both.")
+        if self.scatter and self.secant_units is None:
+            raise ValueError("LinearisedYield: scatter (the secant fit's residual) needs secant_units.")
 
     def linear_model(self, x: Design, width):
         """`(f, s)` for the design `x` (`Design(middle, half-width)`, m): the value at the zone
         middles at `width` and the slopes (at `slope_width` where set; or both fitted over
         `secant_units` units of the zone); the derivative passed back through `f` is `s`."""
+        return self.model(x, width)[:2]
+
+    def model(self, x: Design, width):
+        """`(f, s, sigma)`: `linear_model` and the residual scatter `sigma` about it (output
+        units; `None` unless `scatter`), from the same solves."""
         middle = x.nominal
         if self.secant_units is not None:
             positions = secant_draws(middle.shape[0], self.secant_units)
-            return value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width)
+            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width)
+            return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
         if self.slope_width is None:
-            return value_and_slopes(middle, self.pointing, self.output, width)
+            return (*value_and_slopes(middle, self.pointing, self.output, width), None)
         smooth, slopes = value_and_slopes(middle, self.pointing, self.output, jnp.asarray(self.slope_width, dtype=float))
         value = jax.lax.stop_gradient(unit_output(middle, self.pointing, self.output, width))
-        return value + (smooth - jax.lax.stop_gradient(smooth)), slopes
+        return value + (smooth - jax.lax.stop_gradient(smooth)), slopes, None
 
     def __call__(self, x: Design, draws, width) -> Array:
-        value, slopes = self.linear_model(x, width)
-        return linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q)
+        value, slopes, sigma = self.model(x, width)
+        return linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -234,11 +265,11 @@ def _simulate_units(pointing, output, values, width):
 
 
 def _secant_noise(objective: LinearisedYield, x: Design, width):
-    """`(value, slopes, value_se, slope_se)` of the least-squares line `objective`'s secant fit
+    """`(value, slopes, value_se, slope_se, sigma)` of the least-squares line `objective`'s secant fit
     draws at the design `x` (`Design(middle, half-width)`, m), from one batch of its
     `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
     errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
-    fit's design matrix), slopes' in output units per m."""
+    fit's design matrix), slopes' in output units per m; `sigma` the residual standard deviation."""
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
@@ -257,7 +288,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
     root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
     per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
-    return coef[0], coef[1:].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1:] * per_m
+    return coef[0], coef[1:].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1:] * per_m, sigma
 
 
 def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
@@ -288,15 +319,19 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     the zone `x` = `Design(middle, half-width)` (m), with the quantile draws `draws`
     (`yield_draws`). For `sequential_design(gradient_noise=...)` and `optimality_residual`'s
     `gradient_se`. One batch of `secant_units` forward solves."""
-    value, slopes, _, slope_se = _secant_noise(objective, x, width)
+    value, slopes, _, slope_se, residual = _secant_noise(objective, x, width)
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
-    deltas = realise(Design(middle, band), draws) - middle
+    n = middle.shape[0]
+    deltas = realise(Design(middle, band), draws[:, :n]) - middle
     u = deltas / jnp.where(band > 0, band, 1.0)
+    sigma = residual if objective.scatter else np.zeros_like(residual)
+    z = (jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12)) if objective.scatter
+         else jnp.zeros(draws.shape[0]))
 
-    def weights(f, s):  # d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
-        return jax.grad(lambda t: robust(f + u @ t, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
+    def weights(f, s, sd):  # d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
+        return jax.grad(lambda t: robust(f + u @ t + sd * z, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
 
-    u_bar = np.asarray(jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes)))
+    u_bar = np.asarray(jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(sigma)))
     band_factor = np.abs(1.0 + u_bar) if lower_limit else np.abs(u_bar)
     noise = np.concatenate([slope_se, slope_se * band_factor], axis=1)
     return noise if isinstance(objective.output, tuple) else noise[0]
@@ -315,8 +350,13 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
     width = None if width is None else jnp.asarray(width, dtype=float)
     values = realise(x, unit_draws(key, int(n), x.nominal.shape[0]))
-    f, s = eqx.filter_jit(lambda o, x_, w: o.linear_model(x_, w))(objective, x, width)
+    f, s, sigma = eqx.filter_jit(lambda o, x_, w: o.model(x_, w))(objective, x, width)
     linear = np.asarray(jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T).reshape(int(n), len(outputs))
+    if sigma is not None:
+        # The model's scatter cannot predict a unit's own: each unit's prediction carries an
+        # independent draw of it (seeded), so that the model's quantile over these units is the
+        # one the optimiser met.
+        linear = linear + np.atleast_1d(np.asarray(sigma)) * np.random.default_rng(0).standard_normal((int(n), len(outputs)))
     simulated = np.concatenate([
         np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)).reshape(-1, len(outputs))
         for i in range(0, int(n), chunk)

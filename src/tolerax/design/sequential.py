@@ -253,11 +253,7 @@ def sequential_design(
       at a KKT point *within that noise* (`optimality_residual(gradient_se=...)`, 2 standard
       errors) below `band_tol`: on noisy slopes a plain KKT test never passes (measured: the
       two-requirement design with a jitter fitted over 16 planetary units sat at cost 1.722,
-      stationary, bands' residual 0.66). Only where the last step was not cut by the trust
-      region: slopes within noise of a KKT point say nothing more than "the data cannot point
-      the way", and a collapsed region makes the cost stationary by itself (measured: without
-      this condition that design stopped at 2.325, where a longer run had found 1.722).
-      Called (one batch of simulations) only when the cost has become stationary and the
+      stationary, bands' residual 0.66). Called (one batch of simulations) only when the cost has become stationary and the
       plain tests failed, and once at the returned design.
 
     **Returns:** an `OptimisationResult` whose design is the cheapest iterate on the requirement
@@ -380,7 +376,7 @@ def sequential_design(
                 (moved <= step_tol and not limited)
                 or _optimality(dc, z, grad, f, requirements, tol, lo, hi, n) <= optimality_tol
                 or (stationary and _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=True) <= band_tol)
-                or (stationary and not limited and gradient_noise is not None
+                or (stationary and gradient_noise is not None
                     and _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=True, se=noise_at(z)) <= band_tol)
             ):
                 converged = True
