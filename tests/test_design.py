@@ -40,6 +40,50 @@ def test_design_vector_round_trip_and_names():
         tx.with_design(mech, jnp.zeros(3))
 
 
+def test_distinct_planets_are_features_of_their_own(tmp_path):
+    """A stage with `distinct_planets`: each planet's pin clearance and sun/ring backlash is a
+    feature (`joint.feature[i]`), read and written per planet; all planets set alike give the
+    shared design's simulation (the same arrays); one planet's pin made tighter changes the
+    pointing (the lumped joint's lost motion is set by its tightest planet) and one made looser
+    does not; the drawings weigh each planet 1/N of the shared feature; a scene file sets it."""
+    from tolerax.design.features import lost_motion_weights
+
+    shared = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    distinct = tx.scan("azimuth", fidelity=("lumped", "ideal"), azimuth_stage=tx.default_stage(distinct_planets=True))
+    names = tx.design_names(distinct)
+    assert names == ("azimuth.carrier_clearance", *(f"azimuth.{f}[{i}]" for f in ("planet_clearance", "sun_backlash", "ring_backlash")
+                                                    for i in range(3)))
+    p = jnp.arange(1.0, 11.0) * 1e-6
+    changed = tx.with_design(distinct, p)
+    np.testing.assert_array_equal(tx.design_of(changed), p)
+    np.testing.assert_array_equal(changed.azimuth.stage.planet_support.bearing.clearance, p[1:4])
+    np.testing.assert_array_equal(changed.azimuth.stage.sun_mesh.backlash, p[4:7])
+    np.testing.assert_array_equal(changed.azimuth.stage.ring_mesh.backlash, p[7:10])
+    w_shared, w_distinct = np.asarray(lost_motion_weights(shared)), np.asarray(lost_motion_weights(distinct))
+    np.testing.assert_allclose(w_distinct, np.repeat(w_shared, [1, 3, 3, 3]) / np.array([1] + [3] * 9), rtol=1e-12)
+
+    pointing = tx.PointingObjective(shared, duration=0.3, settle=0.0, start="steady", n_save=31)
+    per_planet = eqx.tree_at(lambda o: o.scene, pointing, distinct)
+    rms = eqx.filter_jit(lambda o, v: o(v, 1e-6)["pointing_rms"])
+    base = np.array([100e-6, 30e-6, 50e-6, 50e-6])
+    alike = np.repeat(base, [1, 3, 3, 3])
+    assert float(rms(per_planet, jnp.asarray(alike))) == pytest.approx(float(rms(pointing, jnp.asarray(base))), rel=1e-12)
+    tighter, looser = alike.copy(), alike.copy()
+    tighter[1], looser[1] = 10e-6, 60e-6
+    assert abs(float(rms(per_planet, jnp.asarray(tighter))) / float(rms(per_planet, jnp.asarray(alike))) - 1.0) > 1e-3
+    assert float(rms(per_planet, jnp.asarray(looser))) == pytest.approx(float(rms(per_planet, jnp.asarray(alike))), rel=1e-9)
+
+    scene_file = tmp_path / "planets.toml"
+    scene_file.write_text('[scene]\nkind = "scan"\nmode = "azimuth"\nfidelity = ["lumped", "ideal"]\n\n'
+                          '[scene.azimuth_stage]\ndistinct_planets = true\n\n'
+                          '[design]\n"azimuth.planet_clearance[1]" = 2e-05\n\n[run]\nduration = 0.1\n')
+    loaded = tx.load_scene(scene_file).build()
+    assert tx.design_names(loaded) == names
+    np.testing.assert_allclose(loaded.azimuth.stage.planet_support.bearing.clearance, [100e-6, 20e-6, 100e-6])
+    with pytest.raises(TypeError, match="distinct_planets"):
+        tx.default_stage(distinct_planets="yes")
+
+
 @pytest.fixture(scope="module")
 def scan_pointing():
     scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))

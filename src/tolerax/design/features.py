@@ -2,7 +2,9 @@
 
 A *feature* is a clearance or backlash that a scene models: each stage contributes its
 clearance supports (`sun_clearance`, `carrier_clearance`, `planet_clearance`, m) and the
-backlash of its nonlinear mesh families (`sun_backlash`, `ring_backlash`, m), all planets alike.
+backlash of its nonlinear mesh families (`sun_backlash`, `ring_backlash`, m), all planets alike
+unless the stage has `distinct_planets` (then `planet_clearance[i]`, `sun_backlash[i]`,
+`ring_backlash[i]` per planet `i`).
 A joint lists the features its fidelity reads (`AbstractJoint.design_features`): an ideal joint
 none, a lumped joint its output bearing, pin play and the two backlashes, a planetary joint all.
 Features a scene does not model are absent, never present with zero effect. In a mechanism the
@@ -33,9 +35,14 @@ STAGE_FEATURES = {
 }
 
 
-def feature_entries(scene) -> list[tuple[str, str, PlanetaryStage, Callable]]:
-    """`(name, feature, stage, get)` for each design feature of the scene (`named_stages`):
-    `name` is `"joint.feature"` (`feature` for a scene with one stage), `get(scene)` the value."""
+# Features of which each planet has its own (with `PlanetaryStage.distinct_planets`).
+PER_PLANET = ("planet_clearance", "sun_backlash", "ring_backlash")
+
+
+def _fields(scene) -> list[tuple[str, str, PlanetaryStage, Callable, int | None]]:
+    """`(name, feature, stage, field, planet)` per design feature: `field(scene)` is the stage's
+    array that holds it, `planet` the planet's index where each planet is a feature of its own
+    (`distinct_planets`: named `"joint.feature[i]"`), else `None`."""
     if not isinstance(scene, AbstractScene) or not scene.named_stages():
         raise TypeError(f"A design needs a scene with gear stages (a TestBench or a Mechanism), got {type(scene).__name__}.")
     out = []
@@ -45,7 +52,24 @@ def feature_entries(scene) -> list[tuple[str, str, PlanetaryStage, Callable]]:
             present, where = STAGE_FEATURES[feature]
             if present(stage):
                 name = f"{joint}.{feature}" if joint else feature
-                out.append((name, feature, stage, lambda x, s=stage_of, w=where: w(s(x))))
+                field = lambda x, s=stage_of, w=where: w(s(x))  # noqa: E731
+                if stage.distinct_planets and feature in PER_PLANET:
+                    out += [(f"{name}[{i}]", feature, stage, field, i) for i in range(stage.n_planets)]
+                else:
+                    out.append((name, feature, stage, field, None))
+    return out
+
+
+def feature_entries(scene) -> list[tuple[str, str, PlanetaryStage, Callable]]:
+    """`(name, feature, stage, get)` for each design feature of the scene (`named_stages`):
+    `name` is `"joint.feature"` (`feature` for a scene with one stage; `"joint.feature[i]"` for
+    planet `i` of a stage with `distinct_planets`), `get(scene)` the value (m)."""
+    out = []
+    for name, feature, stage, field, planet in _fields(scene):
+        if planet is None:
+            out.append((name, feature, stage, field))
+        else:
+            out.append((name, feature, stage, lambda x, f=field, i=planet, n=stage.n_planets: jnp.broadcast_to(f(x), (n,))[i]))
     return out
 
 
@@ -60,7 +84,8 @@ def design_names(scene) -> tuple[str, ...]:
 
 def design_of(scene) -> Float[Array, " n_features"]:
     """The scene's clearances and backlash (m), in `design_names` order (the first planet's value
-    for per-planet fields; `with_design` sets all planets alike)."""
+    for per-planet fields, unless the stage has `distinct_planets`: then one entry per planet;
+    `with_design` sets all planets alike otherwise)."""
     return jnp.stack([jnp.ravel(get(scene))[0] for _, get in _entries(scene)])
 
 
@@ -74,10 +99,18 @@ def with_design(scene, values: Float[Array, " n_features"]):
             f"with_design: values must have shape ({len(entries)},) for the features "
             f"{[n for n, _ in entries]}, got shape {jnp.shape(values)}."
         )
-    getters = [get for _, get in entries]
-    old = [get(scene) for get in getters]
-    new = tuple(jnp.broadcast_to(values[k], jnp.shape(o)).astype(float) for k, o in enumerate(old))
-    return eqx.tree_at(lambda x: tuple(get(x) for get in getters), scene, new)
+    # One leaf per stage field; a field whose planets are features of their own gets one value each.
+    leaves: dict[tuple[int, str], list] = {}
+    for k, (_, feature, stage, field, planet) in enumerate(_fields(scene)):
+        leaves.setdefault((id(stage), feature), [field, stage.n_planets, []])[2].append((k, planet))
+    getters = [field for field, _, _ in leaves.values()]
+    new = []
+    for (field, n, items), old in zip(leaves.values(), [get(scene) for get in getters]):
+        if items[0][1] is None:
+            new.append(jnp.broadcast_to(values[items[0][0]], jnp.shape(old)).astype(float))
+        else:
+            new.append(jnp.stack([values[k] for k, _ in sorted(items, key=lambda item: item[1])]).astype(float))
+    return eqx.tree_at(lambda x: tuple(get(x) for get in getters), scene, tuple(new))
 
 
 def tolerances_of(scene, band=10e-6, distribution: str = "uniform") -> Tolerances:
@@ -95,9 +128,12 @@ def lost_motion_weights(scene):
     loaded side), the bearings that carry the output (sun, carrier) 0; $r = i\\,r_{bs}$ the lever of
     the output rotation on the sun's base circle. What an engineer reads off the drawings; a
     simulation's sensitivities (`propose_design`'s report) say where the dynamics weigh
-    otherwise (issue 30: 3.3x a backlash for the pin on a fast scan, where geometry says 1.9x)."""
+    otherwise (issue 30: 3.3x a backlash for the pin on a fast scan, where geometry says 1.9x).
+    With `distinct_planets`, each planet's feature weighs $1/N$ of that: the stack-up of the
+    planets' mean play (the first planet to take the load sets the lost motion, which a linear
+    stack-up cannot say in advance)."""
     weights = []
-    for _, feature, stage, _ in feature_entries(scene):
+    for _, feature, stage, _, planet in _fields(scene):
         lever = float(stage.ratio * stage.sun_base_radius)
         if feature.endswith("_backlash"):
             w = 1.0
@@ -105,5 +141,7 @@ def lost_motion_weights(scene):
             w = float(jnp.cos(stage.sun_pressure_angle) + jnp.cos(stage.ring_pressure_angle))
         else:
             w = 0.0
+        if planet is not None:  # one planet's share of the stack-up of the planets' mean play
+            w /= stage.n_planets
         weights.append(w / lever / ARCSEC)
     return jnp.asarray(weights)

@@ -137,7 +137,9 @@ class SceneFile:
         data["title"] = f"Proposal: {self.title}"
         data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "
                                f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
-                               f"({what}); {'converged' if bool(report.result.converged) else 'not converged'}.")
+                               f"({what})" + (f", jitter above {report.jitter.cutoff:g} Hz <= {report.jitter.requirement:g} arcsec"
+                                              if getattr(report, "jitter", None) is not None else "")
+                               + f"; {'converged' if bool(report.result.converged) else 'not converged'}.")
         return SceneFile.from_data(data, "proposal", "<proposal>")
 
     @property

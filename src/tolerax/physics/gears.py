@@ -45,6 +45,8 @@ def _check_gear_data(args: dict) -> None:
     """`default_stage`'s arguments, named as the caller wrote them."""
     for name in ("sun_teeth", "planet_teeth", "ring_teeth", "n_planets"):
         V.positive_integer(f"default_stage({name}=...)", args[name])
+    if not isinstance(args["distinct_planets"], bool):
+        raise TypeError(f"default_stage(distinct_planets=...) must be True or False, got {args['distinct_planets']!r}.")
     if args["planet_spacing"] not in ("equal", "assembled"):
         raise ValueError(f"planet_spacing={args['planet_spacing']!r} is unknown; use 'equal' or 'assembled'.")
     for name in ("mesh", "sun_support", "carrier_support", "planet_support"):
@@ -105,6 +107,7 @@ def default_stage(
     impact_rate_floor: float = 1e-3,
     impact_memory_time: float = 1e-4,
     planet_spacing: str = "equal",
+    distinct_planets: bool = False,
 ) -> PlanetaryStage:
     """The default joint of docs/model.md §4 (all values overridable; SI units).
 
@@ -126,6 +129,10 @@ def default_stage(
     way, $(z_s + z_r)/N$ an integer, and raises otherwise. The paper's 20/30/80 with three planets
     is *not* assemblable equally spaced ((20 + 80)/3 is not an integer): the default keeps the
     paper's idealisation, in which each planet's mesh phases are $z_s\\psi_n$ and $-z_r\\psi_n$.
+
+    `distinct_planets`: design each planet's pin clearance and sun/ring backlash as features of
+    their own (`azimuth.planet_clearance[0]`, ...; `tolerax.design.features`) instead of one
+    value for all planets: for a tolerance design that sorts or matches planets.
 
     Every argument is checked before anything is built (`ValueError`/`TypeError` naming it).
     """
@@ -209,4 +216,5 @@ def default_stage(
         smoothing_width=as_float(smoothing_width),
         impact_rate_floor=as_float(impact_rate_floor),
         impact_memory_time=as_float(impact_memory_time),
+        distinct_planets=bool(distinct_planets),
     )

@@ -139,7 +139,9 @@ class PlanetaryStage(eqx.Module):
     meshes as `Support` / `Mesh`. The ring is `"rigid"` (fixed to the housing) or `"spring"`.
     Numerical options: `smoothing_width` $\\varepsilon$ (m) of every dead zone, ramp and switch;
     `impact_rate_floor` (m/s) and `impact_memory_time` (s) of the contacts' impact-rate states.
-    Build a stage from gear data with `default_stage`.
+    `distinct_planets` (static): the tolerance design treats each planet's pin clearance and
+    mesh backlash as a feature of its own (`tolerax.design.features`); the dynamics read
+    per-planet values either way. Build a stage from gear data with `default_stage`.
     """
 
     n_planets: int = eqx.field(static=True)
@@ -174,6 +176,7 @@ class PlanetaryStage(eqx.Module):
     smoothing_width: Float[Array, ""]
     impact_rate_floor: Float[Array, ""]
     impact_memory_time: Float[Array, ""]
+    distinct_planets: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
         _check_stage(self)
