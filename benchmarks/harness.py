@@ -104,6 +104,18 @@ def timed(
 # Options, environment, result files
 
 
+def cli(argv: Sequence[str], out, cache, quiet_stderr: bool = True) -> float:
+    """Wall time (s) of `tolerax ARGV --out OUT` in a fresh Python process whose compilation
+    cache is the folder `cache` (the `TOLERAX_CACHE_DIR` a user would set; never off), its
+    output discarded: a command as a user starts it, cold or warm."""
+    env = dict(os.environ, TOLERAX_CACHE_DIR=str(cache))
+    env.pop("TOLERAX_CACHE", None)
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "tolerax.cli.main", *argv, "--out", str(out)], env=env, check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL if quiet_stderr else None)
+    return time.perf_counter() - start
+
+
 def argument_parser(doc: str | None) -> argparse.ArgumentParser:
     """A script's parser: its docstring as the help text, and `--results DIR`."""
     parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)

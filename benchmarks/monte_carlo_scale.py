@@ -25,12 +25,9 @@ the cache instead of compiled), which the script checks.
 """
 
 import json
-import os
 import pathlib
-import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 import xarray as xr
@@ -38,16 +35,6 @@ import xarray as xr
 import harness
 
 SCENES = {"lumped": "scan-azimuth", "fast": "scan-azimuth-fast"}
-
-
-def run(argv, out, cache) -> tuple[float, str]:
-    env = dict(os.environ, TOLERAX_CACHE_DIR=str(cache))
-    env.pop("TOLERAX_CACHE", None)
-    load = harness.load()
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "tolerax.cli.main", *argv, "--out", str(out)], env=env, check=True,
-                   stdout=subprocess.DEVNULL)
-    return time.perf_counter() - start, load
 
 
 def main():
@@ -69,7 +56,8 @@ def main():
             times, loads, samples = [], [], []
             for label in ("cold", "warm"):
                 out = pathlib.Path(tmp) / f"{case}-{label}"
-                wall, load = run(argv, out, cache)
+                load = harness.load()
+                wall = harness.cli(argv, out, cache, quiet_stderr=False)
                 times.append(wall)
                 loads.append(load)
                 ds = xr.load_dataset(out / "montecarlo.nc")

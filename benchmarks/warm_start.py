@@ -17,12 +17,8 @@ Wall time of the whole process (imports, tracing, compilation, the run); the rat
 is the figure (these machines are noisy: read ratios in one run).
 """
 
-import os
 import pathlib
-import subprocess
-import sys
 import tempfile
-import time
 
 import harness
 
@@ -34,15 +30,6 @@ COMMANDS = {
 }
 
 
-def run(argv, out, cache) -> float:
-    env = dict(os.environ, TOLERAX_CACHE_DIR=str(cache))
-    env.pop("TOLERAX_CACHE", None)
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "tolerax.cli.main", *argv, "--out", str(out)], env=env, check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
-
-
 def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--commands", nargs="+", default=list(COMMANDS), choices=list(COMMANDS))
@@ -51,8 +38,8 @@ def main():
     with tempfile.TemporaryDirectory(prefix="tolerax-warm-") as tmp:
         for name in args.commands:
             cache = pathlib.Path(tmp) / f"cache-{name}"
-            cold = run(COMMANDS[name], pathlib.Path(tmp) / f"{name}-cold", cache)
-            warm = run(COMMANDS[name], pathlib.Path(tmp) / f"{name}-warm", cache)
+            cold = harness.cli(COMMANDS[name], pathlib.Path(tmp) / f"{name}-cold", cache)
+            warm = harness.cli(COMMANDS[name], pathlib.Path(tmp) / f"{name}-warm", cache)
             entries = sum(1 for _ in cache.rglob("*") if _.is_file())
             size = sum(p.stat().st_size for p in cache.rglob("*") if p.is_file()) / 1e6
             rows.append((name, "`tolerax " + " ".join(COMMANDS[name]) + "`", f"{cold:.1f}", f"{warm:.1f}", f"{warm / cold:.2f}",

@@ -127,11 +127,16 @@ def _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed
         "What drives the RMS pointing error (Spearman rank correlation with each feature): "
         + ", ".join(f"{name} {rho:+.2f}" for name, rho in drivers.items()) + ".", "",
         "![histogram of the RMS pointing error against the requirement](histogram.png)", "",
-        "## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
-        "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}",
-        f"- {load_average()}", f"- `tolerax {command}`; rerun the same command to resume, or with a larger --n to extend", "",
+        *_scene_and_settings(scene_file, f"- {load_average()}",
+                             f"- `tolerax {command}`; rerun the same command to resume, or with a larger --n to extend"),
     ]
     (out / "report.md").write_text("\n".join(sections))
+
+
+def _scene_and_settings(scene_file, *lines) -> list[str]:
+    """A report's closing sections: the scene file, then its solver settings, the versions and `lines`."""
+    return ["## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
+            "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}", *lines, ""]
 
 
 def _design_setup(parser, args, command):
@@ -284,10 +289,8 @@ def design_command(parser, args) -> int:
 def _write_report(out, sections, scene_file, args, wall):
     """`OUT/report.md`: one self-contained page per job for a design review (its figures beside it)."""
     text = "\n".join([
-        *sections, "## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
-        "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}",
-        f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
-        f"- reproduce with: `{command_line(args)}`", "",
+        *sections, *_scene_and_settings(scene_file, f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
+                                        f"- reproduce with: `{command_line(args)}`"),
     ])
     (out / "report.md").write_text(text)
 
