@@ -183,7 +183,7 @@ class DesignReport:
     checks: tuple[YieldCheck, ...] = ()
     lost_motion: np.ndarray | None = None
     fixed: tuple[str, ...] = ()
-    jitter: "JitterRequirement | None" = None
+    jitter: JitterRequirement | None = None
     solved_for: float | None = None
 
     @property

@@ -262,8 +262,8 @@ def sequential_design(
       at a KKT point *within that noise* (`optimality_residual(gradient_se=...)`, 2 standard
       errors) below `band_tol`: on noisy slopes a plain KKT test never passes (measured: the
       two-requirement design with a jitter fitted over 16 planetary units sat at cost 1.722,
-      stationary, bands' residual 0.66). Called (one batch of simulations) only when the cost has become stationary and the
-      plain tests failed, and once at the returned design.
+      stationary, bands' residual 0.66). Called (one batch of simulations) only when the cost
+      has become stationary and the plain tests failed, and once at the returned design.
 
     **Returns:** an `OptimisationResult` whose design is the cheapest iterate on the requirement
     (objective $\\le R(1 + $`tol`$/10)$), else the last one (its `history.penalty` is NaN and
