@@ -347,9 +347,10 @@ class DesignProblem:
         """For `sequential_design(gradient_noise=...)`: `noise(x, width)`, the standard errors
         (arcsec/m) of the objective's gradient at `x` (`Design(lower limit, band)`) where it is
         fitted by secants over a few units (`secant_gradient_noise`); `None` where the gradient
-        is exact (tangents)."""
+        is exact (tangents), or where the fit leaves no residual to estimate its noise from
+        (`secant_units` at most one more than the features)."""
         inner = self.objective.objective
-        if not isinstance(inner, LinearisedYield) or inner.secant_units is None:
+        if not isinstance(inner, LinearisedYield) or inner.secant_units is None or inner.secant_units < len(self.features.names) + 2:
             return None
         return lambda x, width: secant_gradient_noise(inner, Design(x.nominal + x.band, x.band), self.draws, width)
 
