@@ -73,6 +73,10 @@ def test_distinct_planets_are_features_of_their_own(tmp_path):
     assert abs(float(rms(per_planet, jnp.asarray(tighter))) / float(rms(per_planet, jnp.asarray(alike))) - 1.0) > 1e-3
     assert float(rms(per_planet, jnp.asarray(looser))) == pytest.approx(float(rms(per_planet, jnp.asarray(alike))), rel=1e-9)
 
+    # A lumped joint keeps only the tightest planet's lost motion: designing per-planet features
+    # on it is warned against (benchmarks/results/design_antenna_planets.md).
+    with pytest.warns(UserWarning, match="tightest planet"):
+        _propose.design_problem(per_planet)
     scene_file = tmp_path / "planets.toml"
     scene_file.write_text('[scene]\nkind = "scan"\nmode = "azimuth"\nfidelity = ["lumped", "ideal"]\n\n'
                           '[scene.azimuth_stage]\ndistinct_planets = true\n\n'
