@@ -100,9 +100,9 @@ def with_design(scene, values: Float[Array, " n_features"]):
             f"{[n for n, _ in entries]}, got shape {jnp.shape(values)}."
         )
     # One leaf per stage field; a field whose planets are features of their own gets one value each.
-    leaves: dict[tuple[int, str], list] = {}
-    for k, (_, feature, stage, field, planet) in enumerate(_fields(scene)):
-        leaves.setdefault((id(stage), feature), [field, stage.n_planets, []])[2].append((k, planet))
+    leaves: dict[str, list] = {}  # by "joint.feature" (two joints may hold one stage object)
+    for k, (name, _, stage, field, planet) in enumerate(_fields(scene)):
+        leaves.setdefault(name.split("[")[0], [field, stage.n_planets, []])[2].append((k, planet))
     getters = [field for field, _, _ in leaves.values()]
     new = []
     for (field, n, items), old in zip(leaves.values(), [get(scene) for get in getters]):

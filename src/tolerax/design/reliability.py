@@ -227,7 +227,7 @@ class YieldCheck:
 
     - `n`: fresh units simulated; `n_failed`: of them, solves that failed (not counted).
     - `simulated`, `linear` (arcsec): each unit's metric, simulated and predicted by the linear
-      model (same units).
+      model (same units; with `scatter`, each prediction carries a draw of the fit's residual).
     - `yield_simulated`, `interval`: the fraction of units with metric $\\le R$ and its 95 %
       Wilson interval; `yield_linear`: the same fraction for the linear predictions.
     - `quantile_simulated`, `quantile_linear` (arcsec): Harrell–Davis `q`-quantiles of the two;
