@@ -217,21 +217,21 @@ class OptimisationResult(eqx.Module):
     @property
     def band_optimality(self) -> float:
         """First-order optimality residual over the bands, the lower limits held where they are."""
-        sensitivity = np.asarray(self.sensitivity.band)
-        if sensitivity.ndim == 2:
-            sensitivity = sensitivity[np.asarray(self.constraint_active, dtype=bool)]
-        return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band), np.asarray(self.at_upper.band))
+        return self._band_residual(None)
 
     @property
     def band_optimality_within_noise(self) -> float:
         """`band_optimality` within 2 standard errors of the sensitivities (`sensitivity_se`,
         where they are estimates: `optimality_residual(gradient_se=...)`); NaN without them."""
-        if self.sensitivity_se is None:
-            return float("nan")
-        sensitivity, se = np.asarray(self.sensitivity.band), np.asarray(self.sensitivity_se.band)
+        return float("nan") if self.sensitivity_se is None else self._band_residual(np.asarray(self.sensitivity_se.band))
+
+    def _band_residual(self, se) -> float:
+        """`optimality_residual` over the bands (the active constraints' rows where there are
+        several), with the sensitivities' standard errors `se` where given."""
+        sensitivity = np.asarray(self.sensitivity.band)
         if sensitivity.ndim == 2:
             active = np.asarray(self.constraint_active, dtype=bool)
-            sensitivity, se = sensitivity[active], se[active]
+            sensitivity, se = sensitivity[active], None if se is None else se[active]
         return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band),
                                    np.asarray(self.at_upper.band), se)
 

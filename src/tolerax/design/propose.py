@@ -611,7 +611,7 @@ def propose_design(
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
     baseline_objective = np.asarray(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])), dtype=float)
-    checks, stability, solved_for = [], None, None
+    checks, checked, stability, solved_for = [], [], None, None
     requirements = np.asarray([requirement] if jitter is None else [requirement, jitter], dtype=float)
     tol = np.full(requirements.shape, 0.01)
     if jitter is not None:
@@ -650,8 +650,6 @@ def propose_design(
             result = checked[-1][0]
         checks = [got[0] for _, got, _ in checked]
         solved_for = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
-        if jitter is not None:
-            stability = (tuple(got[1] for _, got, _ in checked), float(solved_for[1]), float(tol[1]))
     else:
         result = optimise_design(
             objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
@@ -663,13 +661,12 @@ def propose_design(
     # and at fixed nominal d/db = d/db|_l - d/dl.
     s_limit, s_band = np.asarray(result.sensitivity.nominal), np.asarray(result.sensitivity.band)
     first = (lambda v: float(np.asarray(v).reshape(-1)[0]))  # noqa: E731
-    if jitter is not None:
-        jitter_checks, jitter_target, jitter_tol = stability if stability is not None else ((), float(jitter), float(tol[1]))
+    if jitter is not None:  # (method="sequential": refused otherwise)
         stability = JitterRequirement(
             requirement=float(jitter), cutoff=float(pointing.jitter_cutoff), objective=float(np.asarray(result.objective)[1]),
             constraint_active=bool(np.asarray(result.constraint_active)[1]), multiplier=float(np.asarray(result.multiplier)[1]),
-            sensitivity=Design(s_limit[1], s_band[1] - s_limit[1]), baseline=float(baseline_objective[1]), tol=jitter_tol,
-            target=jitter_target, checks=jitter_checks,
+            sensitivity=Design(s_limit[1], s_band[1] - s_limit[1]), baseline=float(baseline_objective[1]), tol=float(tol[1]),
+            target=float(solved_for[1]), checks=tuple(got[1] for _, got, _ in checked),
         )
         s_limit, s_band = s_limit[0], s_band[0]
     return DesignReport(
