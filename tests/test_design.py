@@ -11,6 +11,7 @@ import pytest
 
 import tolerax as tx
 from tolerax.design import propose as _propose
+from tolerax.design import problem as _problem
 
 
 def _leaves(tree):
@@ -123,7 +124,7 @@ def test_scan_gradients_against_finite_differences(scan_pointing):
     # pulled back through ~3000 steps of a contact problem round differently. Measured here
     # |fwd - rev| / |rev| = 8e-8 (2.6e-6 on the small carrier component alone); at rtol 1e-8 over
     # 0.4 s, 3e-11. Bound 1e-6: 2000x tighter than the finite-difference check.
-    unit = eqx.filter_jit(jax.grad(lambda p: _propose._unit_output_forward(p, scan_pointing, "pointing_rms", width)))
+    unit = eqx.filter_jit(jax.grad(lambda p: _problem._unit_output_forward(p, scan_pointing, "pointing_rms", width)))
     forward = np.asarray(unit(p0))
     assert np.linalg.norm(forward - ad) < 1e-6 * np.linalg.norm(ad)
 

@@ -37,7 +37,7 @@ import scipy.stats
 from jaxtyping import Array
 
 from .objectives import PointingObjective, unit_output, value_and_jacobian
-from .optimise import Design, realise, robust
+from .types import Design, realise, robust
 from ..uncertainty.results import wilson_interval
 from ..uncertainty.sampling import unit_draws
 

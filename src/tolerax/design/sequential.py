@@ -60,7 +60,7 @@ import tqdm
 
 from ..cache import exported_jit
 from .cost import AbstractCostModel
-from .optimise import Design, Features, History, OptimisationResult, optimality_residual
+from .types import Design, Features, History, OptimisationResult, optimality_residual
 
 
 def _bisect(fn, lower, upper):

@@ -1,0 +1,241 @@
+"""The tolerance-design problem on a scene: its design variables (the lower limit and half-width
+of each feature's tolerance zone), their bounds, the objective over manufactured units and the
+cost model (`DesignProblem`, built by `design_problem`)."""
+
+import dataclasses
+from collections.abc import Mapping
+import math
+import warnings
+
+import equinox as eqx
+import jax
+import numpy as np
+from jaxtyping import Array
+
+from .cost import AbstractCostModel, IsoGrade
+from .features import design_names, design_of, feature_entries
+from .objectives import PointingObjective, unit_output, value_and_jacobian
+from .reliability import LinearisedYield, secant_gradient_noise, yield_draws
+from .types import Design, Features, realise, robust
+from ..mechanism.joints import LumpedJoint
+from ..uncertainty.sampling import unit_draws
+
+
+def feature_sizes(scene) -> np.ndarray:
+    """Nominal size (mm) of each design feature for the cost model: the journal diameter of a
+    bearing clearance, the pitch diameter of the gear whose mesh has the backlash (sun or ring)."""
+    sizes = []
+    for _, feature, stage, _ in feature_entries(scene):
+        if feature.endswith("_clearance"):
+            support = getattr(stage, feature.replace("_clearance", "_support"))
+            radius = float(np.max(np.asarray(support.bearing.journal_radius)))
+        else:
+            base = stage.sun_base_radius if feature == "sun_backlash" else stage.ring_base_radius
+            radius = float(base) / math.cos(float(stage.sun_pressure_angle))
+        sizes.append(2e3 * radius)
+    return np.asarray(sizes)
+
+
+class OnHalfWidth(AbstractCostModel):
+    """A cost model of the full tolerance width $2b$ (as ISO 286 tabulates it) applied to the
+    design's half-width `band` $b$ (nominal $\\pm b$)."""
+
+    model: AbstractCostModel
+
+    def __call__(self, band, size_mm):
+        return self.model(2.0 * band, size_mm)
+
+
+@eqx.filter_custom_vjp
+def _unit_output_forward(values, pointing, output, width):
+    """`unit_output`, whose reverse-mode derivative is computed in forward mode: the backward
+    pass of a simulation needs the whole trajectory (checkpointed and recomputed), while a
+    handful of tangents carried along the forward solve (`diffrax.ForwardMode`) cost less for
+    the few clearances of a scene (benchmarks/results/gradient_methods.md). The Jacobian over
+    the unit's design vector is formed on the forward pass and kept for the backward one."""
+    return unit_output(values, pointing, output, width)
+
+
+@_unit_output_forward.def_fwd
+def _unit_output_forward_fwd(perturbed, values, pointing, output, width):
+    return value_and_jacobian(values, pointing, output, width)
+
+
+@_unit_output_forward.def_bwd
+def _unit_output_forward_bwd(jac, cotangent, perturbed, values, pointing, output, width):
+    return cotangent * jac
+
+
+class RobustPointing(eqx.Module):
+    """`objective(x, draws, width)`: a robust statistic (`robust`, arcsec) of one output of a
+    `PointingObjective` over the manufactured units `realise(x, draws)`, at smoothing width
+    `width` (m). A failed solve makes the objective NaN (the optimiser then stops with an error
+    naming the iteration) rather than a silently wrong number.
+
+    `gradient`: how `jax.grad` of the objective is computed through each unit's simulation:
+    `"forward"` (default; one forward solve carrying one tangent per design feature, then the
+    chain rule through `realise`; the objective then supports reverse-mode `jax.grad`/`vjp` but
+    not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
+    mode). benchmarks/results/gradient_methods.md measures both."""
+
+    pointing: PointingObjective
+    output: str = eqx.field(static=True, default="pointing_rms")
+    statistic: str = eqx.field(static=True, default="mean+kstd")
+    k: float = eqx.field(static=True, default=1.0)
+    gradient: str = eqx.field(static=True, default="forward")
+
+    def __check_init__(self):
+        if self.gradient not in ("forward", "reverse"):
+            raise ValueError(f"RobustPointing: gradient must be 'forward' or 'reverse', got {self.gradient!r}.")
+
+    def __call__(self, x: Design, draws, width) -> Array:
+        unit = _unit_output_forward if self.gradient == "forward" else unit_output
+        value = jax.vmap(lambda v: unit(v, self.pointing, self.output, width))(realise(x, draws))
+        return robust(value, kind=self.statistic, k=self.k)
+
+
+class FromLowerLimit(eqx.Module):
+    """An objective of a `Design` whose `nominal` field holds the *lower limit* $l$ of each
+    tolerance zone (the minimum clearance or backlash, m) instead of its middle: it calls
+    `objective(Design(l + b, b), ...)`. With $l$ bounded below by a functional minimum (thermal
+    growth, lubricant film, no jamming), the box of the optimiser is the set of buildable fits,
+    which a box on (nominal, band) cannot express ($\\text{nominal} - \\text{band} \\ge l_{min}$)."""
+
+    objective: eqx.Module
+
+    def __call__(self, x: Design, draws, width) -> Array:
+        return self.objective(Design(x.nominal + x.band, x.band), draws, width)
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignProblem:
+    """The tolerance-design problem `propose_design` solves, for other optimisers to solve too
+    (benchmarks/design_comparison.py): minimise `cost_model.total(x.band, features.size_mm)`
+    subject to `objective(x, draws, width) <= requirement` over `lower <= x <= upper`, with
+    `x = Design(lower limit, band)` (m; `FromLowerLimit`), starting from `x0`."""
+
+    objective: FromLowerLimit
+    features: Features
+    draws: Array
+    lower: Design
+    upper: Design
+    x0: Design
+    cost_model: AbstractCostModel
+
+    @property
+    def gradient_noise(self):
+        """For `sequential_design(gradient_noise=...)`: `noise(x, width)`, the standard errors
+        (arcsec/m) of the objective's gradient at `x` (`Design(lower limit, band)`) where it is
+        fitted by secants over a few units (`secant_gradient_noise`); `None` where the gradient
+        is exact (tangents), or where the fit leaves no residual to estimate its noise from
+        (`secant_units` at most one more than the features)."""
+        inner = self.objective.objective
+        if not isinstance(inner, LinearisedYield) or inner.secant_units is None or inner.secant_units < len(self.features.names) + 2:
+            return None
+        return lambda x, width: secant_gradient_noise(inner, Design(x.nominal + x.band, x.band), self.draws, width)
+
+
+def design_problem(
+    pointing: PointingObjective,
+    *,
+    band: float = 10e-6,
+    min_clearance=5e-6,
+    band_range: tuple[float, float] = (1e-6, 50e-6),
+    n_draws: int = 4,
+    key=None,
+    statistic: str = "mean+kstd",
+    k: float = 1.0,
+    output: str = "pointing_rms",
+    cost_model: AbstractCostModel | None = None,
+    gradient: str = "forward",
+    yield_: float | None = None,
+    n_yield_draws: int = 16384,
+    slope_width: float | None = None,
+    secant_units: int | None = None,
+    scatter: bool = False,
+    fixed=(),
+) -> DesignProblem:
+    """The `DesignProblem` that `propose_design` solves.
+
+    **Arguments:**
+
+    - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
+      is the starting nominal.
+    - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
+      the current nominal minus `band` (at least `min_clearance`).
+    - `min_clearance`: smallest allowed lower limit (m), a scalar or one value per feature
+      (`design_names(scene)` order). The largest allowed is the starting one.
+    - `band_range`: (smallest, largest) half-width (m).
+    - `n_draws`, `key`: fixed standardised draws (`unit_draws`), the same at every iteration.
+    - `statistic`, `k`: `robust` statistic (`"mean+kstd"` with `k`, or `"quantile"`) of
+      `output` over the draws.
+    - `cost_model`: a cost of the full tolerance width $2b$; default `IsoGrade()` (ISO 286
+      grades, relative cost 1 per feature at IT7).
+    - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
+      (`RobustPointing`).
+    - `yield_`: a yield $Y$ in (0, 1) makes the objective the $Y$-quantile of `output` over all
+      units made within the bands, linearised at the zone middles (`LinearisedYield`: one
+      simulation with one forward-mode tangent per feature; `n_draws`, `key`, `statistic`, `k`
+      and `gradient` unused), so that objective $\\le R$ reads $P(\\text{output} \\le R) \\ge Y$;
+      `n_yield_draws` fixed quasi-random draws (`yield_draws`) carry the quantile;
+      `slope_width` (m, optional): take the slopes at this smoothing width (`LinearisedYield`:
+      at a narrow width forward-mode tangents through the contacts can be spiky); default at
+      the objective's own width. On the dual scan slopes at 1 um did not make the design
+      converge (it stalled at cost 8.47 where a run without them reached 2.69): the value is
+      rough there too. `secant_units` (optional, more than the features): fit the value and
+      slopes by least squares over this many units of the zone instead (`LinearisedYield`:
+      forward solves only; where tangents are noise, a line through the units is not);
+      `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
+      (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter).
+    - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
+      part already made): names, held at their nominal +- `band`, or a mapping name -> its
+      half-width (m), held at nominal +- that. Their lower limit and band are bounded to those
+      values (their cost is counted, constant).
+    """
+    scene = pointing.scene
+    names = design_names(scene)
+    nominal0 = np.asarray(design_of(scene))
+    lumped = [joint for joint, stage_of, _ in scene.named_stages()
+              if stage_of(scene).distinct_planets and isinstance(getattr(scene, joint, None), LumpedJoint)]
+    if lumped:
+        warnings.warn(
+            f"design_problem: the lumped joint(s) {', '.join(lumped)} have per-planet features (distinct_planets), but a lumped "
+            "joint keeps only the tightest planet's lost motion: a design there tightens one planet and leaves the others wide, "
+            "which the planetary stage does not bear out (benchmarks/results/design_antenna_planets.md: 0.055 verified yield "
+            "against 0.99). Design per-planet features at planetary fidelity.", stacklevel=2)
+    n = len(names)
+    min_clearance = np.broadcast_to(np.asarray(min_clearance, dtype=float), (n,))
+    if not (np.all(np.isfinite(min_clearance)) and np.all(min_clearance >= 0)):
+        raise ValueError(f"propose_design: min_clearance must be finite and >= 0 (m), got {min_clearance}.")
+    band_lo, band_hi = (float(v) for v in band_range)
+    if not (0 < band_lo <= band <= band_hi and np.isfinite(band_hi)):
+        raise ValueError(
+            f"propose_design: need 0 < band_range[0] <= band <= band_range[1] (m), got band={band!r}, band_range={band_range!r}."
+        )
+    key = jax.random.key(0) if key is None else key
+    limit0 = np.maximum(nominal0 - band, min_clearance)
+    lower_limit, lower_band, upper_band, band0 = min_clearance.copy(), np.full(n, band_lo), np.full(n, band_hi), np.full(n, float(band))
+    given = dict(fixed) if isinstance(fixed, Mapping) else {name: float(band) for name in fixed}
+    for name, half in given.items():
+        if name not in names:
+            raise ValueError(f"propose_design: fixed feature {name!r} is not a design feature of this scene; its features: {', '.join(names)}.")
+        if not (np.isfinite(half) and half > 0):  # a zero band would cost infinitely much (ISO 286)
+            raise ValueError(f"propose_design: the fixed feature {name!r} needs a finite half-width > 0 (m), got {half!r}.")
+        j = names.index(name)  # not `k`: that is the robust statistic's
+        limit0[j] = lower_limit[j] = max(float(nominal0[j]) - half, 0.0)
+        lower_band[j] = upper_band[j] = band0[j] = half
+    if yield_ is None:
+        objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
+    else:
+        objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
+                                    None if secant_units is None else int(secant_units), bool(scatter))
+        draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
+    return DesignProblem(
+        objective=FromLowerLimit(objective),
+        features=Features(names, feature_sizes(scene)),
+        draws=draws,
+        lower=Design(lower_limit, lower_band),
+        upper=Design(limit0, upper_band),
+        x0=Design(limit0, band0),
+        cost_model=OnHalfWidth(IsoGrade() if cost_model is None else cost_model),
+    )

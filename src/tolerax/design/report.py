@@ -1,0 +1,226 @@
+"""What a tolerance design proposes and why: `DesignReport` (the proposal, its checks, a table
+and a plot) and the stability requirement's part of it (`JitterRequirement`)."""
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .objectives import UNITS
+from .reliability import YieldCheck
+from .types import Design, OptimisationResult
+
+
+@dataclasses.dataclass(frozen=True)
+class JitterRequirement:
+    """The pointing-stability part of a proposal with two requirements (`DesignReport.jitter`).
+
+    - `requirement` (arcsec): the jitter (RMS of the pointing error above `cutoff` Hz over the
+      window) that a fraction `yield_` of units must meet; `objective` (arcsec): its linearised
+      quantile at the proposal; `baseline` (arcsec): the same at the starting design.
+    - `constraint_active`, `multiplier` (cost per arcsec), `tol` (relative: the tolerance the
+      optimiser held it to, twice its secant fit's standard error).
+    - `sensitivity` (arcsec/m): d quantile / d (nominal, band), fitted over units (secants).
+    - `target` (arcsec): the (shifted) requirement the returned design was solved for;
+      `checks`: the Monte Carlo checks of the jitter (`YieldCheck`, the same units as the
+      lost-motion checks).
+    """
+
+    requirement: float
+    cutoff: float
+    objective: float
+    constraint_active: bool
+    multiplier: float
+    sensitivity: Design
+    baseline: float
+    tol: float
+    target: float
+    checks: tuple[YieldCheck, ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignReport:
+    """What `propose_design` proposes, and why.
+
+    - `names`: the features; `nominal`, `band` (m): the proposed design; `grade`: the ISO 286
+      grade of each band on its feature's size (fractional); `feature_cost`, `cost` (model
+      units): per feature and total.
+    - `baseline`: `(nominal, band, cost, objective)` of the starting design.
+    - `objective` (arcsec): the robust statistic at the proposal over the fixed draws;
+      `requirement` (arcsec); `constraint_active`; `multiplier` (cost per arcsec: what one more
+      arcsec of requirement saves).
+    - `sensitivity` (arcsec/m): d objective / d (nominal, band) per feature at the proposal.
+    - `result`: the full `OptimisationResult` (history included); its `x.nominal` holds the
+      lower limits $l$ (`FromLowerLimit`), the proposal's `nominal` is $l + b$.
+    - `yield_`: the yield $Y$ of a yield requirement (the objective is then the linearised
+      $Y$-quantile, `LinearisedYield`), else `None`; `checks`: the Monte Carlo checks of the
+      proposal (`YieldCheck`; the last is the returned design's: the cheapest checked design
+      whose simulated quantile met the requirement to 1 %, else the last one checked).
+    - `lost_motion` (arcsec/m): the geometric stack-up's weight of each feature
+      (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities.
+    - `jitter`: the stability requirement's part (`JitterRequirement`) where one was given
+      (`propose_design(jitter=...)`), else `None`; the fields above are then the lost-motion
+      requirement's.
+    - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
+      (`target`).
+    """
+
+    names: tuple[str, ...]
+    nominal: np.ndarray
+    band: np.ndarray
+    grade: np.ndarray
+    feature_cost: np.ndarray
+    cost: float
+    objective: float
+    requirement: float
+    constraint_active: bool
+    multiplier: float
+    sensitivity: Design
+    baseline: tuple
+    result: OptimisationResult
+    yield_: float | None = None
+    checks: tuple[YieldCheck, ...] = ()
+    lost_motion: np.ndarray | None = None
+    fixed: tuple[str, ...] = ()
+    jitter: JitterRequirement | None = None
+    solved_for: float | None = None
+
+    @property
+    def target(self) -> float:
+        """The requirement (arcsec) the optimiser met with the returned design: `requirement`
+        itself, or, where a Monte Carlo check found the linear model under- or over-reading
+        the quantile and the design was solved again, the requirement shifted by that check
+        (`requirement - shift`, the SORA correction)."""
+        if self.solved_for is not None:
+            return self.solved_for
+        return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
+
+    def table(self) -> str:
+        """A Markdown table of the proposal, one row per feature."""
+        geometric, jitter = self.lost_motion is not None, self.jitter
+        rows = [
+            "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
+            + (" d jitter / d nominal (arcsec/µm) |" if jitter else "") + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
+            "|---|---|---|---|---|---|---|" + ("---|" if jitter else "") + ("---|" if geometric else ""),
+        ]
+        for k, name in enumerate(self.names):
+            low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
+            rows.append(
+                f"| {name}{' (given)' if name in self.fixed else ''} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
+                f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
+                + (f" {float(jitter.sensitivity.nominal[k]) * 1e-6:.3g} |" if jitter else "")
+                + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
+            )
+        if geometric:
+            rows += ["", self._weights_text(), "", self._split_text()] + (["", self._split_text(jitter=True)] if jitter else [])
+        what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
+        head = (
+            f"Proposed design: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
+            f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
+            + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
+            + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
+            f"{self._iteration_text()}; {'converged' if bool(self.result.converged) else 'not converged'}; first-order "
+            f"optimality residual {self.result.optimality:.2g} (bands alone {self.result.band_optimality:.2g})."
+        )
+        if self.checks:
+            head += " " + self.checks[-1].text() + "."
+        if jitter:
+            head += (
+                f"\n\nStability: jitter (RMS pointing error above {jitter.cutoff:g} Hz), {self.yield_:.1%} quantile (linearised, "
+                f"secants) {jitter.objective:.4g} arcsec against {jitter.requirement:.4g} arcsec "
+                + (f"(shifted to {jitter.target:.4g} by the check before) " if jitter.target != jitter.requirement else "")
+                + f"(baseline {jitter.baseline:.4g}): "
+                + ("met" if jitter.objective <= jitter.target * (1 + jitter.tol) else "**not met** (the tightest design the optimiser "
+                   "reached does not meet it)")
+                + f", constraint {'active' if jitter.constraint_active else 'inactive'} to {jitter.tol:.0%} (twice its fit's standard error)."
+                + (" Jitter check: " + jitter.checks[-1].text() + "." if jitter.checks else "")
+            )
+        return head + "\n\n" + "\n".join(rows)
+
+    def _weights_text(self) -> str:
+        """The simulated sensitivities beside the drawings' weights, each relative to the first
+        feature the drawings weigh (a backlash or a pin clearance): where they differ, a stack-up
+        from the drawings misallocates the bands."""
+        s, w = np.asarray(self.sensitivity.nominal, dtype=float), np.asarray(self.lost_motion, dtype=float)
+        ref = int(np.flatnonzero(w > 0)[0]) if np.any(w > 0) else None
+        if ref is None or s[ref] == 0:
+            return "No feature moves the output by the drawings: no weights to compare."
+        pairs = ", ".join(f"{name} {s[k] / s[ref]:.2f} / {w[k] / w[ref]:.2f}" for k, name in enumerate(self.names))
+        return f"Weight per µm relative to {self.names[ref]}, simulated / drawings (`lost_motion_weights`): {pairs}."
+
+    @property
+    def split(self) -> tuple[float, float, float]:
+        """`(lost motion share, dynamics share, scale)` of the objective's variation over the
+        proposed zones. The simulated sensitivities $s$ (arcsec/m) are split into the drawings'
+        lost-motion weights $w$ (`lost_motion_weights`) times a scale $c$ and a remainder
+        $r = s - c w$, orthogonal in the metric of the zones ($\\sum_i b_i^2 w_i r_i = 0$, $b$
+        the half-widths): for units uniform in the zones the variance of the linearised objective,
+        $\\sum_i s_i^2 b_i^2/3$, is the lost-motion part $\\sum_i c^2 w_i^2 b_i^2/3$ plus the
+        dynamics part $\\sum_i r_i^2 b_i^2/3$. The shares sum to 1; $c$ is the arcsec of the
+        objective per arcsec of lost motion (e.g. 0.72 for the RMS on the design scan, issue 30).
+        NaN where the drawings weigh nothing or the bands are all zero."""
+        return self._split_of(self.sensitivity.nominal)
+
+    @property
+    def jitter_split(self) -> tuple[float, float, float]:
+        """`split` of the jitter requirement's sensitivities (NaN without one)."""
+        return (math.nan,) * 3 if self.jitter is None else self._split_of(self.jitter.sensitivity.nominal)
+
+    def _split_of(self, sensitivity) -> tuple[float, float, float]:
+        s, w, b2 = (np.asarray(sensitivity, dtype=float), np.asarray(self.lost_motion, dtype=float),
+                    np.asarray(self.band, dtype=float) ** 2)
+        total, ww = float(np.sum(s * s * b2)), float(np.sum(w * w * b2))
+        if total == 0.0 or ww == 0.0:
+            return math.nan, math.nan, math.nan
+        c = float(np.sum(s * w * b2)) / ww
+        lost = c * c * ww / total
+        return lost, 1.0 - lost, c
+
+    def _split_text(self, jitter: bool = False) -> str:
+        lost, dynamics, c = self.jitter_split if jitter else self.split
+        what = "jitter's" if jitter else "objective's"
+        if not math.isfinite(lost):
+            return f"Split of the {what} variation into lost motion and dynamics: not defined (no feature moves the output by the drawings, or no band)."
+        return (f"Of the {what} variation over the zones, {lost:.0%} is lost motion (the drawings' weights, scaled by "
+                f"{c:.3g} arcsec per arcsec of lost motion) and {dynamics:.0%} dynamics (what those weights do not explain: "
+                f"`DesignReport.{'jitter_split' if jitter else 'split'}`).")
+
+    def _iteration_text(self) -> str:
+        chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
+        if chosen == n - 1:
+            return f"the last of {n} iterations"
+        return f"iteration {chosen + 1} of {n}, the cheapest that met the requirement"
+
+    def plot(self):
+        """History (cost, objective) and sensitivities; returns the matplotlib figure."""
+        import matplotlib.pyplot as plt
+
+        hist = self.result.history
+        fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
+        it = np.arange(1, len(np.asarray(hist.cost)) + 1)
+        axes[0].plot(it, np.asarray(hist.cost), "o-", label="cost")
+        ax2 = axes[0].twinx()
+        what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
+        objective = np.asarray(hist.objective)
+        if self.jitter is None:
+            ax2.plot(it, objective, "s--", color="C1", label=f"{what}, arcsec")
+            ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
+            ax2.set_ylabel(f"RMS pointing error ({UNITS['pointing_rms']})")
+        else:  # two requirements of different sizes: each over its own
+            ax2.plot(it, objective[:, 0] / self.requirement, "s--", color="C1", label=f"RMS {what} / requirement")
+            ax2.plot(it, objective[:, 1] / self.jitter.requirement, "^--", color="C2", label=f"jitter {what} / requirement")
+            ax2.axhline(1.0, color="0.3", lw=0.8, ls=":", label="requirement")
+            ax2.set_ylabel("objective / requirement")
+        axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
+        axes[0].set_xlabel("iteration (one gradient each)")
+        axes[0].set_ylabel("tolerance cost (1 per feature at IT7)")
+        lines = axes[0].get_legend_handles_labels()
+        more = ax2.get_legend_handles_labels()
+        axes[0].legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper right")
+        y = np.arange(len(self.names))
+        axes[1].barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
+        axes[1].set_yticks(y, self.names, fontsize=7)
+        axes[1].set_xlabel("d objective / d nominal (arcsec/µm)")
+        axes[1].set_title("simulated sensitivity at the proposal", fontsize=9)
+        fig.tight_layout()
+        return fig
