@@ -7,6 +7,8 @@ import pathlib
 import sys
 import time
 
+NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
+
 from .common import (check_clipping, check_out, command_line, has_features, load_average, read_scene_file, settings, versions,
                      with_tolerances)
 
@@ -241,10 +243,15 @@ def design_command(parser, args) -> int:
     report, wall = proposed
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
-    proposal = F.save_scene(scene_file.with_proposal(report), out / "proposal.toml")
+    # A design that is not a proposal (not converged, infeasible, its check missed the yield) is
+    # never written as the answer unless the user allows it.
+    as_answer = report.accepted or args.allow_unconverged
+    proposal = F.save_scene(scene_file.with_proposal(report), out / ("proposal.toml" if as_answer else "best_reached.toml"))
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
-                      f"The proposal as a scene file: `{proposal}` (verify it with `tolerax montecarlo {proposal} --n 200`)."])
+                      (f"The proposal as a scene file: `{proposal}`" if report.accepted else
+                       f"The best design reached as a scene file ({report.status}, not a proposal): `{proposal}`")
+                      + f" (verify it with `tolerax montecarlo {proposal} --n 200`)."])
     (out / "design.md").write_text(text + "\n")
     fig = report.plot()
     fig.savefig(out / "design.png", dpi=120)
@@ -255,11 +262,15 @@ def design_command(parser, args) -> int:
         f"Requirement: RMS pointing error <= {requirement:g} arcsec"
         + (f" and jitter (RMS pointing error above {cutoff:g} Hz) <= {args.jitter:g} arcsec" if cutoff else "")
         + f", {_statistic(args)}. Scene `{scene_file.source}`; "
-        f"the proposal as a scene file: [proposal.toml](proposal.toml).", "",
+        f"the {'proposal' if report.accepted else 'best design reached'} as a scene file: [{proposal.name}]({proposal.name}).", "",
         "## Proposal", "", report.table(), "", "![optimiser history and sensitivities](design.png)", "",
     ]
     _write_report(out, sections, scene_file, args, wall)
     print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'}, {out / 'design.png'} and {out / 'report.md'}")
+    if not as_answer:
+        print(f"tolerax design: not a proposal ({report.status}): {report.diagnosis} The best design reached is in {proposal}; "
+              f"--allow-unconverged writes it as proposal.toml (exit {NOT_A_PROPOSAL}).", file=sys.stderr)
+        return NOT_A_PROPOSAL
     if not args.verify:
         return 0
     verify = F.load_scene(proposal)
@@ -346,15 +357,17 @@ def tradeoff_command(parser, args) -> int:
         if isinstance(proposed, int):
             return proposed
         report, wall = proposed
-        path = F.save_scene(scene_file.with_proposal(report), out / f"proposal-{requirement:g}.toml")
+        path = F.save_scene(scene_file.with_proposal(report),
+                            out / f"{'proposal' if report.accepted or args.allow_unconverged else 'best_reached'}-{requirement:g}.toml")
         check = report.checks[-1] if report.checks else None
         points.append(dict(
             requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
-            baseline_cost=report.baseline[2], converged=bool(report.result.converged), names=list(report.names),
+            baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
+            diagnosis=report.diagnosis, names=list(report.names),
             nominal_um=(report.nominal * 1e6).tolist(), band_um=(report.band * 1e6).tolist(), proposal=str(path), wall_s=wall,
             check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
         ))
-        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.cost:.3f} | {'yes' if points[-1]['converged'] else 'no'} | "
+        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.cost:.3f} | {report.status} | "
                     + ", ".join(f"{b * 1e6:.1f}" for b in report.band) + " | "
                     + ("" if check is None else f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}]")
                     + f" | {path.name} | {wall:.0f} |")
@@ -365,7 +378,7 @@ def tradeoff_command(parser, args) -> int:
         f"# Tolerance cost against the pointing requirement: {scene_file.title}", "",
         f"RMS pointing, {_statistic(args)}; cost relative, 1 per feature at IT7 (baseline {points[0]['baseline_cost']:.3f}). "
         f"Features: {', '.join(points[0]['names'])}.", "",
-        f"| requirement (arcsec) | {what} | cost | converged | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
+        f"| requirement (arcsec) | {what} | cost | outcome | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
         "|---|---|---|---|---|---|---|---|", *rows, "",
         "![cost against requirement](tradeoff.png)", "",
         f"Solver (`[run]`): {settings(scene_file)}. {versions()}. {load_average()}. Reproduce with:", "", "```", command_line(args), "```",
@@ -376,9 +389,10 @@ def tradeoff_command(parser, args) -> int:
     cost = [p["cost"] for p in points]
     ax.plot(req, cost, "-", color="C0", lw=1)
     for p in points:
-        ax.plot(p["requirement"], p["cost"], "o" if p["converged"] else "x", color="C0" if p["converged"] else "C3")
-    ax.plot([], [], "o", color="C0", label="converged")
-    ax.plot([], [], "x", color="C3", label="not converged")
+        ok = p["status"] == "converged"
+        ax.plot(p["requirement"], p["cost"], "o" if ok else "x", color="C0" if ok else "C3")
+    ax.plot([], [], "o", color="C0", label="proposal (converged)")
+    ax.plot([], [], "x", color="C3", label="not a proposal")
     ax.axhline(points[0]["baseline_cost"], color="0.5", ls=":", label="baseline bands")
     ax.set_xlabel("RMS pointing requirement (arcsec)")
     ax.set_ylabel("tolerance cost (1 per feature at IT7)")
@@ -388,8 +402,12 @@ def tradeoff_command(parser, args) -> int:
     fig.savefig(out / "tradeoff.png", dpi=120)
     plt.close(fig)
     print(text)
-    print(f"wrote {out / 'tradeoff.md'}, {out / 'tradeoff.json'}, {out / 'tradeoff.png'} and {len(points)} proposal-R.toml")
-    return 0
+    print(f"wrote {out / 'tradeoff.md'}, {out / 'tradeoff.json'}, {out / 'tradeoff.png'} and {len(points)} proposal-R.toml "
+          "(best_reached-R.toml where a point is not a proposal)")
+    missed = [p for p in points if p["status"] != "converged"]
+    for p in missed:
+        print(f"tolerax tradeoff: {p['requirement']:g} arcsec is not a proposal ({p['status']}): {p['diagnosis']}", file=sys.stderr)
+    return NOT_A_PROPOSAL if missed and not args.allow_unconverged else 0
 
 
 def run_command(parser, args) -> int:

@@ -23,7 +23,10 @@ docs/scene_files.md); design, montecarlo and tradeoff default to `scan-azimuth`.
 lists a command's options.
 
 Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
-names the file, line and key), 3 a simulation or optimisation failed.
+names the file, line and key), 3 a simulation or optimisation failed, 4 (design, tradeoff) the answer
+is not a proposal: not converged, infeasible, or its Monte Carlo check missed the yield (the best
+design reached is written as best_reached.toml, the report says why first; --allow-unconverged
+writes it as proposal.toml and exits 0).
 
 Compiled programs are kept in ~/.cache/tolerax/jax (TOLERAX_CACHE_DIR to move it,
 TOLERAX_CACHE=off to turn it off): a second command on the same scene structure starts faster.
@@ -62,6 +65,10 @@ def optimiser_options(parser):
                         "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
     parser.add_argument("--check", type=count(0), default=None,
                         help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
+    parser.add_argument("--allow-unconverged", action="store_true",
+                        help="write the best design reached as proposal.toml (and exit 0) even where it is not a proposal: "
+                        "not converged, infeasible, or its Monte Carlo check missed the yield (otherwise it is written as "
+                        "best_reached.toml and the command exits 4)")
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
                         "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "

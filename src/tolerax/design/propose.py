@@ -17,6 +17,7 @@ from ..cache import exported_jit
 from .cost import grade_of
 from .features import design_names, lost_motion_weights
 from .objectives import PointingObjective
+from .outcome import diagnose
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
@@ -188,7 +189,7 @@ def propose_design(
         result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
         target = requirements.copy()
         key = jax.random.key(1) if check_key is None else check_key
-        checked = []  # (result, its checks: one per requirement)
+        checked = []  # (result, its checks: one per requirement, the requirements it was solved for)
         for _ in range(max_checks if check_units else 0):
             middle = Design(result.x.nominal + result.x.band, result.x.band)
             got = yield_check(objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
@@ -219,6 +220,16 @@ def propose_design(
             cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
             max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
         )
+    outputs = problem.objective.objective.output
+    outputs = outputs if isinstance(outputs, tuple) else (outputs,)
+    status, diagnosis = diagnose(
+        objective=result.objective, requirement=solved_for if method == "sequential" else requirements, tol=tol,
+        converged=bool(result.converged), iterations=int(np.asarray(result.history.steps)[-1]),
+        labels=[o.replace("_", " ") + ("" if yield_ is None else f" ({yield_:.1%} quantile)") for o in outputs],
+        evaluate=lambda x: _objective_value(objective, x, draws, jnp.asarray(widths[-1])), lower=problem.lower, upper=problem.upper,
+        sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
+        checks=checked[-1][1] if method == "sequential" and checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
+        bounds_text=" (min_clearance and band_range; a scene file's [tolerances])")
     band_opt = np.asarray(result.x.band)
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
     # and at fixed nominal d/db = d/db|_l - d/dl.
@@ -253,4 +264,6 @@ def propose_design(
         fixed=fixed,
         jitter=stability,
         solved_for=float(solved_for[0]) if method == "sequential" else None,
+        status=status,
+        diagnosis=diagnosis,
     )

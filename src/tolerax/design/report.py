@@ -63,6 +63,9 @@ class DesignReport:
       requirement's.
     - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
       (`target`).
+    - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
+      reached (`"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
+      why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
     """
 
     names: tuple[str, ...]
@@ -84,6 +87,16 @@ class DesignReport:
     fixed: tuple[str, ...] = ()
     jitter: JitterRequirement | None = None
     solved_for: float | None = None
+    status: str = "converged"
+    diagnosis: str = ""
+
+    @property
+    def accepted(self) -> bool:
+        """Whether this is a proposal: the run converged and, with a yield requirement, its
+        Monte Carlo check reached the yield (`status == "converged"`, `tolerax.design.outcome`).
+        Otherwise the design is the best one reached, and `diagnosis` says why it is not a
+        proposal and what would change that."""
+        return self.status == "converged"
 
     @property
     def target(self) -> float:
@@ -114,8 +127,8 @@ class DesignReport:
         if geometric:
             rows += ["", self._weights_text(), "", self._split_text()] + (["", self._split_text(jitter=True)] if jitter else [])
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
-        head = (
-            f"Proposed design: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
+        head = ("" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n") + (
+            f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
             + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "

@@ -139,7 +139,7 @@ class SceneFile:
                                f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
                                f"({what})" + (f", jitter above {report.jitter.cutoff:g} Hz <= {report.jitter.requirement:g} arcsec"
                                               if getattr(report, "jitter", None) is not None else "")
-                               + f"; {'converged' if bool(report.result.converged) else 'not converged'}.")
+                               + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + ".")
         return SceneFile.from_data(data, "proposal", "<proposal>")
 
     @property

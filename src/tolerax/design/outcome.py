@@ -1,0 +1,97 @@
+"""Whether a design run's answer is a proposal, and if not, why not and what would change it.
+
+A run ends in one of these states (`diagnose`):
+
+- `"converged"`: the optimiser's stopping test passed at a design that meets every requirement,
+  and (with a yield requirement) the Monte Carlo check of that design found a yield whose 95 %
+  Wilson interval reaches the yield asked for.
+- `"infeasible"`: no design within the bounds meets a requirement: the tightest one (every band
+  at its smallest half-width, every lower limit on the bound that lowers the output, by the
+  sign of its sensitivity at the best design reached) misses it too.
+- `"check missed"`: the optimiser met the linearised requirement, but fresh simulated units do
+  not: the yield asked for lies above the check's Wilson interval. The linear model does not
+  hold over the zones.
+- `"noise-limited"`: not converged where the gradients are estimates (slopes fitted over a few
+  units of a chaotic response): the stop could not tell an improvement from the fits' noise.
+- `"not converged"`: the iteration budget ran out first.
+
+Only `"converged"` is a proposal; the others report the best design reached and say what would
+change the outcome (bounds, requirement, units, iterations).
+"""
+
+import numpy as np
+
+from .types import Design
+
+STATUSES = ("converged", "infeasible", "check missed", "noise-limited", "not converged")
+
+
+def _excess(value: float, requirement: float) -> str:
+    ratio = value / requirement
+    return f"{ratio - 1:+.0%} over it" if ratio < 2 else f"{ratio:.3g} times it"
+
+
+def tightest(lower: Design, upper: Design, sensitivity) -> Design:
+    """The tightest design in the box `[lower, upper]` (`Design(lower limit, band)`, m): every
+    band at its smallest, every lower limit on the bound that lowers the output by the sign of
+    `sensitivity` (arcsec/m over the lower limits, one row per output; rows are summed)."""
+    a = np.sum(np.atleast_2d(np.asarray(sensitivity, dtype=float)), axis=0)
+    limit = np.where(a < 0, np.asarray(upper.nominal), np.asarray(lower.nominal))
+    return Design(limit, np.asarray(lower.band))
+
+
+def diagnose(*, objective, requirement, tol, converged, iterations, labels, evaluate=None, lower=None, upper=None,
+             sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="") -> tuple[str, str]:
+    """`(status, diagnosis)` of a design run (module docstring); the diagnosis is empty when
+    converged.
+
+    **Arguments:**
+
+    - `objective`, `requirement`, `tol`: per requirement, the value reached (arcsec), the
+      requirement it was held to (arcsec) and its relative tolerance (arrays of one shape).
+    - `converged`: the optimiser's own stopping test; `iterations`: gradients it used.
+    - `labels`: a name per requirement for the text (e.g. "RMS pointing 99.0 % quantile").
+    - `evaluate(x) -> values` (per requirement, arcsec), `lower`, `upper` (`Design` boxes, m),
+      `sensitivity` (arcsec/m over the lower limits, a row per requirement): to test
+      infeasibility at the tightest design (`tightest`) where the best design misses; one
+      evaluation.
+    - `checks`: the returned design's Monte Carlo checks (`YieldCheck`, one per requirement);
+      `yield_`: the yield asked for.
+    - `noisy`: the gradients are estimates (secant fits).
+    - `bounds_text`: what the user sets the bounds with (named in the advice).
+    """
+    f, r, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (objective, requirement, tol))
+    t = np.broadcast_to(t, r.shape)
+    missing = f > r * (1 + t)
+    if np.any(missing) and evaluate is not None:
+        worst = np.atleast_1d(np.asarray(evaluate(tightest(lower, upper, sensitivity)), dtype=float))
+        out = worst > r * (1 + t)
+        if np.any(out):
+            k = int(np.argmax(np.where(out, worst / r, -np.inf)))
+            return "infeasible", (
+                f"No design within the bounds meets the {labels[k]} requirement of {r[k]:.4g} arcsec: the tightest one (every band "
+                f"at its smallest, every lower limit on the bound that lowers it) reaches {worst[k]:.4g} arcsec "
+                f"({_excess(worst[k], r[k])}); the best design reached, shown below, {f[k]:.4g}. To change it: a requirement of "
+                f"at least {worst[k]:.4g} arcsec, lower functional minima or a smaller smallest band{bounds_text}, or a stiffer "
+                "mechanism (the sensitivities below say which features drive it).")
+    if np.any(missing):
+        k = int(np.argmax(np.where(missing, f / r, -np.inf)))
+        return ("noise-limited" if noisy else "not converged"), (
+            f"After {iterations} gradients the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
+            f"{r[k]:.4g} arcsec), though the tightest design in the bounds meets it. To change it: more iterations "
+            "(max_outer, --outer)" + (", more secant units (secant_units, --secant-units: the slopes are fits over units "
+                                        "of a chaotic response)" if noisy else "") + ", or a wider first smoothing width.")
+    for k, check in enumerate(checks):
+        if yield_ is not None and check.interval[1] < yield_:
+            return "check missed", (
+                f"The optimiser met the linearised {labels[k]} requirement, but {check.n - check.n_failed} fresh simulated units "
+                f"do not: yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] (95 % Wilson) "
+                f"against {yield_:.1%} asked; {check.q:.1%} quantile simulated {check.quantile_simulated:.4g}, linear model "
+                f"{check.quantile_linear:.4g} arcsec. The linear model does not hold over these zones. To change it: fit it "
+                "over units (secant_units, --secant-units), narrow the band range, or allow more checks (max_checks).")
+    if not converged:
+        return ("noise-limited" if noisy else "not converged"), (
+            f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "
+            "design may exist. To change it: more iterations (max_outer, --outer)"
+            + (", more secant units (secant_units, --secant-units)" if noisy else "") + ".")
+    return "converged", ""

@@ -1,0 +1,73 @@
+"""Whether a design run's answer is a proposal (`tolerax.design.outcome`): on a linear stack-up
+whose tightest design is known in closed form, and on constructed Monte Carlo checks."""
+
+import numpy as np
+import jax.numpy as jnp
+import pytest
+
+from tolerax.design.outcome import diagnose, tightest
+from tolerax.design.reliability import YieldCheck
+from tolerax.design.sequential import sequential_design
+from tolerax.design.cost import IsoGrade
+from tolerax.design.types import Design, Features
+
+UM = 1e-6
+W = np.array([1.0, 3.0, -2.0])  # arcsec per um of each lower limit: feature 2 *lowers* the output as it opens
+V = np.array([2.0, 1.0, 0.5])  # arcsec per um of each half-width
+FEATURES = Features(["a", "b", "c"], [12.0, 80.0, 20.0])
+LOWER, UPPER = Design(jnp.full(3, 5 * UM), jnp.full(3, 1 * UM)), Design(jnp.full(3, 40 * UM), jnp.full(3, 30 * UM))
+
+
+def _stack(x, draws=None, width=None):
+    return 100.0 + (jnp.dot(W, x.nominal) + jnp.dot(V, x.band)) / UM
+
+
+def _tightest_closed_form():
+    # lower limits at 5 um where they raise the output, at 40 um where they lower it; bands at 1 um
+    return 100.0 + (W[0] * 5 + W[1] * 5 + W[2] * 40) + np.sum(V) * 1.0
+
+
+def test_tightest_design_takes_each_lower_limit_to_the_bound_that_lowers_the_output():
+    x = tightest(LOWER, UPPER, W * 1e6)
+    np.testing.assert_array_equal(np.asarray(x.nominal) / UM, [5.0, 5.0, 40.0])
+    np.testing.assert_array_equal(np.asarray(x.band) / UM, [1.0, 1.0, 1.0])
+    assert float(_stack(x)) == pytest.approx(_tightest_closed_form(), rel=1e-12)
+
+
+@pytest.mark.parametrize("margin, status", [(-0.2, "infeasible"), (+0.2, "converged")])
+def test_infeasible_requirement_is_named_with_the_best_reachable(margin, status):
+    """The sequential method on the stack-up, with a requirement 20 % below (infeasible) or above
+    the tightest design's output: the first is diagnosed infeasible, with the closed-form
+    tightest value as the requirement that would be met; the second converges."""
+    best = _tightest_closed_form()
+    requirement = best * (1 + margin)
+    x0 = Design(jnp.full(3, 20 * UM), jnp.full(3, 10 * UM))
+    result = sequential_design(_stack, FEATURES, requirement=requirement, lower=LOWER, upper=UPPER, draws=None, x0=x0,
+                               cost_model=IsoGrade(), trust_region=1.0, max_iterations=10)
+    got, text = diagnose(objective=result.objective, requirement=requirement, tol=0.01, converged=bool(result.converged),
+                         iterations=int(result.history.steps[-1]), labels=["RMS pointing"], evaluate=_stack, lower=LOWER,
+                         upper=UPPER, sensitivity=result.sensitivity.nominal)
+    assert got == status
+    if status == "infeasible":
+        assert f"reaches {best:.4g} arcsec" in text and f"a requirement of at least {best:.4g} arcsec" in text
+    else:
+        assert text == ""
+
+
+def _check(yield_simulated, interval):
+    return YieldCheck(n=200, n_failed=0, q=0.99, requirement=100.0, simulated=np.zeros(200), linear=np.zeros(200),
+                      yield_simulated=yield_simulated, interval=interval, yield_linear=0.99, quantile_simulated=140.0,
+                      quantile_linear=99.0, shift=41.0, shift_se=3.0)
+
+
+def test_a_check_below_its_yield_or_an_unconverged_run_is_not_a_proposal():
+    common = dict(objective=99.0, requirement=100.0, tol=0.01, iterations=7, labels=["RMS pointing"], yield_=0.99)
+    missed = diagnose(converged=True, checks=(_check(0.06, (0.035, 0.10)),), **common)
+    assert missed[0] == "check missed" and "yield 0.060 [0.035, 0.100]" in missed[1]
+    # a check whose Wilson interval reaches the yield asked is within its own noise: accepted
+    assert diagnose(converged=True, checks=(_check(0.985, (0.957, 0.995)),), **common)[0] == "converged"
+    assert diagnose(converged=False, **common)[0] == "not converged"
+    assert diagnose(converged=False, noisy=True, **common)[0] == "noise-limited"
+    # missing the requirement with no infeasibility test to run: not converged, with the numbers
+    status, text = diagnose(converged=False, **common | dict(objective=130.0))
+    assert status == "not converged" and "130 against 100 arcsec" in text
