@@ -270,7 +270,7 @@ def test_an_infeasible_requirement_is_said_first_and_not_written_as_a_proposal(t
     argv = ["design", str(scene), "--yield", "0.9", "--secant-units", "5", "--check", "0", "--outer", "1", "--requirement", "1"]
     assert cli.main([*argv, "--out", str(out)]) == 4
     text = (out / "design.md").read_text()
-    assert text.startswith("**Not a proposal: infeasible.** No design within the bounds meets the pointing rms (90.0% quantile) "
+    assert text.startswith("**Not a proposal: infeasible.** No design within the bounds meets the RMS pointing error (90.0% quantile) "
                            "requirement of 1 arcsec")
     reach = float(text.split("a requirement of at least ")[1].split(" arcsec")[0])
     assert reach > 10.0  # the tightest design's own quantile, far above the 1 arcsec asked
@@ -298,7 +298,8 @@ def test_design_with_a_jitter_requirement_verifies_both(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "lumped jitter does not predict" in printed and "jitter above 20 Hz <= 5.0 arcsec" in printed
     table = (design / "design.md").read_text()
-    assert "Stability: jitter (RMS pointing error above 20 Hz)" in table and "Jitter check" in table and "d jitter / d nominal" in table
+    assert "Jitter: 90.0% quantile (linearised), secants" in table and "Check of the jitter: Monte Carlo check" in table
+    assert "d jitter / d nominal" in table
     verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_jitter"]
     jitter = xr.open_dataset(design / "verify" / "montecarlo.nc")["pointing_jitter"].values
     assert verify["n_used"] == 4 and verify["yield"] == pytest.approx(np.mean(jitter <= 5.0))

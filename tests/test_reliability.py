@@ -314,7 +314,12 @@ def test_jitter_requirement_beside_the_lost_motion_one(scan_pointing):
         assert split[0] == pytest.approx(c * c * np.sum(w * w * b2) / np.sum(s * s * b2), rel=1e-9)
     assert report.split[0] > 0.95 and report.jitter_split[0] < report.split[0] - 0.3
     text = report.table()
-    assert "Stability: jitter" in text and "d jitter / d nominal" in text and "Jitter check" in text and ": met" in text
+    assert "Jitter: 90.0% quantile (linearised), secants" in text and "d jitter / d nominal" in text and ": met" in text
+    assert "Check of the jitter: Monte Carlo check on 6 fresh units" in text
+    # The requirements as data: one outcome each, the first the report's own fields, the second the jitter's.
+    assert [o.requirement.output for o in report.outcomes] == ["pointing_rms", "pointing_jitter"]
+    assert report.outcomes[0].objective == report.objective and report.outcomes[1].objective == report.jitter.objective
+    assert report.outcomes[1].checks == report.jitter.checks and report.outcomes[1].requirement.secants
     with pytest.raises(ValueError, match="needs a yield requirement"):
         tx.propose_design(pointing, requirement, jitter=loose)
     with pytest.raises(ValueError, match="jitter_cutoff"):

@@ -68,6 +68,8 @@ from .design.features import (
 )
 from .design.objectives import PointingObjective as PointingObjective
 from .design.propose import DesignReport as DesignReport, JitterRequirement as JitterRequirement, propose_design as propose_design
+from .design.report import RequirementOutcome as RequirementOutcome
+from .design.requirements import Requirement as Requirement
 from .design.reliability import LinearisedYield as LinearisedYield, YieldCheck as YieldCheck, yield_check as yield_check
 from .design.sequential import sequential_design as sequential_design
 from .uncertainty.sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws

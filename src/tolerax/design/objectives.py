@@ -77,6 +77,11 @@ class PointingObjective(eqx.Module):
         if not (0.0 <= self.settle < self.duration):
             raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
 
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The scalar outputs this objective computes (`pointing_jitter` only with `jitter_cutoff`)."""
+        return tuple(o for o in OUTPUTS if o != "pointing_jitter" or self.jitter_cutoff is not None)
+
     def with_width(self, values, smoothing_width=None):
         """The scene with design `values` and, if given, every stage's smoothing width (m)."""
         scene = with_design(self.scene, values)

@@ -9,6 +9,7 @@ import warnings
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
@@ -63,7 +64,7 @@ def _unit_output_forward_fwd(perturbed, values, pointing, output, width):
 
 @_unit_output_forward.def_bwd
 def _unit_output_forward_bwd(jac, cotangent, perturbed, values, pointing, output, width):
-    return cotangent * jac
+    return jnp.tensordot(cotangent, jac, axes=jnp.ndim(cotangent))  # one output, or a tuple of them
 
 
 class RobustPointing(eqx.Module):

@@ -1,12 +1,14 @@
 """Tolerance proposals on a scene: the cheapest nominal clearances/backlash and tolerance bands
-whose robust pointing error meets a requirement.
+whose pointing outputs meet their requirements.
 
-`propose_design` ties together the scene's design vector (`tolerax.design.features`), a `PointingObjective`,
-fixed manufacturing draws (`unit_draws`), the ISO 286-anchored cost model (`tolerax.design.cost`)
-and the augmented-Lagrangian optimiser on optax (`tolerax.design.optimise`), and returns a `DesignReport`.
+`propose_design` ties together the scene's design vector (`tolerax.design.features`), its
+requirements (`tolerax.design.requirements`), the problem over manufactured units
+(`tolerax.design.problem`), the ISO 286-anchored cost model (`tolerax.design.cost`), an
+optimiser (`sequential_design` by default, or the augmented Lagrangian on optax), the Monte
+Carlo checks of a yield (`tolerax.design.reliability`), and returns a `DesignReport` that says
+whether its answer is a proposal (`tolerax.design.outcome`).
 """
 
-import math
 
 import equinox as eqx
 import jax
@@ -24,7 +26,8 @@ from .sequential import sequential_design
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
-from .report import DesignReport, JitterRequirement  # noqa: F401
+from .report import DesignReport, JitterRequirement, RequirementOutcome  # noqa: F401
+from .requirements import Requirement, as_requirements  # noqa: F401
 
 
 def _sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5,
@@ -100,7 +103,10 @@ def propose_design(
 
     - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
       is the starting nominal.
-    - `requirement`: arcsec.
+    - `requirement`: what the design must meet: a number (the limit of `output`, by default
+      the RMS pointing error, arcsec), a `Requirement` (an output and its limit), or a
+      sequence of them (each met on its own at the problem's statistic or yield; e.g.
+      `[Requirement("pointing_rms", 700), Requirement("pointing_peak", 2500)]`).
     - `widths`: smoothing widths (m), wide to narrow; the proposal is judged at the last. The
       sequential method solves at each in turn from the last design; the augmented Lagrangian
       takes one value per outer iteration, the last repeated. On the design scan the wide first
@@ -157,16 +163,22 @@ def propose_design(
         raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
-    if jitter is not None:
-        if yield_ is None or method != "sequential":
-            raise ValueError("propose_design: a jitter requirement needs a yield requirement (yield_=...) and method='sequential': "
-                             "the jitter is linearised by secants over units of the zone, not by tangents (rattle is chaotic).")
-        if pointing.jitter_cutoff is None:
-            raise ValueError("propose_design: a jitter requirement needs a pointing objective that measures it: "
-                             "PointingObjective(..., jitter_cutoff=20.0) (Hz, the start of the stability band).")
-        if not (math.isfinite(float(jitter)) and float(jitter) > 0):
-            raise ValueError(f"propose_design: the jitter requirement must be > 0 (arcsec), got {jitter!r}.")
-        problem["output"] = (problem.get("output", "pointing_rms"), "pointing_jitter")
+    requirements_ = as_requirements(requirement, jitter, problem.get("output", "pointing_rms"))
+    for r in requirements_:
+        if r.output not in pointing.outputs:
+            raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
+                             f"{r.text()}; it computes {', '.join(pointing.outputs)}"
+                             + (" (the jitter needs PointingObjective(..., jitter_cutoff=20.0): Hz, the start of the stability band)."
+                                if r.output == "pointing_jitter" else "."))
+        if r.secants and (yield_ is None or method != "sequential"):
+            raise ValueError(f"propose_design: the requirement {r.text()} needs a yield requirement (yield_=...) and "
+                             "method='sequential': it is linearised by secants over units of the zone, not by tangents (its "
+                             "scatter from unit to unit is chaotic).")
+    if len(requirements_) > 1 and method != "sequential":
+        raise ValueError("propose_design: several requirements need method='sequential'.")
+    m, secants = len(requirements_), [r.secants for r in requirements_]
+    problem["output"] = requirements_[0].output if m == 1 else tuple(r.output for r in requirements_)
+    if any(secants):
         if problem.get("secant_units") is None:
             problem["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
         problem.setdefault("scatter", True)
@@ -174,17 +186,19 @@ def propose_design(
     objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
     widths = tuple(float(w) for w in widths)
     schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
-    baseline_objective = np.asarray(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])), dtype=float)
-    checks, checked, stability, solved_for = [], [], None, None
-    requirements = np.asarray([requirement] if jitter is None else [requirement, jitter], dtype=float)
-    tol = np.full(requirements.shape, 0.01)
-    if jitter is not None:
-        # The jitter scatters about its trend from unit to unit (chaotic rattle), so its fitted
-        # value moves by about its standard error from one design to the next for no other
-        # reason: a tolerance below twice that makes the optimiser chase noise.
-        se = secant_standard_error(objective.objective, Design(x0.nominal + x0.band, x0.band), widths[-1])
-        tol[1] = min(max(0.01, 2.0 * float(se[1]) / float(jitter)), 0.5)
-    as_requirement = (lambda r: float(r[0])) if jitter is None else (lambda r: tuple(float(v) for v in r))  # noqa: E731
+    baseline_objective = np.atleast_1d(np.asarray(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])), dtype=float))
+    checked, solved_for = [], None
+    requirements = np.asarray([r.limit for r in requirements_], dtype=float)
+    tol = np.asarray([0.01 if r.tol is None else r.tol for r in requirements_], dtype=float)
+    if any(s and r.tol is None for s, r in zip(secants, requirements_)):
+        # A secant-fitted output scatters about its trend from unit to unit (chaotic rattle), so
+        # its fitted value moves by about its standard error from one design to the next for no
+        # other reason: a tolerance below twice that makes the optimiser chase noise.
+        se = np.atleast_1d(secant_standard_error(objective.objective, Design(x0.nominal + x0.band, x0.band), widths[-1]))
+        for k, r in enumerate(requirements_):
+            if secants[k] and r.tol is None:
+                tol[k] = min(max(0.01, 2.0 * float(se[k]) / r.limit), 0.5)
+    as_requirement = (lambda r: float(r[0])) if m == 1 else (lambda r: tuple(float(v) for v in r))  # noqa: E731
     if method == "sequential":
         result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
         target = requirements.copy()
@@ -193,7 +207,7 @@ def propose_design(
         for _ in range(max_checks if check_units else 0):
             middle = Design(result.x.nominal + result.x.band, result.x.band)
             got = yield_check(objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
-            got = got if jitter is not None else (got,)
+            got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
             corrected = requirements - np.array([c.shift for c in got])
             # a shift within the check's own noise (or the method's tolerance) is not one
@@ -212,7 +226,6 @@ def propose_design(
         if k is not None:
             checked = checked[: k + 1]
             result = checked[-1][0]
-        checks = [got[0] for _, got, _ in checked]
         solved_for = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
     else:
         result = optimise_design(
@@ -220,29 +233,28 @@ def propose_design(
             cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
             max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
         )
-    outputs = problem.objective.objective.output
-    outputs = outputs if isinstance(outputs, tuple) else (outputs,)
+    targets = solved_for if method == "sequential" else requirements
+    what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
     status, diagnosis = diagnose(
-        objective=result.objective, requirement=solved_for if method == "sequential" else requirements, tol=tol,
-        converged=bool(result.converged), iterations=int(np.asarray(result.history.steps)[-1]),
-        labels=[o.replace("_", " ") + ("" if yield_ is None else f" ({yield_:.1%} quantile)") for o in outputs],
+        objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
+        iterations=int(np.asarray(result.history.steps)[-1]), labels=[r.name + what for r in requirements_],
         evaluate=lambda x: _objective_value(objective, x, draws, jnp.asarray(widths[-1])), lower=problem.lower, upper=problem.upper,
         sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
-        checks=checked[-1][1] if method == "sequential" and checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
+        checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
         bounds_text=" (min_clearance and band_range; a scene file's [tolerances])")
     band_opt = np.asarray(result.x.band)
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
     # and at fixed nominal d/db = d/db|_l - d/dl.
-    s_limit, s_band = np.asarray(result.sensitivity.nominal), np.asarray(result.sensitivity.band)
-    first = (lambda v: float(np.asarray(v).reshape(-1)[0]))  # noqa: E731
-    if jitter is not None:  # (method="sequential": refused otherwise)
-        stability = JitterRequirement(
-            requirement=float(jitter), cutoff=float(pointing.jitter_cutoff), objective=float(np.asarray(result.objective)[1]),
-            constraint_active=bool(np.asarray(result.constraint_active)[1]), multiplier=float(np.asarray(result.multiplier)[1]),
-            sensitivity=Design(s_limit[1], s_band[1] - s_limit[1]), baseline=float(baseline_objective[1]), tol=float(tol[1]),
-            target=float(solved_for[1]), checks=tuple(got[1] for _, got, _ in checked),
-        )
-        s_limit, s_band = s_limit[0], s_band[0]
+    s_limit, s_band = np.atleast_2d(np.asarray(result.sensitivity.nominal)), np.atleast_2d(np.asarray(result.sensitivity.band))
+    values = [np.atleast_1d(np.asarray(v, dtype=float)) for v in (result.objective, result.multiplier)]
+    active = np.atleast_1d(np.asarray(result.constraint_active, dtype=bool))
+    outcomes = tuple(
+        RequirementOutcome(requirement=r, objective=float(values[0][k]), baseline=float(baseline_objective[k]), target=float(targets[k]),
+                           tol=float(tol[k]), constraint_active=bool(active[k]), multiplier=float(values[1][k]),
+                           sensitivity=Design(s_limit[k], s_band[k] - s_limit[k]), checks=tuple(got[k] for _, got, _ in checked))
+        for k, r in enumerate(requirements_))
+    first = outcomes[0]
+    jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     return DesignReport(
         names=features.names,
         nominal=np.asarray(result.x.nominal) + band_opt,
@@ -250,20 +262,21 @@ def propose_design(
         grade=np.asarray(grade_of(band_opt * 2, features.size_mm)),
         feature_cost=np.asarray(result.feature_cost),
         cost=float(result.cost),
-        objective=first(result.objective),
-        requirement=float(requirement),
-        constraint_active=bool(np.asarray(result.constraint_active).reshape(-1)[0]),
-        multiplier=first(result.multiplier),
-        sensitivity=Design(s_limit, s_band - s_limit),
+        objective=first.objective,
+        requirement=first.requirement.limit,
+        constraint_active=first.constraint_active,
+        multiplier=first.multiplier,
+        sensitivity=first.sensitivity,
         baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)),
-                  first(baseline_objective)),
+                  first.baseline),
         result=result,
         yield_=yield_,
-        checks=tuple(checks),
+        checks=first.checks,
         lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
         fixed=fixed,
-        jitter=stability,
-        solved_for=float(solved_for[0]) if method == "sequential" else None,
+        jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
+        solved_for=first.target if method == "sequential" else None,
         status=status,
         diagnosis=diagnosis,
+        outcomes=outcomes,
     )

@@ -1,14 +1,56 @@
-"""What a tolerance design proposes and why: `DesignReport` (the proposal, its checks, a table
-and a plot) and the stability requirement's part of it (`JitterRequirement`)."""
+"""What a tolerance design proposes and why: `DesignReport` (the proposal, how it stands against
+each requirement (`RequirementOutcome`), its checks, a table and a plot). `JitterRequirement`
+is the older view of a jitter requirement's outcome, kept for code that reads it."""
 
 import dataclasses
 import math
 
 import numpy as np
 
-from .objectives import UNITS
 from .reliability import YieldCheck
+from .requirements import Requirement
 from .types import Design, OptimisationResult
+
+
+@dataclasses.dataclass(frozen=True)
+class RequirementOutcome:
+    """How a design stands against one requirement (`DesignReport.outcomes`).
+
+    - `requirement`: the `Requirement` (output, limit, tolerance).
+    - `objective`: its statistic at the design (the linearised yield quantile, or mean + k std
+      over the units; the output's unit); `baseline`: the same at the starting design.
+    - `target`: the (shifted) limit the returned design was solved for (the limit, or the
+      limit less a Monte Carlo check's shift: the SORA correction); `tol`: the relative
+      tolerance the optimiser held it to.
+    - `constraint_active`; `multiplier` (cost per unit of the output: what one more unit of
+      limit saves); `sensitivity` (output unit per m): d statistic / d (nominal, band).
+    - `checks`: the Monte Carlo checks of this output (`YieldCheck`, on the same units for every
+      requirement), the last the returned design's.
+    """
+
+    requirement: Requirement
+    objective: float
+    baseline: float
+    target: float
+    tol: float
+    constraint_active: bool
+    multiplier: float
+    sensitivity: Design
+    checks: tuple[YieldCheck, ...] = ()
+
+    @property
+    def met(self) -> bool:
+        """The statistic meets the limit it was solved for, to its tolerance."""
+        return self.objective <= self.target * (1 + self.tol)
+
+    def text(self, what: str) -> str:
+        """One sentence: `what` (the statistic's name) against the limit, met or not, and its check."""
+        r, unit = self.requirement, self.requirement.unit
+        return (f"{r.name[:1].upper() + r.name[1:]}: {what} {self.objective:.4g} {unit} against {r.limit:.4g} {unit} "
+                + (f"(shifted to {self.target:.4g} by the check before) " if self.target != r.limit else "")
+                + f"(baseline {self.baseline:.4g}): " + ("met" if self.met else "**not met**")
+                + f", constraint {'active' if self.constraint_active else 'inactive'} to {self.tol:.0%}."
+                + (f" Check of the {r.name}: " + self.checks[-1].text() + "." if self.checks else ""))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +79,13 @@ class JitterRequirement:
     target: float
     checks: tuple[YieldCheck, ...] = ()
 
+    @classmethod
+    def of(cls, outcome: RequirementOutcome, cutoff: float) -> "JitterRequirement":
+        """The older view of a jitter requirement's `RequirementOutcome` (`cutoff`, Hz)."""
+        return cls(requirement=outcome.requirement.limit, cutoff=float(cutoff), objective=outcome.objective,
+                   constraint_active=outcome.constraint_active, multiplier=outcome.multiplier, sensitivity=outcome.sensitivity,
+                   baseline=outcome.baseline, tol=outcome.tol, target=outcome.target, checks=outcome.checks)
+
 
 @dataclasses.dataclass(frozen=True)
 class DesignReport:
@@ -58,9 +107,11 @@ class DesignReport:
       whose simulated quantile met the requirement to 1 %, else the last one checked).
     - `lost_motion` (arcsec/m): the geometric stack-up's weight of each feature
       (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities.
-    - `jitter`: the stability requirement's part (`JitterRequirement`) where one was given
-      (`propose_design(jitter=...)`), else `None`; the fields above are then the lost-motion
-      requirement's.
+    - `outcomes`: one `RequirementOutcome` per requirement, in the order given; the fields above
+      (`objective`, `requirement`, `constraint_active`, `multiplier`, `sensitivity`, `checks`)
+      are the first requirement's.
+    - `jitter`: a jitter requirement's outcome in its older form (`JitterRequirement`) where
+      one was given, else `None`.
     - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
       (`target`).
     - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
@@ -89,6 +140,7 @@ class DesignReport:
     solved_for: float | None = None
     status: str = "converged"
     diagnosis: str = ""
+    outcomes: tuple[RequirementOutcome, ...] = ()
 
     @property
     def accepted(self) -> bool:
@@ -109,23 +161,26 @@ class DesignReport:
         return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
 
     def table(self) -> str:
-        """A Markdown table of the proposal, one row per feature."""
-        geometric, jitter = self.lost_motion is not None, self.jitter
+        """A Markdown table of the proposal, one row per feature, after a paragraph on each
+        requirement."""
+        geometric, more = self.lost_motion is not None, self.outcomes[1:]
         rows = [
             "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
-            + (" d jitter / d nominal (arcsec/µm) |" if jitter else "") + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
-            "|---|---|---|---|---|---|---|" + ("---|" if jitter else "") + ("---|" if geometric else ""),
+            + "".join(f" d {o.requirement.name} / d nominal ({o.requirement.unit}/µm) |" for o in more)
+            + (" lost motion by the drawings (arcsec/µm) |" if geometric else ""),
+            "|---|---|---|---|---|---|---|" + "---|" * len(more) + ("---|" if geometric else ""),
         ]
         for k, name in enumerate(self.names):
             low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
                 f"| {name}{' (given)' if name in self.fixed else ''} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
                 f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
-                + (f" {float(jitter.sensitivity.nominal[k]) * 1e-6:.3g} |" if jitter else "")
+                + "".join(f" {float(o.sensitivity.nominal[k]) * 1e-6:.3g} |" for o in more)
                 + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
             )
         if geometric:
-            rows += ["", self._weights_text(), "", self._split_text()] + (["", self._split_text(jitter=True)] if jitter else [])
+            rows += ["", self._weights_text(), "", self._split_text()]
+            rows += [x for o in more for x in ("", self._split_text(o))]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         head = ("" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n") + (
             f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
@@ -137,17 +192,8 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
-        if jitter:
-            head += (
-                f"\n\nStability: jitter (RMS pointing error above {jitter.cutoff:g} Hz), {self.yield_:.1%} quantile (linearised, "
-                f"secants) {jitter.objective:.4g} arcsec against {jitter.requirement:.4g} arcsec "
-                + (f"(shifted to {jitter.target:.4g} by the check before) " if jitter.target != jitter.requirement else "")
-                + f"(baseline {jitter.baseline:.4g}): "
-                + ("met" if jitter.objective <= jitter.target * (1 + jitter.tol) else "**not met** (the tightest design the optimiser "
-                   "reached does not meet it)")
-                + f", constraint {'active' if jitter.constraint_active else 'inactive'} to {jitter.tol:.0%} (twice its fit's standard error)."
-                + (" Jitter check: " + jitter.checks[-1].text() + "." if jitter.checks else "")
-            )
+        for o in more:
+            head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
         return head + "\n\n" + "\n".join(rows)
 
     def _weights_text(self) -> str:
@@ -179,6 +225,10 @@ class DesignReport:
         """`split` of the jitter requirement's sensitivities (NaN without one)."""
         return (math.nan,) * 3 if self.jitter is None else self._split_of(self.jitter.sensitivity.nominal)
 
+    def split_of(self, outcome: RequirementOutcome) -> tuple[float, float, float]:
+        """`split` of one requirement's sensitivities (`outcomes`)."""
+        return self._split_of(outcome.sensitivity.nominal)
+
     def _split_of(self, sensitivity) -> tuple[float, float, float]:
         s, w, b2 = (np.asarray(sensitivity, dtype=float), np.asarray(self.lost_motion, dtype=float),
                     np.asarray(self.band, dtype=float) ** 2)
@@ -189,14 +239,14 @@ class DesignReport:
         lost = c * c * ww / total
         return lost, 1.0 - lost, c
 
-    def _split_text(self, jitter: bool = False) -> str:
-        lost, dynamics, c = self.jitter_split if jitter else self.split
-        what = "jitter's" if jitter else "objective's"
+    def _split_text(self, outcome: RequirementOutcome | None = None) -> str:
+        lost, dynamics, c = self.split if outcome is None else self.split_of(outcome)
+        what = "objective's" if outcome is None else f"{outcome.requirement.name}'s"
         if not math.isfinite(lost):
             return f"Split of the {what} variation into lost motion and dynamics: not defined (no feature moves the output by the drawings, or no band)."
         return (f"Of the {what} variation over the zones, {lost:.0%} is lost motion (the drawings' weights, scaled by "
                 f"{c:.3g} arcsec per arcsec of lost motion) and {dynamics:.0%} dynamics (what those weights do not explain: "
-                f"`DesignReport.{'jitter_split' if jitter else 'split'}`).")
+                f"`DesignReport.{'split' if outcome is None else 'split_of'}`).")
 
     def _iteration_text(self) -> str:
         chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
@@ -215,13 +265,14 @@ class DesignReport:
         ax2 = axes[0].twinx()
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         objective = np.asarray(hist.objective)
-        if self.jitter is None:
-            ax2.plot(it, objective, "s--", color="C1", label=f"{what}, arcsec")
+        if objective.ndim == 1:
+            first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
+            ax2.plot(it, objective, "s--", color="C1", label=f"{what}, {first.unit}")
             ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
-            ax2.set_ylabel(f"RMS pointing error ({UNITS['pointing_rms']})")
-        else:  # two requirements of different sizes: each over its own
-            ax2.plot(it, objective[:, 0] / self.requirement, "s--", color="C1", label=f"RMS {what} / requirement")
-            ax2.plot(it, objective[:, 1] / self.jitter.requirement, "^--", color="C2", label=f"jitter {what} / requirement")
+            ax2.set_ylabel(f"{first.name} ({first.unit})")
+        else:  # requirements of different sizes: each over its own
+            for k, (o, marker) in enumerate(zip(self.outcomes, "s^vD<>ph")):
+                ax2.plot(it, objective[:, k] / o.requirement.limit, f"{marker}--", color=f"C{k + 1}", label=f"{o.requirement.name} / limit")
             ax2.axhline(1.0, color="0.3", lw=0.8, ls=":", label="requirement")
             ax2.set_ylabel("objective / requirement")
         axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")

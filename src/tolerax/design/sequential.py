@@ -40,9 +40,9 @@ a few units of a chaotic response: the jitter), the bands' test may also pass wi
 standard errors of them (`gradient_noise`). Otherwise the run ends on its budget, reported not
 converged, with the cheapest iterate on the requirement.
 
-Why the subproblem is not solved on optax: it is separable with one or two linear
-constraints, so it has an exact solution (a one-dimensional dual by bisection; SLSQP on a
-problem without simulations for two), and each iterate's simulation is the expensive part.
+Why the subproblem is not solved on optax: it is separable with a few linear constraints,
+so it has an exact solution (a one-dimensional dual by bisection for one; SLSQP on a problem
+without simulations for several), and each iterate's simulation is the expensive part.
 The optax path, Adam on an augmented Lagrangian (`optimise_design`), stays as a method and
 loses the race on the design scan: 3.22 against 2.47
 (benchmarks/results/design_comparison.md).
@@ -131,12 +131,12 @@ def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement
     return l, b, lam, linear(b)
 
 
-def _subproblem2(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
-    """`_subproblem` with two linearised constraints (`f_k`, `requirement`: shape (2,); `a`,
-    `d`: (2, n); boxes as pairs of NumPy arrays): `(l, b, multipliers (2,), predicted f (2,))`.
+def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
+    """`_subproblem` with m linearised constraints (`f_k`, `requirement`: shape (m,); `a`,
+    `d`: (m, n); boxes as pairs of NumPy arrays): `(l, b, multipliers (m,), predicted f (m,))`.
     The subproblem is small (the simulations are outside it), convex (a separable convex cost,
     linear constraints, a box) and solved by SciPy's SLSQP on the cost's exact gradient (a
-    nested bisection over the two multipliers was tried: exact but minutes per call on a CPU).
+    nested bisection over two multipliers was tried: exact but minutes per call on a CPU).
     The multipliers are the non-negative least-squares fit of the bands' stationarity,
     $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`)."""
     n = a.shape[1]
@@ -170,7 +170,7 @@ def _subproblem2(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, require
     y = np.where(y < 1e-7, 0.0, np.where(y > 1.0 - 1e-7, 1.0, y))
     l, b = unpack(y)
     free = (b > b_box[0] + 1e-9 * scale) & (b < b_box[1] - 1e-9 * scale)
-    multipliers = np.zeros(2)
+    multipliers = np.zeros(a.shape[0])
     if np.any(free):
         multipliers = scipy.optimize.nnls(d[:, free].T, -_cost_gradient(cost_model, size_mm, b)[free])[0]
     predicted = linear(y)
@@ -233,16 +233,16 @@ def sequential_design(
     **Arguments:**
 
     - `objective`: `objective(x: Design, draws, width) -> scalar` (arcsec), differentiable; or,
-      with two requirements, a vector of two (e.g. a lost-motion metric and a stability metric:
-      `_subproblem2` solves the linearised problem with both; each constraint is tested as the
+      with m requirements, a vector of m (e.g. a lost-motion metric and a stability metric:
+      `_subproblem_many` solves the linearised problem with all; each constraint is tested as the
       one-constraint method tests it and a step must pass for both).
-    - `features`, `requirement` (arcsec, or two of them), `lower`, `upper` (`Design` boxes, m), `draws`, `x0`
+    - `features`, `requirement` (arcsec, or one per constraint), `lower`, `upper` (`Design` boxes, m), `draws`, `x0`
       (the start), `cost_model`: as `optimise_design`; `width` the continuation value passed
       to the objective (e.g. a smoothing width, m), fixed here.
     - `max_iterations`: gradient evaluations at most (one per iteration).
     - `trust_region`: the starting trust-region half-width, as a fraction of each variable's range.
     - `tol`: relative tolerance on the constraint ($|f - R| \\le$ `tol`$\\cdot R$ for an active one);
-      with two requirements one each, e.g. a noisy constraint's at its estimate's own noise (a
+      with several requirements one each, e.g. a noisy constraint's at its estimate's own noise (a
       stability metric fitted over a few chaotic units: `secant_standard_error`), which a model
       error below does not shrink the trust region for.
     - `step_tol`: the design has stopped moving when no variable moves by more than this fraction
@@ -254,7 +254,7 @@ def sequential_design(
     - `progress`: a tqdm bar over iterations.
     - `callback`: called after every gradient evaluation as `callback(evaluations, x, cost,
       objective)` with the design just evaluated (the trial point, kept or not), its cost and
-      objective (arcsec; an array with two requirements): a live plot, a log, or a race against another method's wall time.
+      objective (arcsec; an array with several requirements): a live plot, a log, or a race against another method's wall time.
     - `gradient_noise` (optional): `gradient_noise(x, width) -> (m, 2n)` standard errors of
       the constraints' gradients at `x` (arcsec/m; lower limits then bands), where the
       gradients are estimates: slopes fitted over a few units of a chaotic response
@@ -268,7 +268,7 @@ def sequential_design(
     **Returns:** an `OptimisationResult` whose design is the cheapest iterate on the requirement
     (objective $\\le R(1 + $`tol`$/10)$), else the last one (its `history.penalty` is NaN and
     `history.steps` counts gradient evaluations; `multiplier` is the subproblem's $\\lambda$ there).
-    With two requirements the objective, constraint, multiplier, activity and the history's
+    With several requirements the objective, constraint, multiplier, activity and the history's
     columns hold one value per constraint and `sensitivity` one row each.
     """
     lo = np.concatenate([np.asarray(lower.nominal), np.asarray(lower.band)])
@@ -280,8 +280,8 @@ def sequential_design(
 
     requirements = np.atleast_1d(np.asarray(requirement, dtype=float))
     m = requirements.shape[0]
-    if m > 2 or requirements.ndim != 1 or not np.all(requirements > 0):
-        raise ValueError(f"sequential_design: one or two requirements > 0 (arcsec), got {requirement!r}.")
+    if requirements.ndim != 1 or not np.all(requirements > 0):
+        raise ValueError(f"sequential_design: one or more requirements > 0 (arcsec), got {requirement!r}.")
     tols = np.asarray(tol, dtype=float)
     if tols.ndim > 1 or tols.size not in (1, m) or not np.all((tols > 0) & (tols < 1)):
         raise ValueError(f"sequential_design: tol must be in (0, 1), one value or one per requirement ({m}), got {tol!r}.")
@@ -331,7 +331,7 @@ def sequential_design(
                 jnp.asarray(requirements[0]),  # arrays, not Python floats: no retrace when values change
             )
         else:
-            l, b, lam_k, f_pred = _subproblem2(
+            l, b, lam_k, f_pred = _subproblem_many(
                 cost_model, size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:], (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]),
                 requirements,
             )

@@ -1,0 +1,97 @@
+"""Requirements as data: what a tolerance design must meet.
+
+A `Requirement` names one scalar output of the pointing objective (`PointingObjective`'s
+outputs: `pointing_rms`, `pointing_peak`, `pointing_smooth_peak`, `tracking_speed_rms`,
+`pointing_jitter`, or one a user's metric adds), its limit, and how tightly the optimiser holds
+it. A design problem holds any number of them; each is met by the problem's statistic (mean +
+k std over a few units, or the yield $Y$: $P(\\text{output} \\le \\text{limit}) \\ge Y$, each
+requirement on its own, marginal yields). The optimiser, the Monte Carlo checks, the report,
+`proposal.toml` and the command line treat every requirement alike.
+
+A kind of requirement is a value, not a class: which output, which limit. An output whose
+unit-to-unit scatter the features do not explain (the jitter of a rattling stage: chaotic) is
+linearised by secants over units with that scatter (`secants=True`, the default for the
+outputs in `SCATTERING_OUTPUTS`); its tolerance then defaults to twice its fit's standard error.
+"""
+
+import dataclasses
+import math
+
+from .objectives import UNITS
+
+# Outputs whose scatter from unit to unit is mostly not carried by the features (chaotic
+# rattle): linearised by secants over units, with the fit's residual scatter.
+SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
+
+NAMES = {
+    "pointing_rms": "RMS pointing error", "pointing_peak": "peak pointing error", "pointing_smooth_peak": "smooth peak pointing error",
+    "tracking_speed_rms": "RMS tracking speed error", "pointing_jitter": "jitter",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Requirement:
+    """`output` at most `limit` (in the output's unit: arcsec, or arcsec/s for a speed).
+
+    **Arguments:**
+
+    - `output`: the name of a scalar output of the pointing objective (`OUTPUTS` in
+      `tolerax.design.objectives`), e.g. `"pointing_rms"` or `"pointing_jitter"`.
+    - `limit`: the requirement, finite and > 0.
+    - `tol` (optional): relative tolerance the optimiser holds it to, in (0, 1); default 1 %,
+      or for a secant-fitted output twice its fit's standard error at the start (at least 1 %,
+      at most 50 %).
+    - `secants` (optional): linearise it by secants over units with their residual scatter
+      (needs a yield requirement); default: for the outputs in `SCATTERING_OUTPUTS`.
+    - `label` (optional): its name in reports; default from the output.
+    """
+
+    output: str = "pointing_rms"
+    limit: float = math.nan
+    tol: float | None = None
+    secants: bool | None = None
+    label: str | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.output, str) or not self.output:
+            raise ValueError(f"Requirement: output must be the name of an objective's output, e.g. 'pointing_rms', got {self.output!r}.")
+        limit = float(self.limit)
+        if not (math.isfinite(limit) and limit > 0):
+            raise ValueError(f"Requirement({self.output!r}): limit must be finite and > 0 ({self.unit}), got {self.limit!r}.")
+        object.__setattr__(self, "limit", limit)
+        if self.tol is not None and not 0.0 < float(self.tol) < 1.0:
+            raise ValueError(f"Requirement({self.output!r}): tol must be in (0, 1) (relative), got {self.tol!r}.")
+        if self.secants is None:
+            object.__setattr__(self, "secants", self.output in SCATTERING_OUTPUTS)
+
+    @property
+    def unit(self) -> str:
+        return UNITS.get(self.output, "arcsec")
+
+    @property
+    def name(self) -> str:
+        """The requirement's name in reports."""
+        return self.label or NAMES.get(self.output, self.output.replace("_", " "))
+
+    def text(self) -> str:
+        """E.g. `"RMS pointing error <= 700 arcsec"`."""
+        return f"{self.name} <= {self.limit:g} {self.unit}"
+
+
+def as_requirements(requirement, jitter=None, output: str = "pointing_rms") -> tuple[Requirement, ...]:
+    """The requirements of `propose_design`'s arguments: a number (the limit of `output`,
+    by default the RMS pointing error, arcsec), a `Requirement`, or a sequence of them; `jitter`
+    (arcsec, optional) adds a jitter requirement (the older spelling of
+    `Requirement("pointing_jitter", jitter)`)."""
+    if isinstance(requirement, Requirement):
+        found = [requirement]
+    elif isinstance(requirement, (list, tuple)):
+        found = [r if isinstance(r, Requirement) else Requirement(output, r) for r in requirement]
+    else:
+        found = [Requirement(output, requirement)]
+    if jitter is not None:
+        found.append(Requirement("pointing_jitter", jitter))
+    outputs = [r.output for r in found]
+    if not found or len(set(outputs)) != len(outputs):
+        raise ValueError(f"propose_design: give one requirement or more, each on its own output; got outputs {outputs}.")
+    return tuple(found)
