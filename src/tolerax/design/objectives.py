@@ -4,7 +4,9 @@ vector (`tolerax.design.features`). One `PointingObjective` serves the gradient 
 scalar outputs and a `success` flag).
 """
 
+import abc
 import dataclasses
+from typing import ClassVar
 
 import diffrax
 import equinox as eqx
@@ -23,6 +25,26 @@ UNITS = {
 }
 
 
+class AbstractMetric(eqx.Module):
+    """A scalar output of a run that a `PointingObjective` adds to its own by name, so that a
+    `Requirement` can be put on it (a new kind of requirement is one such class).
+
+    Write a final subclass with a class attribute `name` (the output's name, str) and optionally
+    `unit` (default "arcsec"), and `__call__(result, times, window) -> scalar`: `result` the
+    scene's result (e.g. `MechanismResult`: `pointing_error` in rad per save), `times` the save
+    times (s, NumPy: decide masks in Python) and `window` (NumPy bool per save) the objective's
+    window $t \\ge$ `settle`. Differentiable in the result for tangents; a yield linearised by
+    secants (`Requirement(secants=True)`) needs only its values.
+    """
+
+    name: ClassVar[str]
+    unit: ClassVar[str] = "arcsec"
+
+    @abc.abstractmethod
+    def __call__(self, result, times: np.ndarray, window: np.ndarray) -> Array:
+        raise NotImplementedError
+
+
 class PointingObjective(eqx.Module):
     """Pointing statistics of `scene` over the window `[settle, duration]` (s), as a function of
     its design vector (clearances and backlash, m, in `design_names(scene)` order).
@@ -34,7 +56,8 @@ class PointingObjective(eqx.Module):
     the pointing stability: the RMS of the error with everything below `jitter_cutoff` Hz
     removed, `tolerax.mechanism.outputs.pointing_jitter`); and `success` (the solver reached
     `duration`; a failed sample's numbers are meaningless, and the Monte Carlo engine never
-    averages them).
+    averages them). `metrics` (optional): `AbstractMetric`s, each adding one output by its name
+    (a requirement on any scalar of a run: `Requirement(metric.name, limit)`).
 
     `jitter_cutoff` (Hz, default `None`: no jitter output; 20 is the usual start of a pointing
     budget's stability band): the jitter's band starts there and ends at the Nyquist frequency
@@ -72,15 +95,26 @@ class PointingObjective(eqx.Module):
     pcoeff: float = eqx.field(static=True, default=0.0)
     icoeff: float = eqx.field(static=True, default=1.0)
     jitter_cutoff: float | None = eqx.field(static=True, default=None)
+    metrics: tuple[AbstractMetric, ...] = ()
 
     def __check_init__(self):
         if not (0.0 <= self.settle < self.duration):
             raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
+        names = [getattr(m, "name", None) for m in self.metrics]
+        if not all(isinstance(m, AbstractMetric) for m in self.metrics) or len(set(names)) != len(names) or set(names) & set(OUTPUTS):
+            raise ValueError(f"PointingObjective: metrics must be AbstractMetric instances with distinct names other than {OUTPUTS}, "
+                             f"got {names}.")
 
     @property
     def outputs(self) -> tuple[str, ...]:
         """The scalar outputs this objective computes (`pointing_jitter` only with `jitter_cutoff`)."""
-        return tuple(o for o in OUTPUTS if o != "pointing_jitter" or self.jitter_cutoff is not None)
+        own = tuple(o for o in OUTPUTS if o != "pointing_jitter" or self.jitter_cutoff is not None)
+        return own + tuple(m.name for m in self.metrics)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of each output."""
+        return UNITS | {m.name: m.unit for m in self.metrics}
 
     def with_width(self, values, smoothing_width=None):
         """The scene with design `values` and, if given, every stage's smoothing width (m)."""
@@ -118,6 +152,10 @@ class PointingObjective(eqx.Module):
         )
         if window is not None:
             out["pointing_jitter"] = pointing_metrics(res, window, jitter_cutoff=self.jitter_cutoff)["pointing_jitter"]
+        if self.metrics:
+            times = np.linspace(0.0, self.duration, int(self.n_save))
+            for metric in self.metrics:
+                out[metric.name] = metric(res, times, times >= self.settle)
         return out
 
 

@@ -3,7 +3,8 @@
 A `Requirement` names one scalar output of the pointing objective (`PointingObjective`'s
 outputs: `pointing_rms`, `pointing_peak`, `pointing_smooth_peak`, `tracking_speed_rms`,
 `pointing_jitter`, or one a user's metric adds), its limit, and how tightly the optimiser holds
-it. A design problem holds any number of them; each is met by the problem's statistic (mean +
+it. An output added by a user's metric (`AbstractMetric`, `PointingObjective(metrics=...)`) takes
+a requirement the same way. A design problem holds any number of them; each is met by the problem's statistic (mean +
 k std over a few units, or the yield $Y$: $P(\\text{output} \\le \\text{limit}) \\ge Y$, each
 requirement on its own, marginal yields). The optimiser, the Monte Carlo checks, the report,
 `proposal.toml` and the command line treat every requirement alike.

@@ -1,0 +1,123 @@
+"""Requirements as data (`tolerax.Requirement`): any number of them through one optimiser, a
+new kind of requirement as one small metric class, and bad input named."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import scipy.optimize
+
+import tolerax as tx
+from tolerax.design import propose as _propose
+from tolerax.design.cost import IsoGrade
+from tolerax.design.sequential import sequential_design
+from tolerax.design.types import Design, Features, realise, robust
+from tolerax.mechanism.outputs import ARCSEC
+
+UM = 1e-6
+FEATURES = Features(["a", "b", "c"], [12.0, 80.0, 20.0])
+
+
+def _three(x, draws, width):
+    """Three metrics that weigh the features differently: a root-sum-square lost motion, a
+    metric that falls as feature 0's lower limit grows, and a linear band budget."""
+    v = realise(x, draws)
+    rss = robust(jnp.sqrt(jnp.sum((v * jnp.array([1.0, 3.0, 2.0]) / UM) ** 2, axis=1)), "mean+kstd", k=1.0)
+    other = robust(jnp.sqrt(jnp.sum((v * jnp.array([2.0, 0.3, 0.1]) / UM) ** 2, axis=1)), "mean+kstd", k=2.0) - 0.8 * x.nominal[0] / UM
+    budget = jnp.dot(jnp.array([0.5, 2.0, 4.0]), x.band) / UM
+    return jnp.stack([rss, other, budget])
+
+
+def test_sequential_with_three_requirements_against_scipy_slsqp():
+    """Three constraints through the same loop as one: the cost and design of SciPy's SLSQP
+    on the same problem with all three (an independent method)."""
+    draws = jnp.asarray(np.random.default_rng(0).uniform(-1.0, 1.0, (16, 3)))
+    model, R = IsoGrade(factor_per_grade=2.0), np.array([80.0, 35.0, 18.0])  # all three active at the optimum
+    lower = Design(jnp.full(3, 20 * UM), jnp.full(3, 1 * UM))
+    upper = Design(jnp.full(3, 40 * UM), jnp.full(3, 15 * UM))
+    x0 = Design(jnp.full(3, 30 * UM), jnp.full(3, 8 * UM))
+    result = sequential_design(_three, FEATURES, requirement=tuple(R), lower=lower, upper=upper, draws=draws, x0=x0,
+                               cost_model=model, tol=1e-6, max_iterations=60)
+
+    unpack = lambda p: Design(p[:3] * UM, p[3:] * UM)  # noqa: E731
+    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
+    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
+    margins = [jax.jit(lambda p, j=j: R[j] - _three(unpack(p), draws, 0.0)[j]) for j in range(3)]
+    reference = scipy.optimize.minimize(
+        as_numpy(cost), np.r_[np.full(3, 30.0), np.full(3, 8.0)], jac=as_numpy(jax.jit(jax.grad(cost))), method="SLSQP",
+        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
+        constraints=[{"type": "ineq", "fun": as_numpy(g), "jac": as_numpy(jax.jit(jax.grad(g)))} for g in margins],
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
+    active = np.abs([float(g(jnp.asarray(reference.x))) for g in margins]) < 1e-6
+    assert reference.success and np.all(active)  # a trade between all three, not one alone
+    assert bool(result.converged) and np.asarray(result.objective).shape == (3,)
+    np.testing.assert_allclose(result.cost, reference.fun, rtol=1e-5)
+    np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-3)
+    np.testing.assert_array_equal(np.asarray(result.constraint_active), active)
+
+
+class PeakAfterReversal(tx.AbstractMetric):
+    """The peak pointing error (arcsec) over `span` seconds after the scan reverses at `reversal` (s)."""
+
+    name = "peak_after_reversal"
+    reversal: float
+    span: float
+
+    def __call__(self, result, times, window):
+        after = window & (times >= self.reversal) & (times <= self.reversal + self.span)
+        return jnp.max(jnp.where(after, result.pointing_error, 0.0)) / ARCSEC
+
+
+@pytest.fixture(scope="module")
+def peak_pointing():
+    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))  # A sin(2 pi t / 1 s): reverses at 0.25 s
+    metric = PeakAfterReversal(0.25, 0.1)
+    return tx.PointingObjective(scene, duration=0.6, settle=0.0, start="steady", n_save=61, metrics=(metric,))
+
+
+def test_a_new_requirement_kind_is_one_metric_class(peak_pointing):
+    """A requirement on the peak pointing error after a reversal, at a yield, beside the RMS one:
+    the metric is the class above and nothing else changes. Its value is the peak of the
+    simulated error over the saves after the reversal (by NumPy on the same run); the design
+    meets both requirements at their linearised quantiles, which equal the problem's own
+    objective evaluated again; the Monte Carlo check simulates the metric too."""
+    values = tx.design_of(peak_pointing.scene)
+    run = peak_pointing.run(values)
+    ts, error = np.asarray(run.ts), np.asarray(run.pointing_error) / ARCSEC
+    after = (ts >= 0.25) & (ts <= 0.35)
+    assert float(peak_pointing(values)["peak_after_reversal"]) == pytest.approx(error[after].max(), rel=1e-12)
+    assert "peak_after_reversal" in peak_pointing.outputs
+
+    pair = _propose.design_problem(peak_pointing, yield_=0.9, output=("pointing_rms", "peak_after_reversal"))
+    quantiles = eqx.filter_jit(pair.objective)
+    baseline = np.asarray(quantiles(pair.x0, pair.draws, 1e-6))
+    requirements = [tx.Requirement("pointing_rms", 0.9 * baseline[0]), tx.Requirement("peak_after_reversal", 0.8 * baseline[1])]
+    report = tx.propose_design(peak_pointing, requirements, yield_=0.9, widths=(1e-6,), max_outer=12, check_units=6, max_checks=1)
+    assert [o.requirement.output for o in report.outcomes] == ["pointing_rms", "peak_after_reversal"]
+    # rtol 1e-8: the same objective compiled twice (the design's exported program and filter_jit
+    # here) rounds differently at about 1e-9.
+    np.testing.assert_allclose([o.baseline for o in report.outcomes], baseline, rtol=1e-8)
+    again = np.asarray(quantiles(report.result.x, pair.draws, 1e-6))
+    np.testing.assert_allclose(again, [o.objective for o in report.outcomes], rtol=1e-8)
+    assert all(o.met for o in report.outcomes) and report.cost < report.baseline[2]
+    check = report.outcomes[1].checks[-1]
+    assert check.n == 6 and check.requirement == pytest.approx(0.8 * baseline[1])
+    text = report.table()
+    assert "Peak after reversal: 90.0% quantile (linearised)" in text and "d peak after reversal / d nominal" in text
+
+
+def test_bad_requirements_are_named(peak_pointing):
+    with pytest.raises(ValueError, match="limit must be finite and > 0"):
+        tx.Requirement("pointing_rms", -1.0)
+    with pytest.raises(ValueError, match="tol must be in"):
+        tx.Requirement("pointing_rms", 100.0, tol=2.0)
+    with pytest.raises(ValueError, match="each on its own output"):
+        tx.propose_design(peak_pointing, [tx.Requirement("pointing_rms", 1.0), tx.Requirement("pointing_rms", 2.0)])
+    with pytest.raises(ValueError, match="does not compute 'pointing_jitter'.*jitter_cutoff"):
+        tx.propose_design(peak_pointing, [tx.Requirement("pointing_jitter", 1.0)], yield_=0.9)
+    with pytest.raises(ValueError, match="does not compute 'pointing_peek'"):
+        tx.propose_design(peak_pointing, tx.Requirement("pointing_peek", 1.0))
+    with pytest.raises(ValueError, match="metrics must be AbstractMetric"):
+        tx.PointingObjective(peak_pointing.scene, duration=0.6, settle=0.0, metrics=(PeakAfterReversal(0.25, 0.1),) * 2)
