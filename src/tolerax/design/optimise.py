@@ -26,6 +26,7 @@ and may follow a schedule over outer iterations, so that early iterations see a 
 and later ones the sharp one.
 """
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from typing import Any
@@ -35,10 +36,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
-import tqdm
 from jaxtyping import Array, ArrayLike, Float
 from .. import _validate as V
 from .cost import AbstractCostModel, IsoGrade
+from .loop import AbstractDesignSolver, ConstrainedDesign, solve_design
 # The shared types live in `types`; importable from here too (public paths users call).
 from .types import Design, Features, History, OptimisationResult, optimality_residual, realise, robust  # noqa: F401
 
@@ -212,70 +213,125 @@ def optimise_design(
             "optimise_design: need penalty > 0, penalty_growth >= 1, max_penalty >= penalty, inner_steps >= 1, "
             f"max_outer >= 1; got {penalty}, {penalty_growth}, {max_penalty}, {inner_steps}, {max_outer}."
         )
-    schedule = continuation if callable(continuation) else (lambda _, c=continuation: c)
-    optimiser = _with_extra_args(optimiser)
+    problem = ConstrainedDesign(objective, features, requirement, active_tol, lower, upper, cost_model, draws)
+    solver = AugmentedLagrangianSolver(optimiser, continuation, int(max_outer), int(inner_steps), float(penalty), float(penalty_growth),
+                                       float(max_penalty), float(tol))
+    return solve_design(problem, solver, x0, max_steps=max_outer, progress=progress, first_callback=False)
 
-    span = jax.tree.map(lambda lo, hi: hi - lo, lower, upper)
-    z = jax.tree.map(lambda x, lo, s: (x - lo) / jnp.where(s > 0, s, 1.0), x0, lower, span)
-    cost_scale = cost_model.total(x0.band, features.size_mm)
-    if not (np.isfinite(cost_scale) and cost_scale > 0):
-        raise ValueError(f"optimise_design: cost_model gives a total cost {float(cost_scale)} at x0; need finite, > 0.")
-    problem = _Problem(lower, span, features.size_mm, jnp.asarray(requirement, dtype=float), cost_scale)
-    to_arcsec = cost_scale / problem.requirement  # dimensionless multiplier -> cost per arcsec
 
-    multiplier, rho = jnp.asarray(0.0, dtype=float), jnp.asarray(float(penalty), dtype=float)
-    previous_violation, rows, converged = np.inf, [], False
-    # The objective is noisy at the scale of an optimiser step (rattle), so the augmented
-    # Lagrangian iterates oscillate about the constraint instead of settling on it; the result is
-    # the cheapest iterate that met the requirement at the final continuation value (if any
-    # did), not merely the last one.
-    final_value = float(schedule(max_outer - 1))
-    best, meets = None, lambda f_: f_ <= float(requirement) * (1.0 + tol)  # within the violation tolerance
-    bar = tqdm.tqdm(total=max_outer, desc="optimise_design (outer iterations)", unit="it", disable=not progress)
-    for iteration in range(max_outer):
-        value = jnp.asarray(schedule(iteration), dtype=float)
+@dataclasses.dataclass
+class _LagrangianState:
+    """`AugmentedLagrangianSolver`'s state: box coordinates `z`, multiplier and penalty, the
+    last violation, one history row per outer iteration, the cheapest iterate that met the
+    requirement at the final continuation value, the last iteration's outputs."""
+
+    box: _Problem
+    z: Design
+    multiplier: Array
+    rho: Array
+    previous_violation: float = np.inf
+    rows: list = dataclasses.field(default_factory=list)
+    best: tuple | None = None
+    converged: bool = False
+    last: tuple | None = None  # (f, feature_cost, sensitivity, cost_gradient)
+
+
+class AugmentedLagrangianSolver(AbstractDesignSolver):
+    """The augmented Lagrangian of the module docstring as a solver of the one design loop
+    (`solve_design`): each step is one outer iteration, `inner_steps` projected steps of the
+    optax `optimiser` on $L_\\rho$ (one compiled program), then the multiplier and penalty
+    updates. One constraint; its `tol` in the problem is the activity tolerance (`active_tol`).
+
+    - `optimiser`: an optax `GradientTransformation` on box coordinates in $[0, 1]$.
+    - `continuation`: a constant or an optax schedule of the outer iteration (the width passed
+      to the objective); `max_outer`: the iterations the schedule is laid over (its last value
+      is the one the answer is judged at).
+    - `inner_steps`, `penalty`, `penalty_growth`, `max_penalty`, `tol`: as `optimise_design`.
+    """
+
+    optimiser: optax.GradientTransformation
+    continuation: Any = 0.0
+    max_outer: int = 30
+    inner_steps: int = 300
+    penalty: float = 10.0
+    penalty_growth: float = 4.0
+    max_penalty: float = 1e6
+    tol: float = 1e-6
+
+    def schedule(self, i):
+        return self.continuation(i) if callable(self.continuation) else self.continuation
+
+    def init(self, problem, x0):
+        if problem.m != 1:
+            raise ValueError(f"AugmentedLagrangianSolver: one requirement, got {problem.m}.")
+        lower, upper, features = problem.lower, problem.upper, problem.features
+        span = jax.tree.map(lambda lo, hi: hi - lo, lower, upper)
+        z = jax.tree.map(lambda x, lo, s: (x - lo) / jnp.where(s > 0, s, 1.0), x0, lower, span)
+        cost_scale = problem.cost_model.total(x0.band, features.size_mm)
+        if not (np.isfinite(cost_scale) and cost_scale > 0):
+            raise ValueError(f"optimise_design: cost_model gives a total cost {float(cost_scale)} at x0; need finite, > 0.")
+        box = _Problem(lower, span, features.size_mm, jnp.asarray(problem.requirements[0], dtype=float), cost_scale)
+        return _LagrangianState(box, z, jnp.asarray(0.0, dtype=float), jnp.asarray(self.penalty, dtype=float))
+
+    def step(self, problem, state):
+        iteration, box = len(state.rows), state.box
+        value = jnp.asarray(self.schedule(iteration), dtype=float)
         z_new, multiplier_new, violation, f, feature_cost, sensitivity, cost_gradient = _outer_iteration(
-            z, multiplier, rho, problem, draws, value, objective, cost_model, optimiser, inner_steps
-        )
+            state.z, state.multiplier, state.rho, box, problem.draws, value, problem.objective, problem.cost_model,
+            _with_extra_args(self.optimiser), self.inner_steps)
         if not (np.isfinite(f) and all(np.all(np.isfinite(leaf)) for leaf in jax.tree.leaves(z_new))):
-            raise RuntimeError(
-                f"optimise_design: the objective returned {float(f)} (or a non-finite gradient) at outer "
-                f"iteration {iteration}, continuation {float(value)}."
-            )
-        change = max(float(jnp.max(jnp.abs(a - b))) for a, b in zip(jax.tree.leaves(z_new), jax.tree.leaves(z)))
-        z, multiplier, violation = z_new, multiplier_new, float(violation)
-        row = (jnp.sum(feature_cost), f, f - problem.requirement, multiplier * to_arcsec, rho, value)
-        rows.append(tuple(float(v) for v in row) + ((iteration + 1) * inner_steps,))
-        if meets(rows[-1][1]) and float(value) == final_value and (best is None or rows[-1][0] < best[0]):
-            best = (rows[-1][0], iteration, z, f, feature_cost, sensitivity, cost_gradient, multiplier)
-        bar.set_postfix(cost=f"{rows[-1][0]:.4g}", objective=f"{rows[-1][1]:.4g}", requirement=f"{float(requirement):.4g}")
-        bar.update()
-        settled = float(schedule(iteration + 1)) == float(value)
-        if abs(violation) <= tol and change <= tol and settled:
-            converged = True
-            break
-        if abs(violation) > 0.5 * abs(previous_violation):
-            rho = jnp.minimum(rho * penalty_growth, max_penalty)
-        previous_violation = violation
-    bar.close()
-    chosen = len(rows) - 1
-    if best is not None and (not meets(rows[-1][1]) or best[0] < rows[-1][0]):
-        _, chosen, z, f, feature_cost, sensitivity, cost_gradient, multiplier = best
+            raise RuntimeError(f"optimise_design: the objective returned {float(f)} (or a non-finite gradient) at outer "
+                               f"iteration {iteration}, continuation {float(value)}.")
+        change = max(float(jnp.max(jnp.abs(a - b))) for a, b in zip(jax.tree.leaves(z_new), jax.tree.leaves(state.z)))
+        state.z, state.multiplier, violation = z_new, multiplier_new, float(violation)
+        to_arcsec = box.cost_scale / box.requirement  # dimensionless multiplier -> cost per arcsec
+        row = (jnp.sum(feature_cost), f, f - box.requirement, state.multiplier * to_arcsec, state.rho, value)
+        state.rows.append(tuple(float(v) for v in row) + ((iteration + 1) * self.inner_steps,))
+        state.last = (f, feature_cost, sensitivity, cost_gradient)
+        # The objective is noisy at the scale of an optimiser step (rattle), so the iterates
+        # oscillate about the constraint instead of settling on it; the answer is the cheapest
+        # iterate that met the requirement at the final continuation value (if any did).
+        final_value = float(self.schedule(self.max_outer - 1))
+        if self._meets(problem, state.rows[-1][1]) and float(value) == final_value and (state.best is None or state.rows[-1][0] < state.best[0]):
+            state.best = (state.rows[-1][0], iteration, state.z, f, feature_cost, sensitivity, cost_gradient, state.multiplier)
+        settled = float(self.schedule(iteration + 1)) == float(value)
+        if abs(violation) <= self.tol and change <= self.tol and settled:
+            state.converged = True
+        elif abs(violation) > 0.5 * abs(state.previous_violation):
+            state.rho = jnp.minimum(state.rho * self.penalty_growth, self.max_penalty)
+        state.previous_violation = violation
+        return state
 
-    return OptimisationResult(
-        x=problem.to_x(z),
-        features=features,
-        cost=jnp.sum(feature_cost),
-        feature_cost=feature_cost,
-        objective=f,
-        constraint=f - problem.requirement,
-        multiplier=multiplier * to_arcsec,
-        constraint_active=f >= problem.requirement * (1.0 - active_tol),
-        at_lower=jax.tree.map(lambda zz: zz <= 1e-9, z),
-        at_upper=jax.tree.map(lambda zz, s: (zz >= 1.0 - 1e-9) | (s == 0), z, span),
-        sensitivity=sensitivity,
-        cost_gradient=cost_gradient,
-        converged=jnp.asarray(converged),
-        iteration=jnp.asarray(chosen),
-        history=History(*(jnp.asarray(column, dtype=float) for column in zip(*rows))),
-    )
+    def _meets(self, problem, f) -> bool:
+        return f <= float(problem.requirements[0]) * (1.0 + self.tol)  # within the violation tolerance
+
+    def terminate(self, problem, state):
+        return state.converged
+
+    def last(self, problem, state):
+        x = state.box.to_x(state.z)
+        return x, state.rows[-1][0], state.rows[-1][1], len(state.rows)
+
+    def postprocess(self, problem, state):
+        rows, z, box, multiplier = state.rows, state.z, state.box, state.multiplier
+        f, feature_cost, sensitivity, cost_gradient = state.last
+        chosen = len(rows) - 1
+        if state.best is not None and (not self._meets(problem, rows[-1][1]) or state.best[0] < rows[-1][0]):
+            _, chosen, z, f, feature_cost, sensitivity, cost_gradient, multiplier = state.best
+        return OptimisationResult(
+            x=box.to_x(z),
+            features=problem.features,
+            cost=jnp.sum(feature_cost),
+            feature_cost=feature_cost,
+            objective=f,
+            constraint=f - box.requirement,
+            multiplier=multiplier * box.cost_scale / box.requirement,
+            constraint_active=f >= box.requirement * (1.0 - float(problem.tol[0])),
+            at_lower=jax.tree.map(lambda zz: zz <= 1e-9, z),
+            at_upper=jax.tree.map(lambda zz, s: (zz >= 1.0 - 1e-9) | (s == 0), z, box.span),
+            sensitivity=sensitivity,
+            cost_gradient=cost_gradient,
+            converged=jnp.asarray(state.converged),
+            iteration=jnp.asarray(chosen),
+            history=History(*(jnp.asarray(column, dtype=float) for column in zip(*rows))),
+        )
