@@ -434,8 +434,8 @@ def test_sequential_converges_within_the_noise_of_estimated_gradients():
     with up to 30 % noise per component (as slopes fitted over a few units of a chaotic response):
     the plain tests do not pass (the bands' KKT residual on noisy gradients stays above
     `band_tol`) and the run ends on its budget; told the gradients' standard errors
-    (`gradient_noise`), it stops, converged within them, on the requirement, at a cost within
-    0.1 % of the exact optimum (brentq, as in the one-step test)."""
+    (`gradient_noise`), it stops, converged within them, on the requirement, at a cost within what
+    the requirement's tolerance is worth at the exact optimum (brentq, as in the one-step test)."""
     from tolerax.design.sequential import sequential_design
 
     v = np.array([0.5, 0.0, 1.5])
@@ -476,7 +476,9 @@ def test_sequential_converges_within_the_noise_of_estimated_gradients():
     assert not bool(plain.converged) and plain.band_optimality > 1e-2
     assert bool(told.converged) and told.band_optimality_within_noise <= 1e-2 < told.band_optimality
     assert float(told.objective) <= requirement * 1.01
-    assert float(told.cost) == pytest.approx(best, rel=1e-3)
+    # Within what the requirement's own tolerance (1 %) is worth at the optimum, lambda* x 0.01 x R:
+    # the stop cannot resolve cost differences below that (`SequentialSolver`'s stationarity).
+    assert abs(float(told.cost) - best) <= lam_star * 0.01 * requirement
     assert len(told.history.cost) < len(plain.history.cost)
 
 

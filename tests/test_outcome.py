@@ -70,4 +70,25 @@ def test_a_check_below_its_yield_or_an_unconverged_run_is_not_a_proposal():
     assert diagnose(converged=False, noisy=True, **common)[0] == "noise-limited"
     # missing the requirement with no infeasibility test to run: not converged, with the numbers
     status, text = diagnose(converged=False, **common | dict(objective=130.0))
-    assert status == "not converged" and "130 against 100 arcsec" in text
+    assert status == "not converged" and "130 against 100 arcsec" in text and "more iterations" in text
+    # a stalled optimiser (its trust region collapsed) is not helped by more iterations
+    status, text = diagnose(converged=False, stalled=True, **common)
+    assert status == "not converged" and "stalled" in text and "more iterations" not in text
+
+
+def test_a_collapsed_trust_region_ends_the_run_as_stalled():
+    """On a response rough at every scale (a stack-up plus an oscillation whose slope is 1e9
+    times its amplitude per metre), the linear model never predicts a step: the trust region
+    collapses, the run ends early as stalled (not on its budget), not converged, and the
+    diagnosis says more iterations would not help."""
+    def rough(x, draws=None, width=None):
+        return _stack(x) + 20.0 * jnp.sin(1e9 * jnp.sum(x.nominal + x.band))
+
+    x0 = Design(jnp.full(3, 20 * UM), jnp.full(3, 10 * UM))
+    requirement = 0.9 * float(rough(x0))
+    result = sequential_design(rough, FEATURES, requirement=requirement, lower=LOWER, upper=UPPER, draws=None, x0=x0,
+                               cost_model=IsoGrade(), max_iterations=60)
+    assert bool(result.stalled) and not bool(result.converged) and int(result.history.steps[-1]) < 20  # of 61 allowed
+    status, text = diagnose(objective=result.objective, requirement=requirement, tol=0.01, converged=False,
+                            iterations=int(result.history.steps[-1]), labels=["RMS pointing"], stalled=True)
+    assert status == "not converged" and "stalled" in text

@@ -231,7 +231,7 @@ def design_command(parser, args) -> int:
         options["jitter"] = args.jitter
         if "lumped" in _fidelities(scene_file):
             print(f"tolerax design: note: {scene_file.name} has lumped joints; lumped jitter does not predict the planetary "
-                  "stage's (issue 30 measured a correlation of -0.07 unit by unit): for a stability budget design at planetary "
+                  "stage's unit by unit: for a stability budget design at planetary "
                   "fidelity (e.g. the scene scan-azimuth-fast, with a tight rtol).")
     pointing = scene_file.objective(jitter_cutoff=cutoff)
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "

@@ -128,7 +128,7 @@ def lost_motion_weights(scene):
     loaded side), the bearings that carry the output (sun, carrier) 0; $r = i\\,r_{bs}$ the lever of
     the output rotation on the sun's base circle. What an engineer reads off the drawings; a
     simulation's sensitivities (`propose_design`'s report) say where the dynamics weigh
-    otherwise (issue 30: 3.3x a backlash for the pin on a fast scan, where geometry says 1.9x).
+    otherwise (benchmarks/results/design_antenna.md).
     With `distinct_planets`, each planet's feature weighs $1/N$ of that: the stack-up of the
     planets' mean play (the first planet to take the load sets the lost motion, which a linear
     stack-up cannot say in advance)."""

@@ -41,7 +41,7 @@ def tightest(lower: Design, upper: Design, sensitivity) -> Design:
 
 
 def diagnose(*, objective, requirement, tol, converged, iterations, labels, evaluate=None, lower=None, upper=None,
-             sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="") -> tuple[str, str]:
+             sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="", stalled=False) -> tuple[str, str]:
     """`(status, diagnosis)` of a design run (module docstring); the diagnosis is empty when
     converged.
 
@@ -57,7 +57,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
       evaluation.
     - `checks`: the returned design's Monte Carlo checks (`YieldCheck`, one per requirement);
       `yield_`: the yield asked for.
-    - `noisy`: the gradients are estimates (secant fits).
+    - `noisy`: the gradients are estimates (secant fits); `stalled`: the optimiser's steps
+      stopped being accepted at its smallest trust region (`OptimisationResult.stalled`).
     - `bounds_text`: what the user sets the bounds with (named in the advice).
     """
     f, r, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (objective, requirement, tol))
@@ -76,11 +77,14 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 "mechanism (the sensitivities below say which features drive it).")
     if np.any(missing):
         k = int(np.argmax(np.where(missing, f / r, -np.inf)))
+        how = (f"stalled after {iterations} gradients (its steps stopped being accepted at the smallest trust region)" if stalled
+               else f"after {iterations} gradients")
         return ("noise-limited" if noisy else "not converged"), (
-            f"After {iterations} gradients the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
-            f"{r[k]:.4g} arcsec), though the tightest design in the bounds meets it. To change it: more iterations "
-            "(max_outer, --outer)" + (", more secant units (secant_units, --secant-units: the slopes are fits over units "
-                                        "of a chaotic response)" if noisy else "") + ", or a wider first smoothing width.")
+            f"The optimiser {how}, and the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
+            f"{r[k]:.4g} arcsec), though the tightest design in the bounds meets it. To change it: "
+            + ("" if stalled else "more iterations (max_outer, --outer), ")
+            + "a wider first smoothing width (widths), or slopes fitted over units (secant_units, --secant-units"
+            + (", more of them: the slopes are fits over units of a chaotic response" if noisy else "") + ").")
     for k, check in enumerate(checks):
         if yield_ is not None and check.interval[1] < yield_:
             return "check missed", (
@@ -89,6 +93,13 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 f"against {yield_:.1%} asked; {check.q:.1%} quantile simulated {check.quantile_simulated:.4g}, linear model "
                 f"{check.quantile_linear:.4g} arcsec. The linear model does not hold over these zones. To change it: fit it "
                 "over units (secant_units, --secant-units), narrow the band range, or allow more checks (max_checks).")
+    if not converged and stalled:
+        return ("noise-limited" if noisy else "not converged"), (
+            f"The design meets the requirements but the optimiser stalled after {iterations} gradients: its steps stopped "
+            "being accepted at the smallest trust region, so the linear model does not predict the response even over tiny "
+            "steps (rough at this smoothing width, or noisy); a cheaper design may exist. To change it: a wider smoothing "
+            "width first (widths), or fit the slopes over units (secant_units, --secant-units)"
+            + (", more of them" if noisy else "") + ".")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "

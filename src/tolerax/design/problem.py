@@ -155,6 +155,7 @@ def design_problem(
     secant_units: int | None = None,
     scatter: bool = False,
     fixed=(),
+    secant_seed: int = 1,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -187,7 +188,8 @@ def design_problem(
       slopes by least squares over this many units of the zone instead (`LinearisedYield`:
       forward solves only; where tangents are noise, a line through the units is not);
       `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
-      (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter).
+      (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter); `secant_seed`:
+      which set of secant units (`LinearisedYield.secant_seed`).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their nominal +- `band`, or a mapping name -> its
       half-width (m), held at nominal +- that. Their lower limit and band are bounded to those
@@ -229,7 +231,7 @@ def design_problem(
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
-                                    None if secant_units is None else int(secant_units), bool(scatter))
+                                    None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed))
         draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
     return DesignProblem(
         objective=FromLowerLimit(objective),

@@ -139,8 +139,7 @@ def propose_design(
       not its slopes: rattle is chaotic, benchmarks/results/stability_gradient.md), from the same
       solves (their quantiles include the fits' residual scatter, `scatter=True`, unless
       `scatter=False` is given), so at the pointing objective's fidelity: give a planetary one (lumped jitter does
-      not predict the planetary stage's: issue 30 measured a correlation of -0.07 unit by
-      unit). The jitter's tolerance is twice its fit's standard error at the start
+      not predict the planetary stage's unit by unit). The jitter's tolerance is twice its fit's standard error at the start
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
@@ -241,7 +240,7 @@ def propose_design(
         evaluate=lambda x: _objective_value(objective, x, draws, jnp.asarray(widths[-1])), lower=problem.lower, upper=problem.upper,
         sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
-        bounds_text=" (min_clearance and band_range; a scene file's [tolerances])")
+        bounds_text=" (min_clearance and band_range; a scene file's [tolerances])", stalled=bool(result.stalled is not None and result.stalled))
     band_opt = np.asarray(result.x.band)
     # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
     # and at fixed nominal d/db = d/db|_l - d/dl.

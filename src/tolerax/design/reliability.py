@@ -2,9 +2,8 @@
 sensitivities, corrected by a Monte Carlo check of fresh units.
 
 A unit made to the design $x = (m, b)$ (zone middle $m$, half-width $b$, m) has features
-$v = \\max(0, m + b \\circ u)$ with $u$ uniform on $[-1, 1]^n$ (`tolerax.design.optimise.realise`).
-Where the pointing metric is close to linear in the features (the lost-motion regime: issue 30
-measured $R^2 \\ge 0.96$), it is
+$v = \\max(0, m + b \\circ u)$ with $u$ uniform on $[-1, 1]^n$ (`tolerax.design.types.realise`).
+Where the pointing metric is close to linear in the features (the lost-motion regime), it is
 
 $$\\text{metric}(v) \\approx f(m) + s \\cdot (v - m),\\qquad s = \\partial\\,\\text{metric}/\\partial v\\,|_m,$$
 
@@ -175,9 +174,13 @@ class LinearisedYield(eqx.Module):
     an independent normal term per unit (`linear_quantile(scatter=...)`; `draws` then carry one
     more column: `yield_draws(n_features + 1)`). Where the response scatters about its trend from
     unit to unit for reasons the features do not carry (the jitter of a rattling stage: a line
-    in the features explains 3-18 % of its variance, issue 30), the line's quantile alone
-    under-reads the units' (measured on the stability design: linearised 0.146 arcsec, 100
-    fresh units 0.196). $\\sigma$ is held fixed in the derivative, like the slopes."""
+    in the features explains a small part of its variance), the line's quantile alone
+    under-reads the units' (benchmarks/results/design_stability.md). $\\sigma$ is held fixed in
+    the derivative, like the slopes.
+
+    `secant_seed`: the seed of the secant units' Latin hypercube (`secant_draws`). Two seeds are
+    two independent sets of units: where the response is chaotic the design found with each
+    differs by the fits' noise (`propose_design`'s noise band)."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -185,6 +188,7 @@ class LinearisedYield(eqx.Module):
     slope_width: float | None = eqx.field(static=True, default=None)
     secant_units: int | None = eqx.field(static=True, default=None)
     scatter: bool = eqx.field(static=True, default=False)
+    secant_seed: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -207,7 +211,7 @@ class LinearisedYield(eqx.Module):
         units; `None` unless `scatter`), from the same solves."""
         middle = x.nominal
         if self.secant_units is not None:
-            positions = secant_draws(middle.shape[0], self.secant_units)
+            positions = secant_draws(middle.shape[0], self.secant_units, self.secant_seed)
             f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width)
             return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
         if self.slope_width is None:
@@ -274,7 +278,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
     n = middle.shape[0]
-    units = realise(Design(middle, band), secant_draws(n, objective.secant_units))
+    units = realise(Design(middle, band), secant_draws(n, objective.secant_units, objective.secant_seed))
     width = None if width is None else jnp.asarray(width, dtype=float)
     values = np.asarray(_simulate_units(objective.pointing, objective.output, units, width)).reshape(units.shape[0], -1)
     ok = np.all(np.isfinite(values), axis=1)

@@ -216,7 +216,7 @@ class DesignReport:
         the half-widths): for units uniform in the zones the variance of the linearised objective,
         $\\sum_i s_i^2 b_i^2/3$, is the lost-motion part $\\sum_i c^2 w_i^2 b_i^2/3$ plus the
         dynamics part $\\sum_i r_i^2 b_i^2/3$. The shares sum to 1; $c$ is the arcsec of the
-        objective per arcsec of lost motion (e.g. 0.72 for the RMS on the design scan, issue 30).
+        objective per arcsec of lost motion.
         NaN where the drawings weigh nothing or the bands are all zero."""
         return self._split_of(self.sensitivity.nominal)
 

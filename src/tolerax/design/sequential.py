@@ -28,7 +28,7 @@ It stops, converged, with the constraint met to `tol` (active, or inactive with 
 its widest) and one of: the design stopped moving (a step cut short by the trust region does
 not count: that says the region collapsed); the first-order optimality residual below
 `optimality_tol`; or the cost stationary (changed by less than `cost_tol` relative over the
-last two kept steps, SLSQP's test) with the *bands* at a KKT point (their residual, the lower
+last two kept steps, SLSQP's test, or by less than the requirements' own tolerances are worth) with the *bands* at a KKT point (their residual, the lower
 limits held, below `band_tol`). The last test exists because the lower limits carry no cost:
 their optimality condition is $\\partial f/\\partial l = 0$, and on an objective rough at small
 scales (impacts at a narrow smoothing width) that derivative is noise: the iterates move such
@@ -52,6 +52,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import optax
@@ -60,6 +61,9 @@ from .cost import AbstractCostModel
 from .loop import AbstractDesignSolver, ConstrainedDesign, make_result, solve_design
 from .subproblem import _cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian
 from .types import Design, Features, OptimisationResult, optimality_residual
+
+MIN_RADIUS = 1e-4  # the trust region's smallest half-width (a fraction of each variable's range)
+STALL_STEPS = 4  # rejected steps in a row at MIN_RADIUS that end a run as stalled
 
 # Importable from here too (their older home).
 __all__ = ["SequentialSolver", "TrustRegionState", "sequential_design", "trust_region_step", "_subproblem", "_subproblem_many"]
@@ -196,7 +200,7 @@ def trust_region_step(flat: _Flat, trust_region: float = 0.5) -> optax.GradientT
         # one says the region collapsed, not that the design converged.
         inner = (box_lo > lo) | (box_hi < hi)
         limited = bool(np.any(inner & ((trial <= box_lo + 1e-12 * span) | (trial >= box_hi - 1e-12 * span)) & (np.abs(step) > 0)))
-        radius = min(2.0 * radius, 1.0) if np.all(model_error <= 0.25 * change) else max(0.25 * radius, 1e-4)
+        radius = min(2.0 * radius, 1.0) if np.all(model_error <= 0.25 * change) else max(0.25 * radius, MIN_RADIUS)
         if accept and state.previous is not None and np.dot(step, state.previous) < 0:
             radius = min(radius, max(0.5 * moved, 1e-6))
         new = TrustRegionState(
@@ -224,6 +228,7 @@ class _SequentialState:
     rows: list = dataclasses.field(default_factory=list)
     best: tuple | None = None
     converged: bool = False
+    rejected: int = 0  # steps rejected in a row
 
 
 class SequentialSolver(AbstractDesignSolver):
@@ -234,9 +239,11 @@ class SequentialSolver(AbstractDesignSolver):
     - `step_tol`: the design has stopped moving when no variable moves by more than this fraction
       of its range (a step cut short by the trust region does not count).
     - `optimality_tol`: or the first-order optimality residual is below this.
-    - `cost_tol`, `band_tol`: or the cost changed by less than `cost_tol` (relative) over the
-      last two kept steps with the bands' residual (lower limits held; within two standard
-      errors of estimated gradients, where the problem gives `gradient_noise`) below `band_tol`.
+    - `cost_tol`, `band_tol`: or the cost changed by less than `cost_tol` (relative), or by less
+      than moving each requirement within its tolerance is worth ($\\sum_j \\lambda_j\\,
+      \\text{tol}_j R_j$), over the last two kept steps, with the bands' residual (lower limits
+      held; within two standard errors of estimated gradients, where the problem gives
+      `gradient_noise`) below `band_tol`.
     """
 
     trust_region: float = 0.5
@@ -262,6 +269,7 @@ class SequentialSolver(AbstractDesignSolver):
         if opt.accepted:
             z = opt.trial  # exactly the point evaluated (the projection of a point in the box is itself)
             state.kept.append(flat.cost(z))
+        state.rejected = 0 if opt.accepted else state.rejected + 1
         state.z, state.f, state.grad, state.opt_state = z, opt.value, opt.grad, opt
         f, n = state.f, flat.n
         reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
@@ -272,7 +280,12 @@ class SequentialSolver(AbstractDesignSolver):
         met, active = bool(np.all(f <= R * (1 + tol))), bool(np.any(f >= R * (1 - tol)))
         widest = bool(np.all(z[n:] >= flat.hi[n:] - self.step_tol * flat.span[n:]))
         kept = state.kept
-        stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= self.cost_tol * kept[-1]
+        # Stationary: the cost moved by less than `cost_tol`, or by less than what moving each
+        # requirement within its own tolerance is worth (multiplier x tol x R: the constraints
+        # are held only to that, so cost changes below it are not resolved by the problem).
+        lam = np.where(np.isfinite(opt.multipliers), np.abs(opt.multipliers), 0.0)
+        resolved = max(self.cost_tol * kept[-1], float(np.sum(lam * tol * R)))
+        stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= resolved
         if opt.accepted and met and (active or widest):
             dc = _cost_gradient(problem.cost_model, problem.features.size_mm, z[n:])
             args = (dc, z, state.grad, f, R, tol, flat.lo, flat.hi, n)
@@ -285,7 +298,13 @@ class SequentialSolver(AbstractDesignSolver):
         return state
 
     def terminate(self, problem, state):
-        return state.converged
+        return state.converged or self.stalled(state)
+
+    def stalled(self, state) -> bool:
+        """The trust region collapsed: `STALL_STEPS` steps rejected in a row with the region at its
+        smallest. The linear model does not predict the response even over tiny steps (rough
+        at this smoothing width, or noisy); more iterations would not move the design."""
+        return state.rejected >= STALL_STEPS and state.opt_state.radius <= MIN_RADIUS
 
     def last(self, problem, state):
         opt, flat = state.opt_state, state.flat
@@ -302,8 +321,10 @@ class SequentialSolver(AbstractDesignSolver):
             # past cheaper designs it had already found.
             _, chosen, z, f, grad, lam = state.best
         rows_of = lambda g: Design(g[:, :n], g[:, n:])  # noqa: E731
-        return make_result(problem, flat.design(z), f, rows_of(grad), lam, converged=state.converged, iteration=chosen, rows=rows,
-                           sensitivity_se=None if problem.gradient_noise is None else rows_of(flat.noise(z)))
+        result = make_result(problem, flat.design(z), f, rows_of(grad), lam, converged=state.converged, iteration=chosen, rows=rows,
+                             sensitivity_se=None if problem.gradient_noise is None else rows_of(flat.noise(z)))
+        return eqx.tree_at(lambda r: r.stalled, result, jnp.asarray(self.stalled(state) and not state.converged),
+                           is_leaf=lambda v: v is None)
 
 
 def sequential_design(

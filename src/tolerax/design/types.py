@@ -154,6 +154,8 @@ class OptimisationResult(eqx.Module):
       `band_optimality`: the same over the bands alone, the lower limits held (they carry no
       cost, and their derivative is noise on an objective rough at small scales);
       `band_optimality_within_noise`: the bands' residual within the sensitivities' noise.
+    - `stalled` (optional): the run ended because its steps stopped being accepted at the
+      smallest trust region (the sequential method), not on its budget.
     - `sensitivity_se` (optional): standard errors of `sensitivity` where it is an estimate
       (slopes fitted over a few simulated units: `sequential_design(gradient_noise=...)`).
     """
@@ -174,6 +176,7 @@ class OptimisationResult(eqx.Module):
     iteration: Int[Array, ""]
     history: History
     sensitivity_se: Design | None = None
+    stalled: Bool[Array, ""] | None = None
 
     @property
     def optimality(self) -> float:
