@@ -282,6 +282,30 @@ def test_an_infeasible_requirement_is_said_first_and_not_written_as_a_proposal(t
     assert (allowed / "proposal.toml").exists()
 
 
+def test_design_takes_further_requirements_as_data(tmp_path, capsys):
+    """`--require OUTPUT=LIMIT`: a requirement on the peak pointing error beside the RMS one,
+    through the same optimiser, report and verification (its yield on the verified units,
+    recomputed from montecarlo.nc); a malformed one, or a second on the same output, is refused
+    before any work."""
+    import xarray as xr
+
+    scene = tmp_path / "my_drive.toml"
+    scene.write_text(OWN_MECHANISM)
+    design = tmp_path / "design"
+    assert cli.main(["design", str(scene), "--yield", "0.9", "--secant-units", "5", "--check", "0", "--outer", "2",
+                     "--require", "pointing_peak=900", "--allow-unconverged", "--verify", "4", "--chunk", "2", "--out", str(design)]) == 0
+    printed = capsys.readouterr().out
+    table = (design / "design.md").read_text()
+    assert "Peak pointing error: 90.0% quantile (linearised)" in table and "d peak pointing error / d nominal" in table
+    peak = xr.open_dataset(design / "verify" / "montecarlo.nc")["pointing_peak"].values
+    assert f"peak pointing error yield {np.mean(peak <= 900.0):.3f}" in printed
+    assert "and peak pointing error <= 900 arcsec" in (design / "report.md").read_text()
+    for bad in ("pointing_peak", "pointing_rms=500", "pointing_peak=-3"):
+        with pytest.raises(SystemExit) as refused:
+            cli.main(["design", str(scene), "--require", bad, "--out", str(tmp_path / "no")])
+        assert refused.value.code == 2 and "--require" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
 def test_design_with_a_jitter_requirement_verifies_both(tmp_path, capsys):
     """`tolerax design --yield Y --jitter J`: the report states the stability requirement and
     its check, the lumped scene draws a note that lumped jitter does not predict the planetary

@@ -63,12 +63,13 @@ def montecarlo_command(parser, args) -> int:
 
 
 def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command, jitter_cutoff=None,
-                    jitter_requirement=None):
+                    jitter_requirement=None, more_requirements=None):
     """`n` units of `scene_file` (its [tolerances] around its design) into the folder `out`:
     montecarlo.nc, summary.json, histogram.png and the scene; the summary (`None` where the
     checkpoints in `out` belong to other settings: the message is printed). What `tolerax
     montecarlo` runs, and `tolerax design --verify` on the proposal it wrote (with
-    `jitter_cutoff` (Hz) the units' jitter too, its yield against `jitter_requirement`)."""
+    `jitter_cutoff` (Hz) the units' jitter too, its yield against `jitter_requirement`; and
+    the yield of each output against its limit in `more_requirements`, {output: limit})."""
     import jax
     import matplotlib
 
@@ -92,7 +93,8 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     try:
         res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",
                              units=UNITS, requirement=None if requirement is None else {
-                                 "pointing_rms": requirement, **({"pointing_jitter": jitter_requirement} if jitter_requirement else {})})
+                                 "pointing_rms": requirement, **({"pointing_jitter": jitter_requirement} if jitter_requirement else {}),
+                                 **(more_requirements or {})})
     except ValueError as err:  # e.g. checkpoints of other settings in the output folder
         print(f"tolerax {command}: {err}", file=sys.stderr)
         return None
@@ -185,6 +187,24 @@ def _design_setup(parser, args, command):
     return out, scene_file, options
 
 
+def _more_requirements(parser, args):
+    """The `--require OUTPUT=LIMIT` requirements (`Requirement`s), refused (exit 2) where one does
+    not parse or repeats an output."""
+    from ..design.requirements import Requirement
+
+    found = []
+    for text in args.require or []:
+        name, _, limit = text.replace("<=", "=").partition("=")
+        try:
+            found.append(Requirement(name.strip(), float(limit)))
+        except ValueError as err:
+            parser.error(f"--require {text!r}: give OUTPUT=LIMIT, e.g. pointing_peak=2500 (arcsec): {err}")
+    outputs = ["pointing_rms", *(["pointing_jitter"] if getattr(args, "jitter", None) else []), *(r.output for r in found)]
+    if len(set(outputs)) != len(outputs):
+        parser.error(f"--require: one requirement per output; got {', '.join(outputs)} (--requirement sets pointing_rms, --jitter pointing_jitter)")
+    return found
+
+
 def _statistic(args) -> str:
     return (f"mean + 1 std over {args.draws} units drawn uniformly within the bands" if args.yield_ is None
             else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
@@ -208,6 +228,8 @@ def _propose(pointing, requirement, options, command):
 
 def design_command(parser, args) -> int:
     import matplotlib
+
+    from ..design.requirements import Requirement
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -234,10 +256,12 @@ def design_command(parser, args) -> int:
                   "stage's unit by unit: for a stability budget design at planetary "
                   "fidelity (e.g. the scene scan-azimuth-fast, with a tight rtol).")
     pointing = scene_file.objective(jitter_cutoff=cutoff)
+    more = _more_requirements(parser, args)
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
-          + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "") + f"; method {args.method}.")
-    proposed = _propose(pointing, requirement, options, "design")
+          + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
+          + "".join(f" and {r.text()}" for r in more) + f"; method {args.method}.")
+    proposed = _propose(pointing, [Requirement("pointing_rms", requirement), *more], options, "design")
     if isinstance(proposed, int):
         return proposed
     report, wall = proposed
@@ -261,7 +285,7 @@ def design_command(parser, args) -> int:
         f"# Tolerance proposal: {scene_file.title}", "",
         f"Requirement: RMS pointing error <= {requirement:g} arcsec"
         + (f" and jitter (RMS pointing error above {cutoff:g} Hz) <= {args.jitter:g} arcsec" if cutoff else "")
-        + f", {_statistic(args)}. Scene `{scene_file.source}`; "
+        + "".join(f" and {r.text()}" for r in more) + f", {_statistic(args)}. Scene `{scene_file.source}`; "
         f"the {'proposal' if report.accepted else 'best design reached'} as a scene file: [{proposal.name}]({proposal.name}).", "",
         "## Proposal", "", report.table(), "", "![optimiser history and sensitivities](design.png)", "",
     ]
@@ -278,7 +302,7 @@ def design_command(parser, args) -> int:
         verify = with_fidelity(verify, args.verify_fidelity)
     summary = run_monte_carlo(parser, verify, out / "verify", n=args.verify, seed=args.seed, backend="vmap", chunk=args.chunk,
                               requirement=requirement, allow_clip=False, command="design --verify", jitter_cutoff=cutoff,
-                              jitter_requirement=args.jitter)
+                              jitter_requirement=args.jitter, more_requirements={r.output: r.limit for r in more})
     if summary is None:
         return 2
     s = summary["pointing_rms"]
@@ -289,6 +313,9 @@ def design_command(parser, args) -> int:
         j = summary["pointing_jitter"]
         line += (f"; jitter yield {j['yield']:.3f} [{j['yield_low']:.3f}, {j['yield_high']:.3f}] at jitter above {cutoff:g} Hz "
                  f"<= {args.jitter:g} arcsec")
+    for r in more:
+        m = summary[r.output]
+        line += f"; {r.name} yield {m['yield']:.3f} [{m['yield_low']:.3f}, {m['yield_high']:.3f}] at {r.text()}"
     print(f"tolerax design --verify: {line}")
     sections += ["## Verification", "", f"{args.verify} fresh units of the proposal (seed {args.seed}, uniform within the zones): {line}; "
                  f"mean {s['mean']:.1f} arcsec, 99 % quantile {s['q99']:.1f} arcsec ({int(s['n_failed'])} failed solves).", "",

@@ -144,6 +144,10 @@ def main(argv=None) -> int:
                         "above --jitter-cutoff Hz over the window), arcsec, met by the same fraction Y of units. Both are "
                         "linearised by secants over units (--secant-units, default max(16, 2 x features + 2)); design it at "
                         "planetary fidelity (lumped jitter does not predict the planetary stage's) with a tight rtol")
+    design.add_argument("--require", action="append", metavar="OUTPUT=LIMIT",
+                        help="a further requirement on another output of the pointing objective, met at the same statistic "
+                        "or yield, e.g. --require pointing_peak=2500 (arcsec; outputs: pointing_peak, pointing_smooth_peak, "
+                        "tracking_speed_rms in arcsec/s); repeat for more")
     design.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ",
                         help="with --jitter: the start of the stability band, Hz (default 20)")
     design.add_argument("--verify", type=count(0), default=0, metavar="N",
