@@ -154,7 +154,7 @@ def propose_design(
     if callback is not None and method != "sequential":
         raise ValueError("propose_design: callback is supported by method='sequential' only.")
     yield_ = problem.get("yield_")
-    fixed = tuple(problem.get("fixed", ()))
+    problem_fixed = tuple(problem.get("fixed", ()))
     check_units = (200 if yield_ is not None else 0) if check_units is None else int(check_units)
     if check_units and yield_ is None:
         raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")
@@ -162,7 +162,54 @@ def propose_design(
         raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
-    requirements_ = as_requirements(requirement, jitter, problem.get("output", "pointing_rms"))
+    requirements_, problem = _requirements_and_problem(pointing, requirement, jitter, method, yield_, problem)
+    widths = tuple(float(w) for w in widths)
+    baseline = np.atleast_1d(np.asarray(_objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(widths[-1])),
+                                        dtype=float))
+    requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
+    checked = []  # (result, its checks: one per requirement, the requirements it was solved for)
+    if method == "sequential":
+        result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks,
+                                           jax.random.key(1) if check_key is None else check_key)
+        targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
+    else:
+        schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
+        result = optimise_design(
+            problem.objective, problem.features, requirement=float(requirements[0]), lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=problem.x0, cost_model=problem.cost_model, optimiser=optax.adam(learning_rate),
+            continuation=schedule, max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
+        )
+        targets = requirements
+    what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
+    status, diagnosis = diagnose(
+        objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
+        iterations=int(np.asarray(result.history.steps)[-1]), labels=[r.name + what for r in requirements_],
+        evaluate=lambda x: _objective_value(problem.objective, x, problem.draws, jnp.asarray(widths[-1])), lower=problem.lower,
+        upper=problem.upper, sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
+        checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
+        bounds_text=" (min_clearance and band_range; a scene file's [tolerances])", stalled=bool(result.stalled is not None and result.stalled))
+    outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
+    first, band = outcomes[0], np.asarray(result.x.band)
+    jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
+    features, x0 = problem.features, problem.x0
+    return DesignReport(
+        names=features.names, nominal=np.asarray(result.x.nominal) + band, band=band,
+        grade=np.asarray(grade_of(band * 2, features.size_mm)), feature_cost=np.asarray(result.feature_cost), cost=float(result.cost),
+        objective=first.objective, requirement=first.requirement.limit, constraint_active=first.constraint_active,
+        multiplier=first.multiplier, sensitivity=first.sensitivity,
+        baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(problem.cost_model.total(x0.band, features.size_mm)),
+                  first.baseline),
+        result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
+        fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
+        solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
+    )
+
+
+def _requirements_and_problem(pointing, requirement, jitter, method, yield_, options):
+    """The requirements (`Requirement`s) of `propose_design`'s arguments, checked against what
+    the pointing objective computes and the method, and the `DesignProblem` for them (secant
+    units, with their scatter, where a requirement is linearised by secants)."""
+    requirements_ = as_requirements(requirement, jitter, options.get("output", "pointing_rms"))
     for r in requirements_:
         if r.output not in pointing.outputs:
             raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
@@ -175,107 +222,74 @@ def propose_design(
                              "scatter from unit to unit is chaotic).")
     if len(requirements_) > 1 and method != "sequential":
         raise ValueError("propose_design: several requirements need method='sequential'.")
-    m, secants = len(requirements_), [r.secants for r in requirements_]
-    problem["output"] = requirements_[0].output if m == 1 else tuple(r.output for r in requirements_)
-    if any(secants):
-        if problem.get("secant_units") is None:
-            problem["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
-        problem.setdefault("scatter", True)
-    problem = design_problem(pointing, **problem)
-    objective, features, draws, x0, cost_model = problem.objective, problem.features, problem.draws, problem.x0, problem.cost_model
-    widths = tuple(float(w) for w in widths)
-    schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
-    baseline_objective = np.atleast_1d(np.asarray(_objective_value(objective, x0, draws, jnp.asarray(widths[-1])), dtype=float))
-    checked, solved_for = [], None
-    requirements = np.asarray([r.limit for r in requirements_], dtype=float)
+    options = dict(options)
+    options["output"] = requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_)
+    if any(r.secants for r in requirements_):
+        if options.get("secant_units") is None:
+            options["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
+        options.setdefault("scatter", True)
+    return requirements_, design_problem(pointing, **options)
+
+
+def _tolerances(requirements_, problem, width) -> np.ndarray:
+    """Each requirement's relative tolerance: its own, else 1 %, or for a secant-fitted output
+    twice its fit's standard error at the start (at least 1 %, at most 50 %)."""
     tol = np.asarray([0.01 if r.tol is None else r.tol for r in requirements_], dtype=float)
-    if any(s and r.tol is None for s, r in zip(secants, requirements_)):
+    if any(r.secants and r.tol is None for r in requirements_):
         # A secant-fitted output scatters about its trend from unit to unit (chaotic rattle), so
         # its fitted value moves by about its standard error from one design to the next for no
         # other reason: a tolerance below twice that makes the optimiser chase noise.
-        se = np.atleast_1d(secant_standard_error(objective.objective, Design(x0.nominal + x0.band, x0.band), widths[-1]))
+        x0 = problem.x0
+        se = np.atleast_1d(secant_standard_error(problem.objective.objective, Design(x0.nominal + x0.band, x0.band), width))
         for k, r in enumerate(requirements_):
-            if secants[k] and r.tol is None:
+            if r.secants and r.tol is None:
                 tol[k] = min(max(0.01, 2.0 * float(se[k]) / r.limit), 0.5)
+    return tol
+
+
+def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key):
+    """The sequential design with its Monte Carlo checks: `(result, checked)`, `checked` one
+    `(result, checks (one per requirement), requirements solved for)` per check, the last the
+    returned design's. Where a check finds the linear model off by more than its noise, the
+    requirements are shifted by that (SORA) and the design solved again from where it was."""
+    m = requirements.shape[0]
     as_requirement = (lambda r: float(r[0])) if m == 1 else (lambda r: tuple(float(v) for v in r))  # noqa: E731
-    if method == "sequential":
-        result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
-        target = requirements.copy()
-        key = jax.random.key(1) if check_key is None else check_key
-        checked = []  # (result, its checks: one per requirement, the requirements it was solved for)
-        for _ in range(max_checks if check_units else 0):
-            middle = Design(result.x.nominal + result.x.band, result.x.band)
-            got = yield_check(objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
-            got = got if m > 1 else (got,)
-            checked.append((result, got, target.copy()))
-            corrected = requirements - np.array([c.shift for c in got])
-            # a shift within the check's own noise (or the method's tolerance) is not one
-            noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
-            moved = np.abs(corrected - target) > noise
-            if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
-                break
-            target = np.where(moved, corrected, target)
-            result = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
-                                              trust=0.1, tol=tuple(tol))
-        # The proposal: the cheapest checked design whose simulated quantile met the requirement
-        # (to the method's tolerance), else the last one: a re-solve that did not land is not
-        # kept over a cheaper design the simulation already accepted.
-        k = _cheapest_accepted([float(r.cost) for r, _, _ in checked], [[c.quantile_simulated for c in got] for _, got, _ in checked],
-                               requirements, tol)
-        if k is not None:
-            checked = checked[: k + 1]
-            result = checked[-1][0]
-        solved_for = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
-    else:
-        result = optimise_design(
-            objective, features, requirement=requirement, lower=problem.lower, upper=problem.upper, draws=draws, x0=x0,
-            cost_model=cost_model, optimiser=optax.adam(learning_rate), continuation=schedule,
-            max_outer=max_outer, inner_steps=inner_steps, tol=1e-3, progress=progress,
-        )
-    targets = solved_for if method == "sequential" else requirements
-    what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
-    status, diagnosis = diagnose(
-        objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
-        iterations=int(np.asarray(result.history.steps)[-1]), labels=[r.name + what for r in requirements_],
-        evaluate=lambda x: _objective_value(objective, x, draws, jnp.asarray(widths[-1])), lower=problem.lower, upper=problem.upper,
-        sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
-        checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
-        bounds_text=" (min_clearance and band_range; a scene file's [tolerances])", stalled=bool(result.stalled is not None and result.stalled))
-    band_opt = np.asarray(result.x.band)
-    # The optimiser's sensitivities are to (l, b); at fixed band a nominal shift is a shift of l,
-    # and at fixed nominal d/db = d/db|_l - d/dl.
+    result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
+    target, checked = requirements.copy(), []
+    for _ in range(max_checks if check_units else 0):
+        middle = Design(result.x.nominal + result.x.band, result.x.band)
+        got = yield_check(problem.objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
+        got = got if m > 1 else (got,)
+        checked.append((result, got, target.copy()))
+        corrected = requirements - np.array([c.shift for c in got])
+        # a shift within the check's own noise (or the method's tolerance) is not one
+        noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
+        moved = np.abs(corrected - target) > noise
+        if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
+            break
+        target = np.where(moved, corrected, target)
+        result = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
+                                          trust=0.1, tol=tuple(tol))
+    # The proposal: the cheapest checked design whose simulated quantile met the requirement
+    # (to the method's tolerance), else the last one: a re-solve that did not land is not
+    # kept over a cheaper design the simulation already accepted.
+    k = _cheapest_accepted([float(r.cost) for r, _, _ in checked], [[c.quantile_simulated for c in got] for _, got, _ in checked],
+                           requirements, tol)
+    if k is not None:
+        checked = checked[: k + 1]
+        result = checked[-1][0]
+    return result, checked
+
+
+def _outcomes(requirements_, result, baseline, targets, tol, checked) -> tuple[RequirementOutcome, ...]:
+    """One `RequirementOutcome` per requirement from the optimiser's result. Its sensitivities
+    are to (l, b); at fixed band a nominal shift is a shift of l, and at fixed nominal
+    d/db = d/db|_l - d/dl."""
     s_limit, s_band = np.atleast_2d(np.asarray(result.sensitivity.nominal)), np.atleast_2d(np.asarray(result.sensitivity.band))
     values = [np.atleast_1d(np.asarray(v, dtype=float)) for v in (result.objective, result.multiplier)]
     active = np.atleast_1d(np.asarray(result.constraint_active, dtype=bool))
-    outcomes = tuple(
-        RequirementOutcome(requirement=r, objective=float(values[0][k]), baseline=float(baseline_objective[k]), target=float(targets[k]),
+    return tuple(
+        RequirementOutcome(requirement=r, objective=float(values[0][k]), baseline=float(baseline[k]), target=float(targets[k]),
                            tol=float(tol[k]), constraint_active=bool(active[k]), multiplier=float(values[1][k]),
                            sensitivity=Design(s_limit[k], s_band[k] - s_limit[k]), checks=tuple(got[k] for _, got, _ in checked))
         for k, r in enumerate(requirements_))
-    first = outcomes[0]
-    jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
-    return DesignReport(
-        names=features.names,
-        nominal=np.asarray(result.x.nominal) + band_opt,
-        band=band_opt,
-        grade=np.asarray(grade_of(band_opt * 2, features.size_mm)),
-        feature_cost=np.asarray(result.feature_cost),
-        cost=float(result.cost),
-        objective=first.objective,
-        requirement=first.requirement.limit,
-        constraint_active=first.constraint_active,
-        multiplier=first.multiplier,
-        sensitivity=first.sensitivity,
-        baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(cost_model.total(x0.band, features.size_mm)),
-                  first.baseline),
-        result=result,
-        yield_=yield_,
-        checks=first.checks,
-        lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
-        fixed=fixed,
-        jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
-        solved_for=first.target if method == "sequential" else None,
-        status=status,
-        diagnosis=diagnosis,
-        outcomes=outcomes,
-    )
