@@ -92,3 +92,19 @@ def test_a_collapsed_trust_region_ends_the_run_as_stalled():
     status, text = diagnose(objective=result.objective, requirement=requirement, tol=0.01, converged=False,
                             iterations=int(result.history.steps[-1]), labels=["RMS pointing"], stalled=True)
     assert status == "not converged" and "stalled" in text
+
+
+def test_two_sets_of_secant_units_that_disagree_make_a_noise_limited_answer():
+    """The designs found with two independent sets of secant units: within what the
+    requirements' tolerances resolve (multiplier x tol x limit, here 0.5 x 0.2 x 1 = 0.1, or 1 %
+    of the cost) they are one answer; beyond it the status is noise-limited, with both costs."""
+    from tolerax.design.propose import _noise_verdict
+    from tolerax.design.report import RequirementOutcome
+    from tolerax import Requirement
+
+    jitter = RequirementOutcome(Requirement("pointing_jitter", 1.0), objective=1.0, baseline=1.5, target=1.0, tol=0.2,
+                                constraint_active=True, multiplier=0.5, sensitivity=Design(jnp.zeros(3), jnp.zeros(3)))
+    assert _noise_verdict((2.0, 2.09, 2), (jitter,), 16, True) == ("converged", "")
+    assert _noise_verdict((2.0, 2.09, 2), (jitter,), 16, False)[0] == "noise-limited"  # the other set did not converge
+    status, text = _noise_verdict((2.086, 1.219, 2), (jitter,), 16, True)
+    assert status == "noise-limited" and "16 secant units give designs of cost 2.086 (this one) and 1.219" in text

@@ -296,6 +296,8 @@ def test_jitter_requirement_beside_the_lost_motion_one(scan_pointing):
     loose = 1.5 * max(float(baseline[1]), float(np.asarray(quantiles(alone.result.x, pair.draws, 1e-6))[1]))
     report = tx.propose_design(pointing, requirement, jitter=loose, check_units=6, max_checks=1, **options)
     assert report.jitter is not None and report.jitter.requirement == loose and report.jitter.cutoff == 20.0
+    # The jitter is fitted by secants: the design was solved again with an independent set of units.
+    assert report.noise_band is not None and report.noise_band[0] == report.cost and "Cost noise band" in report.table()
     assert report.cost == pytest.approx(alone.cost, rel=0.01)
     assert not report.jitter.constraint_active and report.jitter.objective <= loose
     again = np.asarray(quantiles(report.result.x, pair.draws, 1e-6))

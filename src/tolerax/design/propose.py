@@ -10,6 +10,8 @@ whether its answer is a proposal (`tolerax.design.outcome`).
 """
 
 
+import math
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -87,6 +89,7 @@ def propose_design(
     max_checks: int = 3,
     check_key=None,
     jitter: float | None = None,
+    noise_band: bool | None = None,
     **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
@@ -131,6 +134,11 @@ def propose_design(
       twice the check's standard error, the requirement the optimiser sees is shifted by the
       difference and the design solved again from where it was, at most `max_checks` checks
       (`method="sequential"` only).
+    - `noise_band` (default: where a requirement is fitted by secants): solve the design again
+      with an independent set of secant units (`secant_seed` + 1) and report both costs
+      (`DesignReport.noise_band`). Where they differ by more than the requirements' tolerances
+      resolve (the larger of 1 % of the cost and $\\sum_j \\lambda_j\\,\\text{tol}_j R_j$),
+      the fitted slopes' noise decides the design: the status is `"noise-limited"`.
     - `jitter` (arcsec, optional): a pointing-stability requirement beside the lost-motion one:
       the `yield_` quantile of `pointing_jitter` (the RMS of the pointing error above
       `pointing.jitter_cutoff` Hz over the window; set `PointingObjective(jitter_cutoff=...)`)
@@ -162,16 +170,23 @@ def propose_design(
         raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
-    requirements_, problem = _requirements_and_problem(pointing, requirement, jitter, method, yield_, problem)
+    requirements_, options = _requirements_and_options(pointing, requirement, jitter, method, yield_, problem)
+    problem = design_problem(pointing, **options)
     widths = tuple(float(w) for w in widths)
     baseline = np.atleast_1d(np.asarray(_objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(widths[-1])),
                                         dtype=float))
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
-    checked = []  # (result, its checks: one per requirement, the requirements it was solved for)
+    checked, twin_costs = [], None  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     if method == "sequential":
         result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks,
                                            jax.random.key(1) if check_key is None else check_key)
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
+        if noise_band if noise_band is not None else any(r.secants for r in requirements_):
+            seed = int(options.get("secant_seed", 1)) + 1
+            twin = design_problem(pointing, **(options | {"secant_seed": seed}))
+            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks,
+                                        jax.random.key(1) if check_key is None else check_key)
+            twin_costs = (float(result.cost), float(other.cost), seed)
     else:
         schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
         result = optimise_design(
@@ -189,6 +204,8 @@ def propose_design(
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
         bounds_text=" (min_clearance and band_range; a scene file's [tolerances])", stalled=bool(result.stalled is not None and result.stalled))
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
+    if twin_costs is not None and status == "converged":
+        status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged))
     first, band = outcomes[0], np.asarray(result.x.band)
     jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = problem.features, problem.x0
@@ -202,13 +219,29 @@ def propose_design(
         result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
         fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
         solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
+        noise_band=None if twin_costs is None else twin_costs[:2],
     )
 
 
-def _requirements_and_problem(pointing, requirement, jitter, method, yield_, options):
+def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
+    """`(status, diagnosis)` from the costs of the designs found with two independent sets of
+    secant units, `band = (this cost, the other's, the other's seed)`: converged where they agree
+    to what the requirements' tolerances resolve, else noise-limited."""
+    this, that, seed = band
+    resolved = max(0.01 * this, sum(abs(o.multiplier) * o.tol * o.requirement.limit for o in outcomes if math.isfinite(o.multiplier)))
+    if abs(this - that) <= resolved and other_converged:
+        return "converged", ""
+    return "noise-limited", (
+        f"Two independent sets of {units} secant units give designs of cost {this:.4g} (this one) and {that:.4g} (secant_seed "
+        f"{seed}{'' if other_converged else ', not converged'}): a band of {abs(this - that):.3g}, more than the "
+        f"{resolved:.3g} the requirements' tolerances resolve. The fitted slopes' noise, not the mechanism, decides the design. To "
+        "change it: more secant units (secant_units, --secant-units), or a looser tolerance on the noisy requirement.")
+
+
+def _requirements_and_options(pointing, requirement, jitter, method, yield_, options):
     """The requirements (`Requirement`s) of `propose_design`'s arguments, checked against what
-    the pointing objective computes and the method, and the `DesignProblem` for them (secant
-    units, with their scatter, where a requirement is linearised by secants)."""
+    the pointing objective computes and the method, and `design_problem`'s options for them
+    (secant units, with their scatter, where a requirement is linearised by secants)."""
     requirements_ = as_requirements(requirement, jitter, options.get("output", "pointing_rms"))
     for r in requirements_:
         if r.output not in pointing.outputs:
@@ -228,7 +261,7 @@ def _requirements_and_problem(pointing, requirement, jitter, method, yield_, opt
         if options.get("secant_units") is None:
             options["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
         options.setdefault("scatter", True)
-    return requirements_, design_problem(pointing, **options)
+    return requirements_, options
 
 
 def _tolerances(requirements_, problem, width) -> np.ndarray:

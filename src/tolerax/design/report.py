@@ -114,6 +114,8 @@ class DesignReport:
       one was given, else `None`.
     - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
       (`target`).
+    - `noise_band`: `(cost, cost with an independent set of secant units)` where the slopes are
+      fitted over units (`propose_design(noise_band=...)`), else `None`.
     - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
       reached (`"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
@@ -141,6 +143,7 @@ class DesignReport:
     status: str = "converged"
     diagnosis: str = ""
     outcomes: tuple[RequirementOutcome, ...] = ()
+    noise_band: tuple[float, float] | None = None
 
     @property
     def accepted(self) -> bool:
@@ -192,6 +195,9 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
+        if self.noise_band is not None:
+            head += (f" Cost noise band: {self.noise_band[0]:.4g} with these secant units, {self.noise_band[1]:.4g} with an "
+                     "independent set.")
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
         return head + "\n\n" + "\n".join(rows)
