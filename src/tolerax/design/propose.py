@@ -184,7 +184,7 @@ def propose_design(
         if noise_band if noise_band is not None else any(r.secants for r in requirements_):
             seed = int(options.get("secant_seed", 1)) + 1
             twin = design_problem(pointing, **(options | {"secant_seed": seed}))
-            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks,
+            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, None, check_units, max_checks,
                                         jax.random.key(1) if check_key is None else check_key)
             twin_costs = (float(result.cost), float(other.cost), seed)
     else:
