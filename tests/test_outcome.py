@@ -49,21 +49,37 @@ def test_infeasible_requirement_is_named_with_the_best_reachable(margin, status)
                          upper=UPPER, sensitivity=result.sensitivity.nominal)
     assert got == status
     if status == "infeasible":
-        assert f"reaches {best:.4g} arcsec" in text and f"a requirement of at least {best:.4g} arcsec" in text
+        assert f"reach {best:.4g} arcsec at best" in text and f"a requirement of at least {best:.4g} arcsec" in text
     else:
         assert text == ""
 
 
-def _check(yield_simulated, interval):
+def _check(yield_simulated, interval, simulated=101.0):
     return YieldCheck(n=200, n_failed=0, q=0.99, requirement=100.0, simulated=np.zeros(200), linear=np.zeros(200),
-                      yield_simulated=yield_simulated, interval=interval, yield_linear=0.99, quantile_simulated=140.0,
-                      quantile_linear=99.0, shift=41.0, shift_se=3.0)
+                      yield_simulated=yield_simulated, interval=interval, yield_linear=0.99, quantile_simulated=simulated,
+                      quantile_linear=99.0, shift=simulated - 99.0, shift_se=3.0)
+
+
+def test_tightest_by_noisy_sensitivities_does_not_make_a_feasible_requirement_infeasible():
+    """Where the sensitivity's sign is noise (here it says opening feature 0 lowers the output; it
+    raises it; feature 2 the reverse), the lower limits at their minima are tried too: a requirement the latter meet is
+    not called infeasible."""
+    at_minima = float(_stack(tightest(LOWER, UPPER)))
+    by_sign = float(_stack(tightest(LOWER, UPPER, np.array([-1.0, 1.0, 1.0]))))
+    assert at_minima < by_sign
+    requirement = 0.5 * (at_minima + by_sign)
+    status, _ = diagnose(objective=1.2 * requirement, requirement=requirement, tol=0.01, converged=False, iterations=5,
+                         labels=["RMS pointing"], evaluate=_stack, lower=LOWER, upper=UPPER, sensitivity=np.array([-1.0, 1.0, 1.0]))
+    assert status == "not converged"
 
 
 def test_a_check_below_its_yield_or_an_unconverged_run_is_not_a_proposal():
     common = dict(objective=99.0, requirement=100.0, tol=0.01, iterations=7, labels=["RMS pointing"], yield_=0.99)
-    missed = diagnose(converged=True, checks=(_check(0.06, (0.035, 0.10)),), **common)
+    missed = diagnose(converged=True, checks=(_check(0.06, (0.035, 0.10), simulated=140.0),), **common)
     assert missed[0] == "check missed" and "yield 0.060 [0.035, 0.100]" in missed[1]
+    # a linear model off from the units by more than half the requirement, whichever way, is a missed check
+    off = diagnose(converged=True, checks=(_check(1.0, (0.98, 1.0), simulated=30.0),), **common)
+    assert off[0] == "check missed" and "does not hold over these zones" in off[1]
     # a check whose Wilson interval reaches the yield asked is within its own noise: accepted
     assert diagnose(converged=True, checks=(_check(0.985, (0.957, 0.995)),), **common)[0] == "converged"
     assert diagnose(converged=False, **common)[0] == "not converged"

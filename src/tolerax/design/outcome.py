@@ -5,14 +5,19 @@ A run ends in one of these states (`diagnose`):
 - `"converged"`: the optimiser's stopping test passed at a design that meets every requirement,
   and (with a yield requirement) the Monte Carlo check of that design found a yield whose 95 %
   Wilson interval reaches the yield asked for.
-- `"infeasible"`: no design within the bounds meets a requirement: the tightest one (every band
-  at its smallest half-width, every lower limit on the bound that lowers the output, by the
-  sign of its sensitivity at the best design reached) misses it too.
+- `"infeasible"`: no design within the bounds meets a requirement: the tightest ones (every band
+  at its smallest half-width, every lower limit at its smallest or on the bound that lowers the
+  output by the sign of its sensitivity at the best design reached) miss it too, as does the
+  best design reached. (Tightest by the drawings, not proven by search: a response that falls
+  as a clearance opens beyond what its sensitivity shows could hide a feasible design.)
 - `"check missed"`: the optimiser met the linearised requirement, but fresh simulated units do
-  not: the yield asked for lies above the check's Wilson interval. The linear model does not
-  hold over the zones.
+  not: the yield asked for lies above the check's Wilson interval; or the linear model's
+  quantile is off from the units' by more than half the requirement (`MODEL_OFF`), either way.
+  The linear model does not hold over the zones.
 - `"noise-limited"`: not converged where the gradients are estimates (slopes fitted over a few
-  units of a chaotic response): the stop could not tell an improvement from the fits' noise.
+  units of a chaotic response): the stop could not tell an improvement from the fits' noise;
+  or two independent sets of secant units give designs whose costs differ by more than the
+  requirements' tolerances resolve (`propose_design(noise_band=...)`).
 - `"not converged"`: the iteration budget ran out first.
 
 Only `"converged"` is a proposal; the others report the best design reached and say what would
@@ -31,13 +36,19 @@ def _excess(value: float, requirement: float) -> str:
     return f"{ratio - 1:+.0%} over it" if ratio < 2 else f"{ratio:.3g} times it"
 
 
-def tightest(lower: Design, upper: Design, sensitivity) -> Design:
-    """The tightest design in the box `[lower, upper]` (`Design(lower limit, band)`, m): every
-    band at its smallest, every lower limit on the bound that lowers the output by the sign of
-    `sensitivity` (arcsec/m over the lower limits, one row per output; rows are summed)."""
+def tightest(lower: Design, upper: Design, sensitivity=None) -> Design:
+    """A tightest design in the box `[lower, upper]` (`Design(lower limit, band)`, m): every
+    band at its smallest, every lower limit at its smallest, or, given `sensitivity` (arcsec/m
+    over the lower limits, one row per output; rows are summed), on the bound that lowers the
+    output by its sign."""
+    if sensitivity is None:
+        return Design(np.asarray(lower.nominal), np.asarray(lower.band))
     a = np.sum(np.atleast_2d(np.asarray(sensitivity, dtype=float)), axis=0)
     limit = np.where(a < 0, np.asarray(upper.nominal), np.asarray(lower.nominal))
     return Design(limit, np.asarray(lower.band))
+
+
+MODEL_OFF = 0.5  # a check whose linear and simulated quantiles differ by more than this fraction of the requirement
 
 
 def diagnose(*, objective, requirement, tol, converged, iterations, labels, evaluate=None, lower=None, upper=None,
@@ -53,8 +64,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     - `labels`: a name per requirement for the text (e.g. "RMS pointing 99.0 % quantile").
     - `evaluate(x) -> values` (per requirement, arcsec), `lower`, `upper` (`Design` boxes, m),
       `sensitivity` (arcsec/m over the lower limits, a row per requirement): to test
-      infeasibility at the tightest design (`tightest`) where the best design misses; one
-      evaluation.
+      infeasibility at the tightest designs (`tightest`) where the best design misses; two
+      evaluations.
     - `checks`: the returned design's Monte Carlo checks (`YieldCheck`, one per requirement);
       `yield_`: the yield asked for.
     - `noisy`: the gradients are estimates (secant fits); `stalled`: the optimiser's steps
@@ -65,16 +76,19 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     t = np.broadcast_to(t, r.shape)
     missing = f > r * (1 + t)
     if np.any(missing) and evaluate is not None:
-        worst = np.atleast_1d(np.asarray(evaluate(tightest(lower, upper, sensitivity)), dtype=float))
-        out = worst > r * (1 + t)
+        # The tightest designs: every lower limit at its minimum, and on the bounds its sensitivity
+        # says lower the output (which may be noise); the best of them and of the design reached.
+        tried = [tightest(lower, upper)] + ([] if sensitivity is None else [tightest(lower, upper, sensitivity)])
+        reach = np.min([np.atleast_1d(np.asarray(evaluate(x), dtype=float)) for x in tried] + [f], axis=0)
+        out = reach > r * (1 + t)
         if np.any(out):
-            k = int(np.argmax(np.where(out, worst / r, -np.inf)))
+            k = int(np.argmax(np.where(out, reach / r, -np.inf)))
             return "infeasible", (
-                f"No design within the bounds meets the {labels[k]} requirement of {r[k]:.4g} arcsec: the tightest one (every band "
-                f"at its smallest, every lower limit on the bound that lowers it) reaches {worst[k]:.4g} arcsec "
-                f"({_excess(worst[k], r[k])}); the best design reached, shown below, {f[k]:.4g}. To change it: a requirement of "
-                f"at least {worst[k]:.4g} arcsec, lower functional minima or a smaller smallest band{bounds_text}, or a stiffer "
-                "mechanism (the sensitivities below say which features drive it).")
+                f"No design within the bounds meets the {labels[k]} requirement of {r[k]:.4g} arcsec: the tightest designs (every "
+                f"band at its smallest, the lower limits at their smallest or on the bounds their sensitivities say lower it) and "
+                f"the best design reached (shown below, {f[k]:.4g}) reach {reach[k]:.4g} arcsec at best ({_excess(reach[k], r[k])}). "
+                f"To change it: a requirement of at least {reach[k]:.4g} arcsec, lower functional minima or a smaller smallest "
+                f"band{bounds_text}, or a stiffer mechanism (the sensitivities below say which features drive it).")
     if np.any(missing):
         k = int(np.argmax(np.where(missing, f / r, -np.inf)))
         how = (f"stalled after {iterations} gradients (its steps stopped being accepted at the smallest trust region)" if stalled
@@ -86,6 +100,14 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             + "a wider first smoothing width (widths), or slopes fitted over units (secant_units, --secant-units"
             + (", more of them: the slopes are fits over units of a chaotic response" if noisy else "") + ").")
     for k, check in enumerate(checks):
+        if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
+            return "check missed", (
+                f"The linear model of the {labels[k]} does not hold over these zones: on {check.n - check.n_failed} fresh simulated "
+                f"units its {check.q:.1%} quantile reads {check.quantile_linear:.4g} arcsec where the units' is "
+                f"{check.quantile_simulated:.4g} (yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] "
+                f"at {check.requirement:.4g} arcsec), so the design was optimised on a wrong model. To change it: fit it over "
+                "units (secant_units, --secant-units), take the slopes at a wider smoothing width (slope_width), or narrow the "
+                "band range.")
         if yield_ is not None and check.interval[1] < yield_:
             return "check missed", (
                 f"The optimiser met the linearised {labels[k]} requirement, but {check.n - check.n_failed} fresh simulated units "

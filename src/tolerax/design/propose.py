@@ -21,7 +21,7 @@ from ..cache import exported_jit
 from .cost import grade_of
 from .features import design_names, lost_motion_weights
 from .objectives import PointingObjective
-from .outcome import diagnose
+from .outcome import MODEL_OFF, diagnose
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
@@ -294,7 +294,10 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
         got = yield_check(problem.objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
         got = got if m > 1 else (got,)
         checked.append((result, got, target.copy()))
-        corrected = requirements - np.array([c.shift for c in got])
+        shift = np.array([c.shift for c in got])
+        if np.any(np.abs(shift) > MODEL_OFF * requirements):
+            break  # the linear model does not hold here: no shift of it would (`diagnose` says so)
+        corrected = requirements - shift
         # a shift within the check's own noise (or the method's tolerance) is not one
         noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
         moved = np.abs(corrected - target) > noise
