@@ -58,4 +58,6 @@ def test_design_and_yield_notebook_executes(monkeypatch):
     outputs = "".join(_execute(monkeypatch, "design_and_yield.ipynb", "TOLERAX_NOTEBOOK_SIZE"))
     assert "small ('azimuth" in outputs  # ran the small size
     assert "4 of 4 samples used" in outputs  # the Monte Carlo ran every unit
-    assert "Proposed design" in outputs
+    # the proposal's table, headed by whether it is a proposal (at the small size the optimiser's
+    # budget may end before it converges: then the best design reached, said first)
+    assert "Proposed design" in outputs or "**Not a proposal:" in outputs
