@@ -95,7 +95,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                else f"after {iterations} gradients")
         return ("noise-limited" if noisy else "not converged"), (
             f"The optimiser {how}, and the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
-            f"{r[k]:.4g} arcsec), though the tightest design in the bounds meets it. To change it: "
+            f"{r[k]:.4g} arcsec)" + (", though the tightest designs in the bounds meet it" if evaluate is not None else "")
+            + ". To change it: "
             + ("" if stalled else "more iterations (max_outer, --outer), ")
             + "a wider first smoothing width (widths), or slopes fitted over units (secant_units, --secant-units"
             + (", more of them: the slopes are fits over units of a chaotic response" if noisy else "") + ").")
