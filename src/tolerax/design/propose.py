@@ -283,13 +283,17 @@ def _tolerances(requirements_, problem, width) -> np.ndarray:
 def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key):
     """The sequential design with its Monte Carlo checks: `(result, checked)`, `checked` one
     `(result, checks (one per requirement), requirements solved for)` per check, the last the
-    returned design's. Where a check finds the linear model off by more than its noise, the
-    requirements are shifted by that (SORA) and the design solved again from where it was."""
+    returned design's. Where a check finds the linear model off by more than its noise (and by
+    less than `MODEL_OFF` of the requirement), the requirements are shifted by that (SORA) and
+    the design solved again from where it was. A design that misses what it was solved for is
+    not checked."""
     m = requirements.shape[0]
     as_requirement = (lambda r: float(r[0])) if m == 1 else (lambda r: tuple(float(v) for v in r))  # noqa: E731
     result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
     target, checked = requirements.copy(), []
     for _ in range(max_checks if check_units else 0):
+        if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
+            break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
         middle = Design(result.x.nominal + result.x.band, result.x.band)
         got = yield_check(problem.objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
         got = got if m > 1 else (got,)
