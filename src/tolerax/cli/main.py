@@ -24,7 +24,7 @@ lists a command's options.
 
 Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
 names the file, line and key), 3 a simulation or optimisation failed, 4 (design, tradeoff) the answer
-is not a proposal: not converged, infeasible, or its Monte Carlo check missed the yield (the best
+is not a proposal: not converged, infeasible, noise-limited, or its Monte Carlo check missed (the best
 design reached is written as best_reached.toml, the report says why first; --allow-unconverged
 writes it as proposal.toml and exits 0).
 
@@ -67,7 +67,7 @@ def optimiser_options(parser):
                         help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
     parser.add_argument("--allow-unconverged", action="store_true",
                         help="write the best design reached as proposal.toml (and exit 0) even where it is not a proposal: "
-                        "not converged, infeasible, or its Monte Carlo check missed the yield (otherwise it is written as "
+                        "not converged, infeasible, noise-limited, or its Monte Carlo check missed (otherwise it is written as "
                         "best_reached.toml and the command exits 4)")
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "

@@ -82,9 +82,9 @@ class AbstractDesignSolver(eqx.Module):
     - `step(problem, state) -> state`: one iteration.
     - `terminate(problem, state) -> bool`: stop now (converged, or nothing more to do).
     - `postprocess(problem, state) -> OptimisationResult`: the answer.
-    - `progress(problem, state) -> (cost, objective, evaluations)`: for the bar and the callback,
-      after each step (`objective` a float for one constraint, an array for several), with the
-      design just evaluated (`last(state)`).
+    - `last(problem, state) -> (x, cost, objective, evaluations)`: the design the last step
+      evaluated, for the progress bar and the callback (`objective` a float for one constraint,
+      an array for several).
     """
 
     @abc.abstractmethod

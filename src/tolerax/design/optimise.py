@@ -213,7 +213,10 @@ def optimise_design(
             "optimise_design: need penalty > 0, penalty_growth >= 1, max_penalty >= penalty, inner_steps >= 1, "
             f"max_outer >= 1; got {penalty}, {penalty_growth}, {max_penalty}, {inner_steps}, {max_outer}."
         )
-    problem = ConstrainedDesign(objective, features, requirement, active_tol, lower, upper, cost_model, draws)
+    if not 0.0 <= active_tol < 1.0:
+        raise ValueError(f"optimise_design: active_tol must be in [0, 1), got {active_tol!r}.")
+    # The problem's tolerance is the activity tolerance here (> 0 there: 0 reads as exact).
+    problem = ConstrainedDesign(objective, features, requirement, max(float(active_tol), 1e-300), lower, upper, cost_model, draws)
     solver = AugmentedLagrangianSolver(optimiser, continuation, int(max_outer), int(inner_steps), float(penalty), float(penalty_growth),
                                        float(max_penalty), float(tol))
     return solve_design(problem, solver, x0, max_steps=max_outer, progress=progress, first_callback=False)

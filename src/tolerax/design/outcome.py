@@ -3,8 +3,8 @@
 A run ends in one of these states (`diagnose`):
 
 - `"converged"`: the optimiser's stopping test passed at a design that meets every requirement,
-  and (with a yield requirement) the Monte Carlo check of that design found a yield whose 95 %
-  Wilson interval reaches the yield asked for.
+  and, where a Monte Carlo check of a yield was run, it found a yield whose 95 % Wilson interval
+  reaches the yield asked for and a linear model within `MODEL_OFF` of the units.
 - `"infeasible"`: no design within the bounds meets a requirement: the tightest ones (every band
   at its smallest half-width, every lower limit at its smallest or on the bound that lowers the
   output by the sign of its sensitivity at the best design reached) miss it too, as does the

@@ -10,6 +10,7 @@ whether its answer is a proposal (`tolerax.design.outcome`).
 """
 
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -242,7 +243,8 @@ def _requirements_and_options(pointing, requirement, jitter, method, yield_, opt
     """The requirements (`Requirement`s) of `propose_design`'s arguments, checked against what
     the pointing objective computes and the method, and `design_problem`'s options for them
     (secant units, with their scatter, where a requirement is linearised by secants)."""
-    requirements_ = as_requirements(requirement, jitter, options.get("output", "pointing_rms"))
+    requirements_ = tuple(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit))
+                          for r in as_requirements(requirement, jitter, options.get("output", "pointing_rms")))
     for r in requirements_:
         if r.output not in pointing.outputs:
             raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "

@@ -185,9 +185,10 @@ class DesignReport:
             rows += ["", self._weights_text(), "", self._split_text()]
             rows += [x for o in more for x in ("", self._split_text(o))]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
+        unit = self.outcomes[0].requirement.unit if self.outcomes else "arcsec"
         head = ("" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n") + (
             f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
-            f"{self.objective:.1f} arcsec against a requirement of {self.requirement:.1f} arcsec "
+            f"{self.objective:.1f} {unit} against a requirement of {self.requirement:.1f} {unit} "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
             + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
             f"{self._iteration_text()}; {'converged' if bool(self.result.converged) else 'not converged'}; first-order "

@@ -45,6 +45,8 @@ class Requirement:
     - `secants` (optional): linearise it by secants over units with their residual scatter
       (needs a yield requirement); default: for the outputs in `SCATTERING_OUTPUTS`.
     - `label` (optional): its name in reports; default from the output.
+    - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
+      takes it from `PointingObjective.units`, a metric's own included).
     """
 
     output: str = "pointing_rms"
@@ -52,6 +54,7 @@ class Requirement:
     tol: float | None = None
     secants: bool | None = None
     label: str | None = None
+    unit: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.output, str) or not self.output:
@@ -64,10 +67,8 @@ class Requirement:
             raise ValueError(f"Requirement({self.output!r}): tol must be in (0, 1) (relative), got {self.tol!r}.")
         if self.secants is None:
             object.__setattr__(self, "secants", self.output in SCATTERING_OUTPUTS)
-
-    @property
-    def unit(self) -> str:
-        return UNITS.get(self.output, "arcsec")
+        if self.unit is None:
+            object.__setattr__(self, "unit", UNITS.get(self.output, "arcsec"))
 
     @property
     def name(self) -> str:

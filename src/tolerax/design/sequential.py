@@ -228,7 +228,7 @@ class _SequentialState:
     rows: list = dataclasses.field(default_factory=list)
     best: tuple | None = None
     converged: bool = False
-    rejected: int = 0  # steps rejected in a row
+    rejected: int = 0  # steps rejected in a row at the smallest trust region
 
 
 class SequentialSolver(AbstractDesignSolver):
@@ -263,13 +263,14 @@ class SequentialSolver(AbstractDesignSolver):
     def step(self, problem, state):
         flat, R, tol = state.flat, problem.requirements, problem.tol
         cost_gradient = flat.cost_gradient(state.z)
+        tried_at = state.opt_state.radius  # the region this step was tried in
         updates, opt = state.transformation.update(cost_gradient, state.opt_state, state.z, value=state.f, grad=state.grad,
                                                    value_fn=flat.evaluate)
         z = np.asarray(optax.projections.projection_box(optax.apply_updates(state.z, updates), flat.lo, flat.hi))
         if opt.accepted:
             z = opt.trial  # exactly the point evaluated (the projection of a point in the box is itself)
             state.kept.append(flat.cost(z))
-        state.rejected = 0 if opt.accepted else state.rejected + 1
+        state.rejected = 0 if opt.accepted or tried_at > MIN_RADIUS else state.rejected + 1
         state.z, state.f, state.grad, state.opt_state = z, opt.value, opt.grad, opt
         f, n = state.f, flat.n
         reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
@@ -304,7 +305,7 @@ class SequentialSolver(AbstractDesignSolver):
         """The trust region collapsed: `STALL_STEPS` steps rejected in a row with the region at its
         smallest. The linear model does not predict the response even over tiny steps (rough
         at this smoothing width, or noisy); more iterations would not move the design."""
-        return state.rejected >= STALL_STEPS and state.opt_state.radius <= MIN_RADIUS
+        return state.rejected >= STALL_STEPS
 
     def last(self, problem, state):
         opt, flat = state.opt_state, state.flat

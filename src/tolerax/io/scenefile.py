@@ -137,8 +137,7 @@ class SceneFile:
         data["title"] = f"Proposal: {self.title}"
         data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "
                                f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
-                               f"({what})" + (f", jitter above {report.jitter.cutoff:g} Hz <= {report.jitter.requirement:g} arcsec"
-                                              if getattr(report, "jitter", None) is not None else "")
+                               f"({what})" + "".join(f", {o.requirement.text()}" for o in getattr(report, "outcomes", ())[1:])
                                + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + ".")
         return SceneFile.from_data(data, "proposal", "<proposal>")
 
