@@ -28,7 +28,8 @@ It stops, converged, with the constraint met to `tol` (active, or inactive with 
 its widest) and one of: the design stopped moving (a step cut short by the trust region does
 not count: that says the region collapsed); the first-order optimality residual below
 `optimality_tol`; or the cost stationary (changed by less than `cost_tol` relative over the
-last two kept steps, SLSQP's test, or by less than the requirements' own tolerances are worth) with the *bands* at a KKT point (their residual, the lower
+last two kept steps, SLSQP's test, or by less than the requirements' own tolerances are worth
+with the design on its requirements to a tenth of their tolerance) with the *bands* at a KKT point (their residual, the lower
 limits held, below `band_tol`). The last test exists because the lower limits carry no cost:
 their optimality condition is $\\partial f/\\partial l = 0$, and on an objective rough at small
 scales (impacts at a narrow smoothing width) that derivative is noise: the iterates move such
@@ -241,9 +242,9 @@ class SequentialSolver(AbstractDesignSolver):
     - `optimality_tol`: or the first-order optimality residual is below this.
     - `cost_tol`, `band_tol`: or the cost changed by less than `cost_tol` (relative), or by less
       than moving each requirement within its tolerance is worth ($\\sum_j \\lambda_j\\,
-      \\text{tol}_j R_j$), over the last two kept steps, with the bands' residual (lower limits
-      held; within two standard errors of estimated gradients, where the problem gives
-      `gradient_noise`) below `band_tol`.
+      \\text{tol}_j R_j$) with the design within a tenth of its tolerances of them, over the
+      last two kept steps, with the bands' residual (lower limits held; within two standard
+      errors of estimated gradients, where the problem gives `gradient_noise`) below `band_tol`.
     """
 
     trust_region: float = 0.5
@@ -281,12 +282,14 @@ class SequentialSolver(AbstractDesignSolver):
         met, active = bool(np.all(f <= R * (1 + tol))), bool(np.any(f >= R * (1 - tol)))
         widest = bool(np.all(z[n:] >= flat.hi[n:] - self.step_tol * flat.span[n:]))
         kept = state.kept
-        # Stationary: the cost moved by less than `cost_tol`, or by less than what moving each
+        # Stationary: the cost moved by less than `cost_tol`; or by less than what moving each
         # requirement within its own tolerance is worth (multiplier x tol x R: the constraints
-        # are held only to that, so cost changes below it are not resolved by the problem).
+        # are held only to that, so cost changes below it are not resolved by the problem) with
+        # the design on its requirements to a tenth of their tolerance (the answer's own test).
         lam = np.where(np.isfinite(opt.multipliers), np.abs(opt.multipliers), 0.0)
-        resolved = max(self.cost_tol * kept[-1], float(np.sum(lam * tol * R)))
-        stationary = len(kept) >= 3 and max(kept[-3:]) - min(kept[-3:]) <= resolved
+        spread = max(kept[-3:]) - min(kept[-3:]) if len(kept) >= 3 else np.inf
+        stationary = spread <= self.cost_tol * kept[-1] or (
+            spread <= float(np.sum(lam * tol * R)) and bool(np.all(f <= R * (1 + 0.1 * tol))))
         if opt.accepted and met and (active or widest):
             dc = _cost_gradient(problem.cost_model, problem.features.size_mm, z[n:])
             args = (dc, z, state.grad, f, R, tol, flat.lo, flat.hi, n)
