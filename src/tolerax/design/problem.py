@@ -182,9 +182,8 @@ def design_problem(
       `n_yield_draws` fixed quasi-random draws (`yield_draws`) carry the quantile;
       `slope_width` (m, optional): take the slopes at this smoothing width (`LinearisedYield`:
       at a narrow width forward-mode tangents through the contacts can be spiky); default at
-      the objective's own width. On the dual scan slopes at 1 um did not make the design
-      converge (it stalled at cost 8.47 where a run without them reached 2.69): the value is
-      rough there too. `secant_units` (optional, more than the features): fit the value and
+      the objective's own width (where the value is rough too, wider slopes may not make the
+      design converge: benchmarks/results/design_antenna.md). `secant_units` (optional, more than the features): fit the value and
       slopes by least squares over this many units of the zone instead (`LinearisedYield`:
       forward solves only; where tangents are noise, a line through the units is not);
       `scatter` (with `secant_units`): the quantile includes the fit's residual scatter

@@ -113,10 +113,9 @@ def propose_design(
       `[Requirement("pointing_rms", 700), Requirement("pointing_peak", 2500)]`).
     - `widths`: smoothing widths (m), wide to narrow; the proposal is judged at the last. The
       sequential method solves at each in turn from the last design; the augmented Lagrangian
-      takes one value per outer iteration, the last repeated. On the design scan the wide first
-      width makes the sequential method robust to its start (three starts within 0.3 %); at
-      0.1 um alone it converged from a 10 um start (cost 2.463 in 6 gradients) but not from 5 or
-      30 um (the contacts make the narrow objective rough far from the optimum).
+      takes one value per outer iteration, the last repeated. A wide first width makes the
+      sequential method robust to its start: the contacts make the narrow objective rough far
+      from the optimum (benchmarks/results/design_comparison.md).
     - `method`: `"sequential"` (default: `sequential_design`, the linearised problem solved
       exactly at each iterate in a trust region, once per width of `widths`, each from the last
       one's design; at most `max_outer` gradients per width, default 20; `inner_steps` and

@@ -150,20 +150,16 @@ class LinearisedYield(eqx.Module):
     `slope_width` (m, optional): take the slopes $s$ from a solve at this (wider) smoothing width
     and only the value $f$ at `width` (one more solve, without tangents). Where the contacts
     make the response rough, forward-mode tangents at a narrow width are not the slope of the
-    response: on the dual scan at 0.1 um they jumped from +2.8 to -436 arcsec/um for a 0.1 um
-    change of the design while the value moved by 0.3 %, and at 1 um they stayed within 5 %.
-    The slopes of the smoothed model are what a stack-up needs; the Monte Carlo check measures
+    response: at a narrow width they can jump by orders of magnitude for a tiny change of the
+    design while the value barely moves (benchmarks/results/design_matrix.md). The slopes of the smoothed model are what a stack-up needs; the Monte Carlo check measures
     what they miss.
 
     `secant_units` (optional, at least one more than the features): instead of tangents at the
     middle, fit $f$ and $s$ by least squares over this many units spread over the zone
     (`value_and_secants` at `secant_draws`): forward solves only, one batch. A tangent is the
     response's slope at a point; the quantile needs its spread over the zone, and where the
-    contacts make the response rough at small scales the two differ. Measured on the dual scan
-    at 1 um smoothing (middles 40 um, bands 10 um): the output bearings' tangents read -121 to
-    +87 arcsec/um at one middle and -3.4 to +2.8 within 1 um of it, and their mean over 8 units
-    of the zone stayed within -23 to +29, while the value moved by 2.5 arcsec over that 1 um;
-    a line through the values does not see that roughness. It costs `secant_units` forward
+    contacts make the response rough at small scales the two differ: a line through the values
+    does not see that roughness. It costs `secant_units` forward
     solves where a tangent costs one solve carrying one tangent per feature.
 
     A tuple `output` (e.g. `("pointing_rms", "pointing_jitter")`, a lost-motion and a stability
