@@ -15,6 +15,8 @@ import scipy.stats.mstats
 from tolerax.design.cost import IsoGrade, ReciprocalPower
 from tolerax.design.optimise import Design, Features, optimise_design, realise, robust
 
+from _slsqp import slsqp_reference
+
 
 UM = 1e-6  # the objectives below read bands in µm as "arcsec"
 FEATURES = Features(["azimuth sun clearance", "azimuth ring backlash", "elevation pin clearance"], [12.0, 80.0, 20.0])
@@ -508,16 +510,7 @@ def test_sequential_with_two_requirements_against_scipy_slsqp(requirements, weig
     result = sequential_design(both, FEATURES, requirement=requirements, lower=lower, upper=upper, draws=draws, x0=x0,
                                cost_model=model, tol=1e-6, max_iterations=60)
 
-    unpack = lambda p: Design(p[:3] * UM, p[3:] * UM)  # noqa: E731
-    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
-    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
-    margins = [jax.jit(lambda p, j=j: R[j] - both(unpack(p), draws, 0.0)[j]) for j in range(2)]
-    reference = scipy.optimize.minimize(
-        as_numpy(cost), np.r_[np.full(3, 30.0), np.full(3, 8.0)], jac=as_numpy(jax.jit(jax.grad(cost))), method="SLSQP",
-        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
-        constraints=[{"type": "ineq", "fun": as_numpy(g), "jac": as_numpy(jax.jit(jax.grad(g)))} for g in margins],
-        options={"ftol": 1e-12, "maxiter": 500},
-    )
+    reference, margins = slsqp_reference(both, R, draws, model, FEATURES.size_mm)
     assert reference.success and np.all(np.abs([g(jnp.asarray(reference.x)) for g in margins]) < 1e-8)  # both active
     assert (20.5 < reference.x[0] < 39.5) == interior
     assert bool(result.converged)

@@ -2,11 +2,9 @@
 new kind of requirement as one small metric class, and bad input named."""
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import scipy.optimize
 
 import tolerax as tx
 from tolerax.design import propose as _propose
@@ -14,6 +12,8 @@ from tolerax.design.cost import IsoGrade
 from tolerax.design.sequential import sequential_design
 from tolerax.design.types import Design, Features, realise, robust
 from tolerax.mechanism.outputs import ARCSEC
+
+from _slsqp import slsqp_reference
 
 UM = 1e-6
 FEATURES = Features(["a", "b", "c"], [12.0, 80.0, 20.0])
@@ -40,16 +40,7 @@ def test_sequential_with_three_requirements_against_scipy_slsqp():
     result = sequential_design(_three, FEATURES, requirement=tuple(R), lower=lower, upper=upper, draws=draws, x0=x0,
                                cost_model=model, tol=1e-6, max_iterations=60)
 
-    unpack = lambda p: Design(p[:3] * UM, p[3:] * UM)  # noqa: E731
-    as_numpy = lambda f: lambda p: np.asarray(f(jnp.asarray(p)))  # noqa: E731
-    cost = jax.jit(lambda p: model.total(p[3:] * UM, FEATURES.size_mm))
-    margins = [jax.jit(lambda p, j=j: R[j] - _three(unpack(p), draws, 0.0)[j]) for j in range(3)]
-    reference = scipy.optimize.minimize(
-        as_numpy(cost), np.r_[np.full(3, 30.0), np.full(3, 8.0)], jac=as_numpy(jax.jit(jax.grad(cost))), method="SLSQP",
-        bounds=[(20.0, 40.0)] * 3 + [(1.0, 15.0)] * 3,
-        constraints=[{"type": "ineq", "fun": as_numpy(g), "jac": as_numpy(jax.jit(jax.grad(g)))} for g in margins],
-        options={"ftol": 1e-12, "maxiter": 500},
-    )
+    reference, margins = slsqp_reference(_three, R, draws, model, FEATURES.size_mm)
     active = np.abs([float(g(jnp.asarray(reference.x))) for g in margins]) < 1e-6
     assert reference.success and np.all(active)  # a trade between all three, not one alone
     assert bool(result.converged) and np.asarray(result.objective).shape == (3,)
