@@ -109,6 +109,15 @@ class AbstractDesignSolver(eqx.Module):
         raise NotImplementedError
 
 
+def tolerance_worth(multipliers, tol, requirements) -> float:
+    """The cost that moving each requirement within its tolerance is worth,
+    $\\sum_j |\\lambda_j|\\,\\text{tol}_j R_j$ (multipliers in cost per unit of the output; a
+    non-finite one, an infeasible subproblem's, counts 0): cost differences below it are not
+    resolved by the problem as posed."""
+    lam = np.abs(np.asarray(multipliers, dtype=float))
+    return float(np.sum(np.where(np.isfinite(lam), lam, 0.0) * np.asarray(tol, dtype=float) * np.asarray(requirements, dtype=float)))
+
+
 def solve_design(problem: ConstrainedDesign, solver: AbstractDesignSolver, x0: Design, *, max_steps: int, progress: bool = False,
                  callback: Callable[[int, Design, float, Any], None] | None = None, first_callback: bool = True) -> OptimisationResult:
     """Run `solver` on `problem` from `x0` for at most `max_steps` steps: `init`, then `step`

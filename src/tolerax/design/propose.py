@@ -11,7 +11,6 @@ whether its answer is a proposal (`tolerax.design.outcome`).
 
 
 import dataclasses
-import math
 
 import equinox as eqx
 import jax
@@ -23,6 +22,7 @@ from .cost import grade_of
 from .features import design_names, lost_motion_weights
 from .objectives import PointingObjective
 from .outcome import MODEL_OFF, diagnose
+from .loop import tolerance_worth
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
@@ -178,14 +178,13 @@ def propose_design(
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
     checked, twin_costs = [], None  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     if method == "sequential":
-        result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks,
-                                           jax.random.key(1) if check_key is None else check_key)
+        key = jax.random.key(1) if check_key is None else check_key
+        result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key)
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if noise_band if noise_band is not None else any(r.secants for r in requirements_):
             seed = int(options.get("secant_seed", 1)) + 1
             twin = design_problem(pointing, **(options | {"secant_seed": seed}))
-            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, None, check_units, max_checks,
-                                        jax.random.key(1) if check_key is None else check_key)
+            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, None, check_units, max_checks, key)
             twin_costs = (float(result.cost), float(other.cost), seed)
     else:
         schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
@@ -228,7 +227,8 @@ def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
     secant units, `band = (this cost, the other's, the other's seed)`: converged where they agree
     to what the requirements' tolerances resolve, else noise-limited."""
     this, that, seed = band
-    resolved = max(0.01 * this, sum(abs(o.multiplier) * o.tol * o.requirement.limit for o in outcomes if math.isfinite(o.multiplier)))
+    resolved = max(0.01 * this, tolerance_worth([o.multiplier for o in outcomes], [o.tol for o in outcomes],
+                                                [o.requirement.limit for o in outcomes]))
     if abs(this - that) <= resolved and other_converged:
         return "converged", ""
     return "noise-limited", (

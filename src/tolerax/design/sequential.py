@@ -59,7 +59,7 @@ import numpy as np
 import optax
 
 from .cost import AbstractCostModel
-from .loop import AbstractDesignSolver, ConstrainedDesign, make_result, solve_design
+from .loop import AbstractDesignSolver, ConstrainedDesign, make_result, solve_design, tolerance_worth
 from .subproblem import _cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian
 from .types import Design, Features, OptimisationResult, optimality_residual
 
@@ -268,15 +268,16 @@ class SequentialSolver(AbstractDesignSolver):
         updates, opt = state.transformation.update(cost_gradient, state.opt_state, state.z, value=state.f, grad=state.grad,
                                                    value_fn=flat.evaluate)
         z = np.asarray(optax.projections.projection_box(optax.apply_updates(state.z, updates), flat.lo, flat.hi))
+        cost = flat.cost(opt.trial if opt.accepted else state.z)
         if opt.accepted:
             z = opt.trial  # exactly the point evaluated (the projection of a point in the box is itself)
-            state.kept.append(flat.cost(z))
+            state.kept.append(cost)
         state.rejected = 0 if opt.accepted or tried_at > MIN_RADIUS else state.rejected + 1
         state.z, state.f, state.grad, state.opt_state = z, opt.value, opt.grad, opt
         f, n = state.f, flat.n
         reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
         width = np.nan if problem.width is None else float(problem.width)
-        state.rows.append((flat.cost(z), reported(f), reported(f - R), reported(opt.multipliers), np.nan, width, opt.evaluations))
+        state.rows.append((cost, reported(f), reported(f - R), reported(opt.multipliers), np.nan, width, opt.evaluations))
         if np.all(f <= R * (1 + 0.1 * tol)) and (state.best is None or state.rows[-1][0] <= state.best[0]):
             state.best = (state.rows[-1][0], len(state.rows) - 1, z, f, state.grad, opt.multipliers)
         met, active = bool(np.all(f <= R * (1 + tol))), bool(np.any(f >= R * (1 - tol)))
@@ -286,10 +287,9 @@ class SequentialSolver(AbstractDesignSolver):
         # requirement within its own tolerance is worth (multiplier x tol x R: the constraints
         # are held only to that, so cost changes below it are not resolved by the problem) with
         # the design on its requirements to a tenth of their tolerance (the answer's own test).
-        lam = np.where(np.isfinite(opt.multipliers), np.abs(opt.multipliers), 0.0)
         spread = max(kept[-3:]) - min(kept[-3:]) if len(kept) >= 3 else np.inf
         stationary = spread <= self.cost_tol * kept[-1] or (
-            spread <= float(np.sum(lam * tol * R)) and bool(np.all(f <= R * (1 + 0.1 * tol))))
+            spread <= tolerance_worth(opt.multipliers, tol, R) and bool(np.all(f <= R * (1 + 0.1 * tol))))
         if opt.accepted and met and (active or widest):
             dc = _cost_gradient(problem.cost_model, problem.features.size_mm, z[n:])
             args = (dc, z, state.grad, f, R, tol, flat.lo, flat.hi, n)
