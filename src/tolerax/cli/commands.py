@@ -7,10 +7,10 @@ import pathlib
 import sys
 import time
 
-NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
-
 from .common import (check_clipping, check_out, command_line, has_features, load_average, read_scene_file, settings, versions,
                      with_tolerances)
+
+NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
 
 def studies_command(parser, args) -> int:
@@ -267,7 +267,7 @@ def design_command(parser, args) -> int:
     report, wall = proposed
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
-    # A design that is not a proposal (not converged, infeasible, its check missed the yield) is
+    # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
     # never written as the answer unless the user allows it.
     as_answer = report.accepted or args.allow_unconverged
     proposal = F.save_scene(scene_file.with_proposal(report), out / ("proposal.toml" if as_answer else "best_reached.toml"))
