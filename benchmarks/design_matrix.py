@@ -240,7 +240,7 @@ def run_one(key: str, seed: int, args) -> dict:
                                       max_outer=args.max_outer, **options)
         check = report.checks[-1] if report.checks else None
         row.update(
-            wall_s=wall_s, status=report.status, diagnosis=report.diagnosis, accepted=bool(getattr(report, "accepted", report.status == "converged")),
+            wall_s=wall_s, status=report.status, diagnosis=report.diagnosis, notes=list(getattr(report, "notes", ())), accepted=bool(getattr(report, "accepted", report.status == "converged")),
             cost=float(report.cost), baseline_cost=float(report.baseline[2]), report_baseline_quantile=float(report.baseline[3]),
             objective=float(report.objective), solved_for=None if report.solved_for is None else float(report.solved_for),
             optimiser_converged=bool(report.result.converged), gradients=int(np.asarray(report.result.history.steps)[-1]),
@@ -300,7 +300,7 @@ def _cells(r, yield_):
     status = r["status"] + ("" if r["status"] == expected else f" (expected {expected})")
     return (
         r["key"], r["description"], f"{r['baseline_quantile']:.1f}", f"{r['requirement']:.1f} ({_policy(r)})",
-        f"{r['cost']:.3f} (baseline {r['baseline_cost']:.3f})", status, r["diagnosis"] or "-", f"{r['gradients']}",
+        f"{r['cost']:.3f} (baseline {r['baseline_cost']:.3f})", status, " ".join([r["diagnosis"]] + r.get("notes", [])).strip() or "-", f"{r['gradients']}",
         f"{r['wall_s']:.0f}", check, "-" if not c else ("yes" if ok_check else "no") + f" ({r['n_checks']} checks)",
         "-" if not c else f"{c['quantile_simulated']:.1f} / {c['quantile_linear']:.4g}" + _flags(r),
     )
@@ -349,7 +349,7 @@ def summary(rows, yield_) -> str:
 def write(name, meta, rows, args):
     rows = sorted(rows, key=lambda r: (r["kind"] == "infeasible", r["key"]))
     columns = ["key", "mechanism", f"baseline {args.yield_:.0%} quantile (arcsec)", "requirement (arcsec)", "cost (IT7 = 1 per feature)",
-               "status", "diagnosis", "gradients", "design wall (s)", "check yield [95 % Wilson]", "check meets yield",
+               "status", "diagnosis (and notes)", "gradients", "design wall (s)", "check yield [95 % Wilson]", "check meets yield",
                f"check {args.yield_:.0%} quantile: simulated / linear (arcsec)"]
     sections = []
     if SUPERSEDED:

@@ -51,6 +51,12 @@ def _sequential_continuation(problem: DesignProblem, requirement, widths, max_it
         )
         results.append(result)
         x = result.x
+    return _chain(results)
+
+
+def _chain(results):
+    """The last of successive `OptimisationResult`s (each started from the one before) with one
+    history over all of them: its gradient counts run on, its `iteration` indexes the whole."""
     offset = sum(len(np.asarray(r.history.cost)) for r in results[:-1])
     steps = np.cumsum([int(np.asarray(r.history.steps)[-1]) for r in results])
     history = jax.tree.map(lambda *h: jnp.concatenate(h), *[r.history for r in results])
@@ -176,10 +182,13 @@ def propose_design(
     baseline = np.atleast_1d(np.asarray(_objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(widths[-1])),
                                         dtype=float))
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
-    checked, twin_costs = [], None  # checked: (result, its checks: one per requirement, the requirements it was solved for)
+    checked, twin_costs, notes = [], None, ()  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     if method == "sequential":
         key = jax.random.key(1) if check_key is None else check_key
         result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key)
+        if bool(result.stalled) and options.get("secant_units") is None:
+            problem, result, checked, notes = _secant_rescue(pointing, options, problem, result, checked, requirements, tol, widths,
+                                                      max_outer, progress, callback, check_units, max_checks, key)
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if noise_band if noise_band is not None else any(r.secants for r in requirements_):
             seed = int(options.get("secant_seed", 1)) + 1
@@ -218,7 +227,7 @@ def propose_design(
         result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
         fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
         solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
-        noise_band=None if twin_costs is None else twin_costs[:2],
+        noise_band=None if twin_costs is None else twin_costs[:2], notes=notes,
     )
 
 
@@ -281,7 +290,30 @@ def _tolerances(requirements_, problem, width) -> np.ndarray:
     return tol
 
 
-def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key):
+def _secant_rescue(pointing, options, problem, result, checked, requirements, tol, widths, max_outer, progress, callback, check_units,
+                   max_checks, key):
+    """Where the tangent-slope design stalled (its trust region collapsed: the response is
+    rough at the judging width), solve the last width again from the stalled design with the
+    slopes fitted by secants over units of the zone (`design_problem(secant_units=...)`, as
+    many as the jitter's default): what the stall's diagnosis advises, done once. Returns
+    `(problem, result, checked)`: the secant solve's where it converged, or where it met its
+    requirements at a lower cost (its history continuing the stalled one's); else the tangent
+    solve's; and a note saying what was done."""
+    units = max(16, 2 * len(problem.features.names) + 2)
+    secant = design_problem(pointing, **(options | {"secant_units": units}))
+    again, again_checked = _solve_and_check(secant, requirements, tol, widths[-1:], max_outer, progress, callback, check_units,
+                                            max_checks, key, x0=result.x, trust=0.1)
+    met = np.all(np.atleast_1d(np.asarray(again.objective, dtype=float)) <= requirements * (1 + tol))
+    note = (f"The tangent slopes stalled at the {widths[-1]:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
+            f"gradients; the design was finished from there on secant slopes over {units} units of the zone "
+            f"({'converged' if bool(again.converged) else 'not converged'}).")
+    if bool(again.converged) or (met and float(again.cost) < float(result.cost)):
+        return secant, _chain([result, again]), again_checked, (note,)
+    return problem, result, checked, (note + " The tangent design is kept.",)
+
+
+def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key, x0=None,
+                     trust=0.5):
     """The sequential design with its Monte Carlo checks: `(result, checked)`, `checked` one
     `(result, checks (one per requirement), requirements solved for)` per check, the last the
     returned design's. Where a check finds the linear model off by more than its noise (and by
@@ -290,7 +322,8 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
     not checked."""
     m = requirements.shape[0]
     as_requirement = (lambda r: float(r[0])) if m == 1 else (lambda r: tuple(float(v) for v in r))  # noqa: E731
-    result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, tol=tuple(tol))
+    result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, x0=x0,
+                                      trust=trust, tol=tuple(tol))
     target, checked = requirements.copy(), []
     for _ in range(max_checks if check_units else 0):
         if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
@@ -309,8 +342,9 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
         if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
             break
         target = np.where(moved, corrected, target)
-        result = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
-                                          trust=0.1, tol=tuple(tol))
+        again = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
+                                         trust=0.1, tol=tuple(tol))
+        result = _chain([result, again])  # its history (gradients) continues the one before
     # The proposal: the cheapest checked design whose simulated quantile met the requirement
     # (to the method's tolerance), else the last one: a re-solve that did not land is not
     # kept over a cheaper design the simulation already accepted.

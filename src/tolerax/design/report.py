@@ -119,6 +119,8 @@ class DesignReport:
     - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
       reached (`"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
+    - `notes`: what the method did beyond the problem as posed (e.g. finished on secant slopes
+      where the tangents stalled), one sentence each.
     """
 
     names: tuple[str, ...]
@@ -142,6 +144,7 @@ class DesignReport:
     solved_for: float | None = None
     status: str = "converged"
     diagnosis: str = ""
+    notes: tuple[str, ...] = ()
     outcomes: tuple[RequirementOutcome, ...] = ()
     noise_band: tuple[float, float] | None = None
 
@@ -196,6 +199,8 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
+        for note in self.notes:
+            head += " " + note
         if self.noise_band is not None:
             head += (f" Cost noise band: {self.noise_band[0]:.4g} with these secant units, {self.noise_band[1]:.4g} with an "
                      "independent set.")

@@ -28,8 +28,8 @@ It stops, converged, with the constraint met to `tol` (active, or inactive with 
 its widest) and one of: the design stopped moving (a step cut short by the trust region does
 not count: that says the region collapsed); the first-order optimality residual below
 `optimality_tol`; or the cost stationary (changed by less than `cost_tol` relative over the
-last two kept steps, SLSQP's test, or by less than the requirements' own tolerances are worth
-with the design on its requirements to a tenth of their tolerance) with the *bands* at a KKT point (their residual, the lower
+last two kept steps, SLSQP's test, or by less than the requirements' own tolerances are worth)
+with the *bands* at a KKT point (their residual, the lower
 limits held, below `band_tol`). The last test exists because the lower limits carry no cost:
 their optimality condition is $\\partial f/\\partial l = 0$, and on an objective rough at small
 scales (impacts at a narrow smoothing width) that derivative is noise: the iterates move such
@@ -242,9 +242,11 @@ class SequentialSolver(AbstractDesignSolver):
     - `optimality_tol`: or the first-order optimality residual is below this.
     - `cost_tol`, `band_tol`: or the cost changed by less than `cost_tol` (relative), or by less
       than moving each requirement within its tolerance is worth ($\\sum_j \\lambda_j\\,
-      \\text{tol}_j R_j$) with the design within a tenth of its tolerances of them, over the
-      last two kept steps, with the bands' residual (lower limits held; within two standard
-      errors of estimated gradients, where the problem gives `gradient_noise`) below `band_tol`.
+      \\text{tol}_j R_j$), over the last two kept steps, with the bands' residual (lower limits
+      held; within two standard errors of estimated gradients, where the problem gives
+      `gradient_noise`) below `band_tol`. Where the design then met its requirements to their
+      tolerance but not to a tenth of it, the cheapest iterate within that tenth is returned
+      instead if it costs no more than the tolerance is worth.
     """
 
     trust_region: float = 0.5
@@ -285,11 +287,11 @@ class SequentialSolver(AbstractDesignSolver):
         kept = state.kept
         # Stationary: the cost moved by less than `cost_tol`; or by less than what moving each
         # requirement within its own tolerance is worth (multiplier x tol x R: the constraints
-        # are held only to that, so cost changes below it are not resolved by the problem) with
-        # the design on its requirements to a tenth of their tolerance (the answer's own test).
+        # are held only to that, so cost changes below it are not resolved by the problem). The
+        # returned design is then the cheapest on its requirements to a tenth of their
+        # tolerance where one is worth as much (`postprocess`).
         spread = max(kept[-3:]) - min(kept[-3:]) if len(kept) >= 3 else np.inf
-        stationary = spread <= self.cost_tol * kept[-1] or (
-            spread <= tolerance_worth(opt.multipliers, tol, R) and bool(np.all(f <= R * (1 + 0.1 * tol))))
+        stationary = spread <= self.cost_tol * kept[-1] or spread <= tolerance_worth(opt.multipliers, tol, R)
         if opt.accepted and met and (active or widest):
             dc = _cost_gradient(problem.cost_model, problem.features.size_mm, z[n:])
             args = (dc, z, state.grad, f, R, tol, flat.lo, flat.hi, n)
@@ -319,7 +321,15 @@ class SequentialSolver(AbstractDesignSolver):
         flat, n = state.flat, state.flat.n
         rows, z, f, grad, lam = state.rows, state.z, state.f, state.grad, state.opt_state.multipliers
         chosen = len(rows) - 1
-        if state.best is not None and (not state.converged or state.best[0] < rows[-1][0]):
+        R, tol = problem.requirements, problem.tol
+        # A converged design met to `tol` but over its requirements by more than a tenth of it
+        # gives way to the cheapest iterate within that tenth where the two costs differ by no
+        # more than the tolerance is worth (the problem does not resolve them): one answer on
+        # the requirement, whichever stopping test passed.
+        on_requirement = bool(np.all(f <= R * (1 + 0.1 * tol)))
+        resolved = tolerance_worth(lam, tol, R)
+        if state.best is not None and (not state.converged or state.best[0] < rows[-1][0]
+                                       or (not on_requirement and state.best[0] <= rows[-1][0] + resolved)):
             # The cheapest iterate on the requirement (to a tenth of `tol`), unless the converged one
             # is cheaper (met to `tol`): on a rough objective a run that ends on its budget can wander
             # past cheaper designs it had already found.
