@@ -232,5 +232,13 @@ def test_sequential_proposal_lands_on_the_requirement(scan_pointing):
     assert int(np.asarray(report.result.history.steps)[-1]) <= 12
     again = float(eqx.filter_jit(problem.objective)(report.result.x, problem.draws, 1e-6))
     np.testing.assert_allclose(again, report.objective, rtol=1e-9)
+    # The proposal's zones (`Tolerances`): lower limits the optimiser's, and a scene file
+    # written with them reads them back (what `tolerax design` writes as proposal.toml).
+    zones = report.tolerances
+    np.testing.assert_allclose(zones.lower_limit, report.result.x.nominal, rtol=1e-12)
+    assert zones.names == report.names
+    back = tx.load_scene("scan-azimuth").with_proposal(report).tolerances()
+    np.testing.assert_allclose(back.nominal, zones.nominal, rtol=1e-12)
+    np.testing.assert_allclose(back.band, zones.band, rtol=1e-12)
     with pytest.raises(ValueError, match="method"):
         tx.propose_design(scan_pointing, requirement=requirement, method="newton")

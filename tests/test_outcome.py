@@ -124,3 +124,37 @@ def test_two_sets_of_secant_units_that_disagree_make_a_noise_limited_answer():
     assert _noise_verdict((2.0, 2.09, 2), (jitter,), 16, False)[0] == "noise-limited"  # the other set did not converge
     status, text = _noise_verdict((2.086, 1.219, 2), (jitter,), 16, True)
     assert status == "noise-limited" and "16 secant units give designs of cost 2.086 (this one) and 1.219" in text
+
+
+def test_a_stalled_tangent_design_is_finished_on_secant_slopes(monkeypatch):
+    """`propose_design` where the tangent-slope solve stalls (forced here: the first solve's
+    result is marked stalled): the last width is solved again from the stalled design with
+    the slopes fitted by secants over max(16, 2n + 2) units, its history continues the first
+    one's, and the report says what was done."""
+    import equinox as eqx
+    import tolerax as tx
+    from tolerax.design import propose as P
+
+    calls, real = [], P._solve_and_check
+
+    def spy(problem, *args, **kwargs):
+        result, checked = real(problem, *args, **kwargs)
+        calls.append((problem.objective.objective.secant_units, kwargs.get("x0"), result))
+        if len(calls) == 1:
+            result = eqx.tree_at(lambda r: r.stalled, result, jnp.asarray(True), is_leaf=lambda v: v is None)
+        return result, checked
+
+    monkeypatch.setattr(P, "_solve_and_check", spy)
+    pointing = tx.load_scene("scan-azimuth").objective(duration=0.3, settle=0.1, n_save=31)
+    problem = P.design_problem(pointing, yield_=0.99)
+    baseline = float(P._objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(1e-6)))
+    report = tx.propose_design(pointing, 0.9 * baseline, yield_=0.99, widths=(1e-6,), max_outer=4, check_units=0)
+    assert [c[0] for c in calls] == [None, 16]  # tangents, then secants over 16 units (4 features)
+    first = calls[0][2]
+    np.testing.assert_array_equal(np.asarray(calls[1][1].nominal), np.asarray(first.x.nominal))  # from the stalled design
+    assert len(report.notes) == 1 and "secant slopes over 16 units" in report.notes[0]
+    assert report.notes[0] in report.table()
+    kept = report.notes[0].endswith("The tangent design is kept.")
+    gradients = [int(np.asarray(r.history.steps)[-1]) for r in (first, calls[1][2])]
+    assert int(np.asarray(report.result.history.steps)[-1]) == (gradients[0] if kept else sum(gradients))
+

@@ -145,7 +145,7 @@ def _scene_and_settings(scene_file, *lines) -> list[str]:
 
 def _design_setup(parser, args, command):
     """The checks and inputs `design` and `tradeoff` share: `(out, scene_file, propose_design's
-    options)` (the output folder checked; the starting band and the fixed features among the
+    options)` (the output folder checked; the starting zones and the fixed features among the
     options), or `None` after printing why (exit 2)."""
     from ..io import scenefile as F
 
@@ -156,10 +156,6 @@ def _design_setup(parser, args, command):
     if not has_features(scene_file, command):
         return None
     tol = scene_file.data.get("tolerances", {})
-    band = tol.get("band", F.TOLERANCE_KEYS["band"][1])
-    if set(tol.get("bands", {})) - set(tol.get("fixed", [])):
-        print(f"tolerax {command}: the optimiser starts every designed feature at the scene's band +-{band * 1e6:g} um; "
-              "the per-feature [tolerances.bands] are used for the fixed features only.")
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
     if args.yield_ is not None and args.method != "sequential":
@@ -171,12 +167,14 @@ def _design_setup(parser, args, command):
     names = _feature_names(scene_file)
     if args.secant_units is not None and args.secant_units <= len(names):
         parser.error(f"--secant-units must exceed the scene's {len(names)} design features (a line through K units), got {args.secant_units}")
-    # Given, not designed: held at the scene's nominal +- its own band.
-    fixed = {name: tol.get("bands", {}).get(name, band) for name in tol.get("fixed", [])}
+    # The scene's zones (its design +- `bands`, else `band`) start the design; the fixed
+    # features are held at theirs.
+    start = scene_file.tolerances()
+    fixed = tuple(tol.get("fixed", []))
     minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
     if isinstance(minima, dict):
         minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
-    options = dict(band=band, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
+    options = dict(start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
                    min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
     if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
         from ..io.schema import cost_model

@@ -19,7 +19,7 @@ from .objectives import PointingObjective, unit_output, value_and_jacobian
 from .reliability import LinearisedYield, secant_gradient_noise, yield_draws
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
-from ..uncertainty.sampling import unit_draws
+from ..uncertainty.sampling import Tolerances, unit_draws
 
 
 def feature_sizes(scene) -> np.ndarray:
@@ -156,6 +156,7 @@ def design_problem(
     scatter: bool = False,
     fixed=(),
     secant_seed: int = 1,
+    start: Tolerances | None = None,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -165,6 +166,10 @@ def design_problem(
       is the starting nominal.
     - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
       the current nominal minus `band` (at least `min_clearance`).
+    - `start` (optional): the starting zones instead, a `Tolerances` with a zone for every
+      design feature (`design_names(scene)`; e.g. `SceneFile.tolerances()`, a former
+      proposal's `DesignReport.tolerances`): each feature starts at its nominal and band
+      (`band` unused).
     - `min_clearance`: smallest allowed lower limit (m), a scalar or one value per feature
       (`design_names(scene)` order). The largest allowed is the starting one.
     - `band_range`: (smallest, largest) half-width (m).
@@ -190,9 +195,10 @@ def design_problem(
       (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter); `secant_seed`:
       which set of secant units (`LinearisedYield.secant_seed`).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
-      part already made): names, held at their nominal +- `band`, or a mapping name -> its
-      half-width (m), held at nominal +- that. Their lower limit and band are bounded to those
-      values (their cost is counted, constant).
+      part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
+      a mapping name -> its half-width (m), held at the starting nominal +- that, or a
+      `Tolerances` (held at its zones). Their lower limit and band are bounded to those values
+      (their cost is counted, constant).
     """
     scene = pointing.scene
     names = design_names(scene)
@@ -210,21 +216,39 @@ def design_problem(
     if not (np.all(np.isfinite(min_clearance)) and np.all(min_clearance >= 0)):
         raise ValueError(f"propose_design: min_clearance must be finite and >= 0 (m), got {min_clearance}.")
     band_lo, band_hi = (float(v) for v in band_range)
-    if not (0 < band_lo <= band <= band_hi and np.isfinite(band_hi)):
+    if start is None:
+        band0 = np.full(n, float(band))
+    else:
+        zones = start.of(names)
+        nominal0, band0 = np.array(zones.nominal, dtype=float), np.array(zones.band, dtype=float)  # copies: written below
+    if isinstance(fixed, Tolerances):
+        held = fixed.of(fixed.names)
+        given = {name: (float(m), float(b)) for name, m, b in zip(held.names, held.nominal, held.band)}
+    elif isinstance(fixed, Mapping):
+        given = {name: (None, half) for name, half in fixed.items()}
+    else:
+        given = {name: (None, None) for name in fixed}
+    designed = [j for j, name in enumerate(names) if name not in given]
+    bad = {names[j]: float(band0[j]) for j in designed if not (0 < band_lo <= band0[j] <= band_hi)}
+    if (bad or not np.isfinite(band_hi)) and start is None:
         raise ValueError(
             f"propose_design: need 0 < band_range[0] <= band <= band_range[1] (m), got band={band!r}, band_range={band_range!r}."
         )
+    if bad or not np.isfinite(band_hi):
+        raise ValueError(f"propose_design: the starting half-widths {bad} (m) are outside band_range={band_range!r}: start inside "
+                         "it, widen it, or give those features as fixed.")
     key = jax.random.key(0) if key is None else key
-    limit0 = np.maximum(nominal0 - band, min_clearance)
-    lower_limit, lower_band, upper_band, band0 = min_clearance.copy(), np.full(n, band_lo), np.full(n, band_hi), np.full(n, float(band))
-    given = dict(fixed) if isinstance(fixed, Mapping) else {name: float(band) for name in fixed}
-    for name, half in given.items():
+    limit0 = np.maximum(nominal0 - band0, min_clearance)
+    lower_limit, lower_band, upper_band = min_clearance.copy(), np.full(n, band_lo), np.full(n, band_hi)
+    for name, (middle, half) in given.items():
         if name not in names:
             raise ValueError(f"propose_design: fixed feature {name!r} is not a design feature of this scene; its features: {', '.join(names)}.")
+        j = names.index(name)  # not `k`: that is the robust statistic's
+        half = float(band0[j]) if half is None else float(half)
+        middle = float(nominal0[j]) if middle is None else middle
         if not (np.isfinite(half) and half > 0):  # a zero band would cost infinitely much (ISO 286)
             raise ValueError(f"propose_design: the fixed feature {name!r} needs a finite half-width > 0 (m), got {half!r}.")
-        j = names.index(name)  # not `k`: that is the robust statistic's
-        limit0[j] = lower_limit[j] = max(float(nominal0[j]) - half, 0.0)
+        limit0[j] = lower_limit[j] = max(middle - half, 0.0)
         lower_band[j] = upper_band[j] = band0[j] = half
     if yield_ is None:
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)

@@ -157,9 +157,10 @@ def propose_design(
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
-    - `**problem`: the problem's options, as `design_problem` takes them (starting band,
-      functional minima, band range, manufactured units, robust statistic or `yield_`, cost
-      model, gradient mode, `fixed` features).
+    - `**problem`: the problem's options, as `design_problem` takes them: the starting band
+      or starting zones (`start`, a `Tolerances`, e.g. `SceneFile.tolerances()`), functional
+      minima, band range, manufactured units, robust statistic or `yield_`, cost model,
+      gradient mode, `fixed` features (names, half-widths or a `Tolerances`).
 
     **Returns:** a `DesignReport`.
     """

@@ -10,6 +10,7 @@ import numpy as np
 from .reliability import YieldCheck
 from .requirements import Requirement
 from .types import Design, OptimisationResult
+from ..uncertainty.sampling import Tolerances
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,6 +156,13 @@ class DesignReport:
         Otherwise the design is the best one reached, and `diagnosis` says why it is not a
         proposal and what would change that."""
         return self.status == "converged"
+
+    @property
+    def tolerances(self) -> Tolerances:
+        """The proposed zones as a `Tolerances` (nominal ± band per feature, m; drawn uniformly,
+        as the design assumed): what `monte_carlo` draws units from and
+        `SceneFile.with_tolerances` writes."""
+        return Tolerances(self.names, self.nominal, self.band, "uniform")
 
     @property
     def target(self) -> float:

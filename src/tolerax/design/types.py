@@ -12,17 +12,25 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .. import _validate as V
 from ..physics import smooth as _smooth
-from ..uncertainty.sampling import manufactured
+from ..uncertainty.sampling import Tolerances, manufactured
 
 
 class Design(eqx.Module):
-    """A tolerance design: per feature a nominal value and a tolerance band half-width.
+    """The design optimisers' variables: two arrays over the features, a position and a
+    half-width (m). Not a zone a user holds (that is `tolerax.Tolerances`, which reports, scene
+    files and Monte Carlo share, with names and a distribution): the arrays the objectives,
+    their gradients and the optimisers pass about under `jit`.
+
+    What `nominal` positions is the parameterisation's, named where it is read: the zone's
+    middle for the objectives over units (`RobustPointing`, `LinearisedYield`, `realise`,
+    `yield_check`: a part is made anywhere in `nominal ± band`), the zone's *lower limit* for
+    the optimisers (`FromLowerLimit`, whose problems the solvers see: `OptimisationResult.x`,
+    `ConstrainedDesign.lower`/`upper`). `tolerances` turns either into a `Tolerances`.
 
     **Arguments:**
 
-    - `nominal`: nominal clearance or backlash of each feature (m), shape `(n_features,)`.
-    - `band`: half-width of its tolerance band (m), same shape; a part is made anywhere in
-      `nominal ± band`.
+    - `nominal`: the position of each feature's zone (m), shape `(n_features,)`.
+    - `band`: the half-width of its zone (m), same shape.
 
     A leading axis, `(m, n_features)`, holds one row per constraint (a derivative of several
     constraints, as `OptimisationResult.sensitivity` with two requirements).
@@ -34,6 +42,14 @@ class Design(eqx.Module):
     def __init__(self, nominal, band):
         self.nominal = V.real("Design", "nominal", nominal, "m", shape=None)
         self.band = V.real("Design", "band", band, "m", shape=None)
+
+    def tolerances(self, names, *, from_lower_limit: bool) -> Tolerances:
+        """These variables as zones (`Tolerances`, uniform) over the features `names`:
+        `from_lower_limit` says whether `nominal` holds the zones' lower limits (an optimiser's
+        `x`) or their middles."""
+        band = np.asarray(self.band, dtype=float)
+        middle = np.asarray(self.nominal, dtype=float) + (band if from_lower_limit else 0.0)
+        return Tolerances(names, middle, band, "uniform")
 
     def __check_init__(self):
         if jnp.ndim(self.nominal) not in (1, 2) or jnp.shape(self.nominal) != jnp.shape(self.band):

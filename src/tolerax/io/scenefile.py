@@ -121,18 +121,31 @@ class SceneFile:
         band = [tol.get("bands", {}).get(n, tol.get("band", TOLERANCE_KEYS["band"][1])) for n in names]
         return _design.tolerances_of(scene, np.asarray(band, dtype=float), tol.get("distribution", "uniform"))
 
+    def with_tolerances(self, tolerances) -> "SceneFile":
+        """This scene with the zones of `tolerances` (a `Tolerances` over some or all of its
+        design features) written in: their nominals under `[design]`, their half-widths under
+        `[tolerances.bands]`, their distribution. `tolerances()` of the result gives them
+        back."""
+        names = _design.design_names(self.build())
+        unknown = [n for n in tolerances.names if n not in names]
+        if unknown:
+            raise ValueError(f"SceneFile.with_tolerances: {unknown} are not design features of {self.name!r}; its features: "
+                             f"{', '.join(names)}.")
+        data = copy.deepcopy(self.data)
+        data["design"] = {**data.get("design", {}), **{n: float(v) for n, v in zip(tolerances.names, tolerances.nominal)}}
+        tol = data.setdefault("tolerances", {})
+        tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(tolerances.names, tolerances.band)}}
+        tol["distribution"] = tolerances.distribution
+        return SceneFile.from_data(data, self.name, self.source)
+
     def with_proposal(self, report) -> "SceneFile":
         """This scene with a tolerance proposal (`tolerax.propose_design`'s `DesignReport`)
         filled in: the nominal clearances and backlash under `[design]`, the half-widths under
         `[tolerances.bands]`, the requirement, uniform manufacturing (what the design assumed),
         and a description with the cost. `tolerax design` writes it as `proposal.toml`;
         `tolerax run`, `montecarlo` and `design` read it back as any scene file."""
-        data = copy.deepcopy(self.data)
-        data["design"] = {**data.get("design", {}), **{n: float(v) for n, v in zip(report.names, report.nominal)}}
-        tol = data.setdefault("tolerances", {})
-        tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(report.names, report.band)}}
-        tol["requirement"] = float(report.requirement)
-        tol["distribution"] = "uniform"
+        data = copy.deepcopy(self.with_tolerances(report.tolerances).data)
+        data["tolerances"]["requirement"] = float(report.requirement)
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
         data["title"] = f"Proposal: {self.title}"
         data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "

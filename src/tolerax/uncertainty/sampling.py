@@ -44,10 +44,16 @@ def _vector(name: str, value, n: int | None) -> Array:
 
 
 class Tolerances(eqx.Module):
-    """The tolerance design of a mechanism: per feature a nominal value and a band.
+    """The tolerance zones of a mechanism: per feature a nominal value and a band. The one
+    zone type of tolerax: Monte Carlo draws units within it, scene files read and write it
+    (`SceneFile.tolerances`, `SceneFile.with_tolerances`), the design starts from it and holds
+    given features at it (`propose_design(start=..., fixed=...)`) and proposes one
+    (`DesignReport.tolerances`).
 
-    A part is in tolerance when $|x - \\text{nominal}| \\le \\text{band}$. Manufactured values are
-    spread over the band by `distribution`:
+    A part is in tolerance when $|x - \\text{nominal}| \\le \\text{band}$: the zone is
+    $[\\text{nominal} - \\text{band}, \\text{nominal} + \\text{band}]$ (`lower_limit`,
+    `upper_limit`; `from_limits` builds one from its limits). Manufactured values are spread
+    over the band by `distribution`:
 
     - `"uniform"`: uniform on $[\\text{nominal} - \\text{band}, \\text{nominal} + \\text{band}]$;
     - `"normal"`: normal with mean `nominal` and $\\sigma = \\text{band}/3$, truncated at
@@ -110,9 +116,40 @@ class Tolerances(eqx.Module):
                 bad = [name for name, b in zip(self.names, below) if b]
                 raise ValueError(f"Tolerances.nominal is below Tolerances.lower (the physical floor) for {bad}.")
 
+    @classmethod
+    def from_limits(cls, names, lower_limit, upper_limit, distribution: str = "uniform", lower=0.0) -> "Tolerances":
+        """The zones $[\\text{lower\\_limit}, \\text{upper\\_limit}]$ (m) per feature: nominal their
+        middle, band their half-width (a drawing's limits, a design's lower limit and width)."""
+        lo, hi = np.asarray(lower_limit, dtype=float), np.asarray(upper_limit, dtype=float)
+        if np.any(hi < lo):
+            bad = [name for name, a, b in zip(names, np.broadcast_to(lo, np.shape(hi)), hi) if b < a]
+            raise ValueError(f"Tolerances.from_limits: the upper limit is below the lower limit for {bad} (m): {lo}, {hi}.")
+        return cls(names, 0.5 * (lo + hi), 0.5 * (hi - lo), distribution, lower)
+
     @property
     def n_features(self) -> int:
         return len(self.names)
+
+    @property
+    def lower_limit(self) -> Array:
+        """The zones' lower limits, nominal - band (m): the smallest value a part may have."""
+        return self.nominal - self.band
+
+    @property
+    def upper_limit(self) -> Array:
+        """The zones' upper limits, nominal + band (m)."""
+        return self.nominal + self.band
+
+    def of(self, names) -> "Tolerances":
+        """These zones in the order of `names` (a subset or a reordering), e.g. a scene's
+        `design_names`; a name without a zone here is an error naming it."""
+        names = tuple(names)
+        missing = [name for name in names if name not in self.names]
+        if missing:
+            raise ValueError(f"Tolerances.of: no zone for {missing}; the zones are for {', '.join(self.names)}.")
+        k = np.asarray([self.names.index(name) for name in names], dtype=int)
+        lower = None if self.lower is None else self.lower[k]
+        return Tolerances(names, self.nominal[k], self.band[k], self.distribution, lower)
 
     def bounds(self) -> np.ndarray:
         """The tolerance box as an array of `[low, high]` rows (m): nominal ± band, the low end
