@@ -14,10 +14,18 @@ Rows: (a) `sequential_design` on `design_problem(...)` as `design_stability.py` 
 0.2)], ...)` with the same settings, no Monte Carlo check, for each `--seeds` (the seed of the
 secant units' Latin hypercube: `LinearisedYield.secant_seed`). (a) and (b) at seed 1 solve the
 same problem and must agree to the optimiser's own tolerance; the seeds' spread is the cost's
-noise band, what a "converged" answer on fitted slopes can be trusted to.
+noise band, what a "converged" answer on fitted slopes can be trusted to. `--cli`: (c) `tolerax
+design` on the same scene written as a scene file (`--requirement R --jitter 0.2 --yield 0.9
+--secant-units 16 --widths 1e-7 --outer 40 --check 0 --allow-proxy`), with its own noise band (secant seeds
+1 and 2, `propose_design`'s default): the third entry point, and what it says of the band.
 """
 
+import re
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -40,6 +48,7 @@ def main():
     parser.add_argument("--rms-fraction", type=float, default=0.6)
     parser.add_argument("--jitter-requirement", type=float, default=0.2)
     parser.add_argument("--skip-direct", action="store_true", help="leave out row (a)")
+    parser.add_argument("--cli", action="store_true", help="add row (c): tolerax design on the scene as a scene file")
     args = harness.parse_args(parser)
     start = time.perf_counter()
     scene = tx.scan("azimuth", fidelity=("planetary-scaled", "ideal"))
@@ -71,9 +80,15 @@ def main():
     for seed in args.seeds:
         wall, report = harness.wall(tx.propose_design, pointing, requirements, widths=(width,), max_outer=args.max_iterations,
                                     yield_=0.9, secant_units=args.secant_units, secant_seed=seed, check_units=0, progress=True,
-                                    noise_band=False)  # the seeds are this benchmark's rows
+                                    noise_band=False,  # the seeds are this benchmark's rows
+                                    allow_proxy=True)  # the scaled stage's jitter, knowingly: this benchmark is about entry points
         row("(b) propose_design", seed, wall, report.cost, bool(report.result.converged), report.status,
             int(np.asarray(report.result.history.steps)[-1]), [o.objective for o in report.outcomes], report.band)
+    if args.cli:
+        wall, (cost, status, twin, text) = harness.wall(_cli, R, args)
+        band = "" if twin is None else f"; its noise band {cost:.3f} / {twin:.3f} (seeds 1 / 2)"
+        rows.append(("(c) tolerax design", "1", f"{cost:.3f}", "-", status + band, "-", "-", "-", f"{wall:.0f}"))
+        print(rows[-1], twin, flush=True)
     costs = [float(r[2]) for r in rows if r[0].startswith("(b)")]
     band = (max(costs) - min(costs)) if len(costs) > 1 else float("nan")
     harness.write_table(
@@ -86,6 +101,47 @@ def main():
                f"scatter; tolerances {tols[0]:.2f} / {tols[1]:.2f}. Total wall {time.perf_counter() - start:.0f} s."),
         notes=[f"Noise band of the cost over the secant seeds {args.seeds}: {band:.3f} (max - min of the propose_design rows)."],
     )
+
+
+SCENE = """title = "design_one_answer: the stability problem's scene"
+[scene]
+kind = "scan"
+mode = "azimuth"
+fidelity = ["planetary-scaled", "ideal"]
+mass_scaling = 1000.0
+[run]
+duration = 0.6
+settle = 0.3
+start = "steady"
+n_save = 301
+rtol = 1e-6
+atol = 1e-9
+[tolerances]
+band = 1e-5
+"""
+
+
+def _cli(R, args):
+    """Row (c): `tolerax design` in a subprocess on the problem's scene as a scene file:
+    `(cost, status, the noise band's other cost or None, the report's first line)` read back
+    from its design.md."""
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = Path(tmp) / "stability.toml"
+        scene.write_text(SCENE)
+        cmd = [sys.executable, "-c", "import sys; from tolerax.cli import main; sys.exit(main())", "design", str(scene),
+               "--requirement", repr(float(R[0])), "--jitter", repr(float(R[1])), "--yield", "0.9", "--secant-units",
+               str(args.secant_units), "--widths", "1e-7", "--outer", str(args.max_iterations), "--check", "0",
+               "--allow-proxy", "--out", str(Path(tmp) / "out")]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode not in (0, 4):
+            raise RuntimeError(f"tolerax design failed ({done.returncode}):\n{done.stderr[-3000:]}")
+        text = (Path(tmp) / "out" / "design.md").read_text()
+    head = text.splitlines()[0] if not text.startswith("**Not a proposal") else text.split("\n\n")[1]
+    cost = float(re.search(r"cost ([0-9.]+)", head).group(1))
+    status = re.match(r"\*\*Not a proposal: ([a-z -]+)\.", text)
+    twin = re.search(r"Cost noise band: ([0-9.]+) with these secant units, ([0-9.]+)", text)
+    return (cost, status.group(1) if status else "converged", None if twin is None else float(twin.group(2)),
+            text.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -308,20 +308,24 @@ def test_design_takes_further_requirements_as_data(tmp_path, capsys):
 
 def test_design_with_a_jitter_requirement_verifies_both(tmp_path, capsys):
     """`tolerax design --yield Y --jitter J`: the report states the stability requirement and
-    its check, the lumped scene draws a note that lumped jitter does not predict the planetary
-    stage's, and `--verify` simulates the units' jitter too, with its yield against J (the
-    fraction of the verified units' jitter at most J, recomputed from montecarlo.nc). Without
-    --yield, --jitter is refused before any work."""
+    its check; the lumped scene is refused before any work (lumped joints do not read the
+    jitter), and designed with `--allow-proxy`, the report saying so; `--verify` simulates the
+    units' jitter too (at lumped fidelity here, given: the default would be the planetary
+    stage), with its yield against J (the fraction of the verified units' jitter at most J,
+    recomputed from montecarlo.nc). Without --yield, --jitter is refused before any work."""
     import xarray as xr
 
     scene = tmp_path / "my_drive.toml"
     scene.write_text(OWN_MECHANISM)
     design = tmp_path / "design"
-    assert cli.main(["design", str(scene), "--yield", "0.9", "--jitter", "5.0", "--secant-units", "8", "--check", "4", "--outer", "2",
-                     "--allow-unconverged", "--verify", "4", "--chunk", "2", "--out", str(design)]) == 0
+    args = ["design", str(scene), "--yield", "0.9", "--jitter", "5.0", "--secant-units", "8", "--check", "4", "--outer", "2",
+            "--allow-unconverged", "--verify", "4", "--chunk", "2", "--out", str(design)]
+    assert cli.main(args) == 2 and "the azimuth joint is lumped" in capsys.readouterr().err and not design.exists()
+    assert cli.main(args + ["--allow-proxy", "--verify-fidelity", "lumped"]) == 0
     printed = capsys.readouterr().out
-    assert "lumped jitter does not predict" in printed and "jitter above 20 Hz <= 5.0 arcsec" in printed
+    assert "jitter above 20 Hz <= 5.0 arcsec" in printed
     table = (design / "design.md").read_text()
+    assert "read at planetary fidelity, but the azimuth joint is lumped" in table
     assert "Jitter: 90.0% quantile (linearised), secants" in table and "Check of the jitter: Monte Carlo check" in table
     assert "d jitter / d nominal" in table
     verify = json.loads((design / "verify" / "summary.json").read_text())["pointing_jitter"]

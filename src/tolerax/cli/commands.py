@@ -153,6 +153,8 @@ def _design_setup(parser, args, command):
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return None
+    if args.fidelity is not None:
+        scene_file = with_fidelity(scene_file, args.fidelity)
     if not has_features(scene_file, command):
         return None
     tol = scene_file.data.get("tolerances", {})
@@ -167,6 +169,7 @@ def _design_setup(parser, args, command):
     names = _feature_names(scene_file)
     if args.secant_units is not None and args.secant_units <= len(names):
         parser.error(f"--secant-units must exceed the scene's {len(names)} design features (a line through K units), got {args.secant_units}")
+    options = {}
     # The scene's zones (its design +- `bands`, else `band`) start the design; the fixed
     # features are held at theirs.
     start = scene_file.tolerances()
@@ -174,7 +177,11 @@ def _design_setup(parser, args, command):
     minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
     if isinstance(minima, dict):
         minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
-    options = dict(start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
+    if args.widths is not None:
+        if any(a <= b for a, b in zip(args.widths, args.widths[1:])):
+            parser.error(f"--widths must go wide to narrow (decreasing), got {args.widths}")
+        options["widths"] = tuple(args.widths)
+    options |= dict(allow_proxy=args.allow_proxy, start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
                    min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
     if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
         from ..io.schema import cost_model
@@ -215,8 +222,10 @@ def _propose(pointing, requirement, options, command):
     start = time.perf_counter()
     try:
         report = _p.propose_design(pointing, requirement, **options)
-    except ValueError as err:  # e.g. a starting band outside the optimiser's range
-        print(f"tolerax {command}: {err}", file=sys.stderr)
+    except ValueError as err:  # e.g. a starting band outside the optimiser's range, a proxy fidelity
+        text = str(err).replace("build the scene with those joints at that fidelity", "--fidelity planetary (or the scene file's "
+                                "[scene] fidelity)")
+        print(f"tolerax {command}: {text}", file=sys.stderr)
         return 2
     except RuntimeError as err:  # a failed simulation makes the objective NaN
         print(f"tolerax {command}: {err}", file=sys.stderr)
@@ -249,10 +258,10 @@ def design_command(parser, args) -> int:
             parser.error("--jitter needs --yield Y (both requirements are met by a fraction Y of the units)")
         cutoff = args.jitter_cutoff
         options["jitter"] = args.jitter
-        if "lumped" in _fidelities(scene_file):
-            print(f"tolerax design: note: {scene_file.name} has lumped joints; lumped jitter does not predict the planetary "
-                  "stage's unit by unit: for a stability budget design at planetary "
-                  "fidelity (e.g. the scene scan-azimuth-fast, with a tight rtol).")
+        if args.verify and args.verify_fidelity is None and set(_fidelities(scene_file)) - {"ideal", "planetary"}:
+            args.verify_fidelity = "planetary"  # the jitter is read on the full stage (tolerax.design.fidelity)
+            print(f"tolerax design: --verify simulates the units at planetary fidelity: {scene_file.name} has lumped or "
+                  "planetary-scaled joints, which do not read the jitter as the full stage does.")
     pointing = scene_file.objective(jitter_cutoff=cutoff)
     more = _more_requirements(parser, args)
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "

@@ -60,6 +60,9 @@ def optimiser_options(parser):
                         help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
                         "iterations (default 6)")
     parser.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
+    parser.add_argument("--widths", type=positive, nargs="+", default=None, metavar="W",
+                        help="smoothing widths of the contacts, m, wide to narrow; the design is judged at the last (default "
+                        "1e-6 1e-7; propose_design's widths)")
     parser.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
                         help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
                         "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
@@ -69,6 +72,11 @@ def optimiser_options(parser):
                         help="write the best design reached as proposal.toml (and exit 0) even where it is not a proposal: "
                         "not converged, infeasible, noise-limited, or its Monte Carlo check missed (otherwise it is written as "
                         "best_reached.toml and the command exits 4)")
+    parser.add_argument("--fidelity", choices=("lumped", "planetary", "planetary-scaled"), default=None,
+                        help="design at this fidelity: every joint of the scene that is not ideal (default: the scene's own)")
+    parser.add_argument("--allow-proxy", action="store_true",
+                        help="design requirements whose output the scene's joints do not read as the full stage does (the "
+                        "jitter on lumped or planetary-scaled joints) instead of refusing them (tolerax.design.fidelity)")
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
                         "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
@@ -142,8 +150,9 @@ def main(argv=None) -> int:
     design.add_argument("--jitter", type=positive, default=None, metavar="J",
                         help="with --yield: a pointing-stability requirement beside the RMS one: the jitter (RMS pointing error "
                         "above --jitter-cutoff Hz over the window), arcsec, met by the same fraction Y of units. Both are "
-                        "linearised by secants over units (--secant-units, default max(16, 2 x features + 2)); design it at "
-                        "planetary fidelity (lumped jitter does not predict the planetary stage's) with a tight rtol")
+                        "linearised by secants over units (--secant-units, default max(16, 2 x features + 2)). The jitter is "
+                        "read on the full stage only: a scene with lumped or planetary-scaled joints is refused (give "
+                        "--fidelity planetary, or --allow-proxy to design on the proxy knowingly)")
     design.add_argument("--require", action="append", metavar="OUTPUT=LIMIT",
                         help="a further requirement on another output of the pointing objective, met at the same statistic "
                         "or yield, e.g. --require pointing_peak=2500 (arcsec; outputs: pointing_peak, pointing_smooth_peak, "
@@ -155,7 +164,7 @@ def main(argv=None) -> int:
                         "into OUT/verify) and report its yield with a 95 %% Wilson interval (default 0: none)")
     design.add_argument("--verify-fidelity", choices=("lumped", "planetary", "planetary-scaled"), default=None,
                         help="with --verify: simulate the units at this fidelity (every joint that is not ideal), e.g. a "
-                        "lumped design verified on the planetary stage")
+                        "lumped design verified on the planetary stage (default: the scene's own; with --jitter, planetary)")
     design.add_argument("--seed", type=int, default=0, help="with --verify: the units' random seed (as montecarlo's)")
     design.add_argument("--chunk", type=count(1), default=8, help="with --verify: units per chunk (default 8)")
     tradeoff = sub.add_parser(

@@ -21,6 +21,7 @@ from ..cache import exported_jit
 from .cost import grade_of
 from .features import design_names, lost_motion_weights
 from .objectives import PointingObjective
+from .fidelity import check_fidelity
 from .outcome import MODEL_OFF, diagnose
 from .loop import tolerance_worth
 from .optimise import optimise_design
@@ -97,6 +98,7 @@ def propose_design(
     check_key=None,
     jitter: float | None = None,
     noise_band: bool | None = None,
+    allow_proxy: bool = False,
     **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
@@ -157,6 +159,9 @@ def propose_design(
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
+    - `allow_proxy`: design requirements whose output the scene's joints do not read as the
+      full stage does (a jitter requirement on a lumped or mass-scaled joint:
+      `tolerax.design.fidelity`) instead of refusing them; the report's `notes` say so.
     - `**problem`: the problem's options, as `design_problem` takes them: the starting band
       or starting zones (`start`, a `Tolerances`, e.g. `SceneFile.tolerances()`), functional
       minima, band range, manufactured units, robust statistic or `yield_`, cost model,
@@ -178,18 +183,20 @@ def propose_design(
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
     requirements_, options = _requirements_and_options(pointing, requirement, jitter, method, yield_, problem)
+    proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=allow_proxy))
     problem = design_problem(pointing, **options)
     widths = tuple(float(w) for w in widths)
     baseline = np.atleast_1d(np.asarray(_objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(widths[-1])),
                                         dtype=float))
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
-    checked, twin_costs, notes = [], None, ()  # checked: (result, its checks: one per requirement, the requirements it was solved for)
+    checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     if method == "sequential":
         key = jax.random.key(1) if check_key is None else check_key
         result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key)
         if bool(result.stalled) and options.get("secant_units") is None:
-            problem, result, checked, notes = _secant_rescue(pointing, options, problem, result, checked, requirements, tol, widths,
+            problem, result, checked, rescue = _secant_rescue(pointing, options, problem, result, checked, requirements, tol, widths,
                                                       max_outer, progress, callback, check_units, max_checks, key)
+            notes += rescue
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if noise_band if noise_band is not None else any(r.secants for r in requirements_):
             seed = int(options.get("secant_seed", 1)) + 1

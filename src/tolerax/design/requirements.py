@@ -47,6 +47,11 @@ class Requirement:
     - `label` (optional): its name in reports; default from the output.
     - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
       takes it from `PointingObjective.units`, a metric's own included).
+    - `fidelity` (optional): the joint fidelity it is read at, `"any"`, `"lumped"`,
+      `"planetary-scaled"` or `"planetary"`; default `"planetary"` (the full stage) for the
+      vibration outputs (`tolerax.design.fidelity.VIBRATION_OUTPUTS`: the jitter), else
+      `"any"`. `propose_design` refuses a scene that models a joint below it
+      (`tolerax.design.fidelity.check_fidelity`).
     """
 
     output: str = "pointing_rms"
@@ -55,6 +60,7 @@ class Requirement:
     secants: bool | None = None
     label: str | None = None
     unit: str | None = None
+    fidelity: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.output, str) or not self.output:
@@ -69,6 +75,9 @@ class Requirement:
             object.__setattr__(self, "secants", self.output in SCATTERING_OUTPUTS)
         if self.unit is None:
             object.__setattr__(self, "unit", UNITS.get(self.output, "arcsec"))
+        if self.fidelity not in (None, "any", "lumped", "planetary-scaled", "planetary"):
+            raise ValueError(f"Requirement({self.output!r}): fidelity must be 'any', 'lumped', 'planetary-scaled' or 'planetary' "
+                             f"(the joint fidelity it is read at), got {self.fidelity!r}.")
 
     @property
     def name(self) -> str:
