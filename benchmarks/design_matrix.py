@@ -37,12 +37,17 @@ minimum. They should come back `"infeasible"`.
 The JSON (`results/design_matrix.json`) is written after every mechanism; a rerun skips the
 mechanisms already in it (delete the file, or a row, to redo them). `--quick` (a smoke run:
 `M01` and its infeasible twin `X01`, 20 check units) writes `design_matrix_quick.*`.
-`--stop-after S`: start no new mechanism after S seconds (the rest is left for a rerun).
+`--stop-after S`: start no new mechanism after S seconds (the rest is left for a rerun). Each
+mechanism is designed in a fresh process (`--in-process`: all in this one): one process's
+compiled code for a dozen mechanisms exceeds the kernel's limit on memory maps
+(`vm.max_map_count`, 65530 here), and LLVM then fails with "Cannot allocate memory".
 """
 
 import json
 import math
 import os
+import subprocess
+import sys
 import time
 import traceback
 
@@ -395,6 +400,7 @@ def main():
     parser.add_argument("--stop-after", type=float, default=None, help="start no new mechanism after this many seconds")
     parser.add_argument("--retry-crashed", action="store_true", help="run again the mechanisms whose process died (status crashed)")
     parser.add_argument("--list", action="store_true", help="print the mechanisms (validated as scene files) and exit")
+    parser.add_argument("--in-process", action="store_true", help="design every mechanism in this process (default: one process each)")
     args = harness.parse_args(parser)
     keys = [f"M{k:02d}" for k in range(1, len(PLAN) + 1)]
     keys = ([k for k in keys if k not in LAST] + list(INFEASIBLE) + [k for k in MIDWAY if MIDWAY[k] not in LAST]
@@ -440,6 +446,15 @@ def main():
         if args.stop_after is not None and time.perf_counter() - start > args.stop_after:
             print(f"[{key}] not started: --stop-after {args.stop_after:g} s reached", flush=True)
             continue
+        if args.only is None and not args.in_process:
+            # Each mechanism in a fresh process: compiled code of a dozen mechanisms exhausts the
+            # kernel's memory-map limit (vm.max_map_count 65530) in one process, and LLVM then
+            # fails with "Cannot allocate memory" (measured: ~5,000 maps per mechanism).
+            subprocess.run([sys.executable, __file__, *sys.argv[1:], "--only", key], check=False)
+            saved = json.loads(path.read_text())  # the child wrote its row, and its run under meta["runs"]
+            meta, rows = saved["meta"], saved["rows"]
+            SUPERSEDED.update(saved.get("superseded", {}))
+            continue
         # A row that says the process died, replaced by the result: a crash below Python (a
         # segfault in the compiler) leaves it, and a rerun skips the mechanism (--retry-crashed).
         if run_entry is not None:  # a run that designs something is recorded once
@@ -470,7 +485,7 @@ def argparse_free(args):
     of part of it)."""
     import argparse
 
-    d = {k: v for k, v in vars(args).items() if k not in ("only", "stop_after", "list", "retry_crashed")}
+    d = {k: v for k, v in vars(args).items() if k not in ("only", "stop_after", "list", "retry_crashed", "in_process")}
     return argparse.Namespace(**d)
 
 
