@@ -47,6 +47,7 @@ def test_design_and_montecarlo_reject_a_malformed_scene(command, tmp_path, capsy
         ["montecarlo", "--fidelity", "planetary"],
         ["montecarlo", "--n", "0"],
         ["montecarlo", "--band", "-3"],
+        ["montecarlo", "--band", "1e-5"],  # um, not m: 0.01 nm is no manufacturing band
         ["montecarlo", "--duration", "0.2"],  # not longer than the scene's settle = 0.3 s
         ["demo", "--steps", "-1"],
         ["demo", "--clearance", "5"],  # a bench option without --bench
@@ -236,6 +237,8 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     # feature kept its given zone, 60 +- 8 um.
     zones = proposal.tolerances()
     table = (design / "design.md").read_text()
+    # The printed verification hint writes into a folder of its own: following it keeps this report.
+    assert f"--out {design / 'montecarlo'}`: its own folder" in table
     for name, nominal, band in zip(zones.names, np.asarray(zones.nominal), np.asarray(zones.band)):
         given = " (given)" if name == "azimuth.carrier_clearance" else ""
         assert f"| {name}{given} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table

@@ -197,6 +197,11 @@ def test_good_text_parses():
         ('start = "steady"', 'start = "steady"\npcoeff = -0.1', 16, "run", "pcoeff", "must be a finite number >= 0"),
         ("settle = 0.3", "settle = 0.7", 14, "run", "settle", "settle < duration"),
         ('fidelity = ["lumped", "ideal"]', 'fidelity = "ideal"\nbase = "fixed"', 7, "scene", "base", "nothing to integrate"),
+        # Inputs a newcomer gets wrong without a word otherwise: a module in the wrong unit, a
+        # scan amplitude beside the profile that replaces it.
+        ("sun_teeth = 20", "sun_teeth = 20\nmodule = 1e9", 10, "scene.azimuth_stage", "module", "ISO 54"),
+        ('mode = "azimuth"', 'mode = "azimuth"\namplitude = 0.01\nprofile_times = [0.0, 0.2]\nprofile_angles = [0.0, 0.01]', 6,
+         "scene", "amplitude", "ignores 'amplitude'"),
     ],
 )
 def test_malformed_files_name_key_and_line(old, new, line, table, key, message):
@@ -348,8 +353,9 @@ def test_a_tabulated_motion_profile_is_tracked():
     import scipy.interpolate
 
     times, angles = [0.0, 0.05, 0.15, 0.4], [0.0, 0.0, math.radians(1.5), math.radians(1.5)]
-    text = tx.load_scene("scan-azimuth").to_toml().replace(
-        "period = 1.0", f"period = 1.0\nprofile_times = {times}\nprofile_angles = {angles}").replace("duration = 0.6", "duration = 0.4")
+    text = tx.load_scene("scan-azimuth").to_toml().replace(  # the profile replaces the scan's amplitude and period
+        "period = 1.0", f"profile_times = {times}\nprofile_angles = {angles}").replace("duration = 0.6", "duration = 0.4")
+    text = "\n".join(line for line in text.splitlines() if not line.startswith("amplitude ="))
     text = text.replace('start = "steady"', 'start = "rest"').replace("settle = 0.3", "settle = 0.0")
     scene_file = tx.parse_scene(text)
     servo = scene_file.build().azimuth.drive

@@ -282,7 +282,8 @@ def design_command(parser, args) -> int:
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else
                        f"The best design reached as a scene file ({report.status}, not a proposal): `{proposal}`")
-                      + f" (verify it with `tolerax montecarlo {proposal} --n 200`)."])
+                      + f" (verify it with `tolerax montecarlo {proposal} --n 200 --out {out / 'montecarlo'}`: its own folder, "
+                      "so this report is kept)."])
     (out / "design.md").write_text(text + "\n")
     fig = report.plot()
     fig.savefig(out / "design.png", dpi=120)

@@ -121,6 +121,16 @@ def positive(text):
     return value
 
 
+def band_um(text):
+    """A tolerance half-width in µm: non-negative, and 0 or at least 0.01 µm (a band below that is
+    a length given in metres, e.g. 1e-5 for 10 µm)."""
+    value = non_negative(text)
+    if 0 < value < 0.01:
+        raise argparse.ArgumentTypeError(f"is a half-width in um: {text} um is {value * 1e3:g} nm, below any manufacturing band; "
+                                         f"for {value * 1e6:g} um give {value * 1e6:g}")
+    return value
+
+
 def non_negative(text):
     value = float(text)
     if not (math.isfinite(value) and value >= 0):

@@ -15,7 +15,7 @@
 The engineer's path in three commands (design, verify, trade off):
 
     tolerax design my_drive.toml --requirement 700 --yield 0.99 --verify 200   # writes proposal.toml
-    tolerax montecarlo tolerax-out/proposal.toml --n 1000                     # verify it further
+    tolerax montecarlo tolerax-out/proposal.toml --n 1000 --out tolerax-out/montecarlo   # verify it further
     tolerax tradeoff my_drive.toml --yield 0.99 --requirements 400 700 1000   # what tighter pointing costs
 
 SCENE is a built-in scene name (`tolerax run --list`) or a path to a .toml scene file (schema:
@@ -38,7 +38,7 @@ import textwrap
 
 from .. import __version__
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
-from .common import DEFAULT_SCENE, EPILOG, count, non_negative, positive, scene_options
+from .common import DEFAULT_SCENE, EPILOG, band_um, count, non_negative, positive, scene_options
 from .demo import demo_command
 
 # What an interrupted command has kept, and how to go on.
@@ -171,7 +171,7 @@ def main(argv=None) -> int:
         "tradeoff", help="the cost of the cheapest tolerances against the pointing requirement",
         description="One proposal (as `tolerax design`) per requirement: writes tradeoff.md (the table), tradeoff.json, "
         "tradeoff.png (cost against requirement) and each proposal as proposal-R.toml (verify one with "
-        "`tolerax montecarlo OUT/proposal-R.toml`). Every point reuses the compiled simulation: only the requirement changes.",
+        "`tolerax montecarlo OUT/proposal-R.toml --out OUT/montecarlo-R`). Every point reuses the compiled simulation: only the requirement changes.",
         epilog=EPILOG,
     )
     scene_options(tradeoff, "design")
@@ -188,8 +188,9 @@ def main(argv=None) -> int:
     )
     scene_options(mc, "per-unit")
     mc.add_argument("--n", type=count(1), default=64, help="manufactured units (default 64)")
-    mc.add_argument("--band", type=non_negative, default=None,
-                    help="override the tolerance half-width of every feature, um (default: the scene's [tolerances])")
+    mc.add_argument("--band", type=band_um, default=None,
+                    help="override the tolerance half-width of every feature, um, e.g. 10 for +-10 um (default: the scene's "
+                    "[tolerances])")
     mc.add_argument("--distribution", default=None, choices=("uniform", "normal"), help="override [tolerances] distribution")
     mc.add_argument("--requirement", type=positive, default=None,
                     help="RMS pointing requirement for the yield, arcsec (default: the scene's [tolerances] requirement)")

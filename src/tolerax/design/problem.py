@@ -209,8 +209,8 @@ def design_problem(
         warnings.warn(
             f"design_problem: the lumped joint(s) {', '.join(lumped)} have per-planet features (distinct_planets), but a lumped "
             "joint keeps only the tightest planet's lost motion: a design there tightens one planet and leaves the others wide, "
-            "which the planetary stage does not bear out (benchmarks/results/design_antenna_planets.md: 0.055 verified yield "
-            "against 0.99). Design per-planet features at planetary fidelity.", stacklevel=2)
+            "which the planetary stage does not bear out (its verified yield falls far below the one designed for: "
+            "benchmarks/results/design_antenna_planets.md). Design per-planet features at planetary fidelity.", stacklevel=2)
     n = len(names)
     min_clearance = np.broadcast_to(np.asarray(min_clearance, dtype=float), (n,))
     if not (np.all(np.isfinite(min_clearance)) and np.all(min_clearance >= 0)):

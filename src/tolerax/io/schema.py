@@ -294,6 +294,7 @@ def build(chk: Checker, scene: dict):
     builder = BUILDERS[scene["kind"]]
     params = _signature_keys(builder)
     chk.keys(scene, table, ["kind", *params])
+    _check_motion_keys(chk, scene, table)
     kwargs = {}
     for key, value in scene.items():
         if key == "kind":
@@ -314,6 +315,24 @@ def build(chk: Checker, scene: dict):
     except (ValueError, TypeError) as err:
         raise chk.wrap(err, table, scene) from None
     return model
+
+
+def _check_motion_keys(chk: Checker, scene: dict, table):
+    """Refuse a motion key the scene's motion ignores (it would be dropped without a word): a
+    scan's `amplitude`/`period` beside a tabulated profile; an antenna's `scan_*` keys unless
+    `drive = "scan"`, its `profile_*` keys unless `drive = "profile"`."""
+    if scene["kind"] == "scan":
+        if "profile_times" in scene or "profile_angles" in scene:
+            for key in ("amplitude", "period"):
+                if key in scene:
+                    raise chk.error(f"the scan follows the tabulated profile (profile_times/profile_angles) and ignores {key!r}: "
+                                    "remove it, or the profile.", table, key)
+        return
+    drive = scene.get("drive", "speed")
+    for key, needs in (("scan_amplitude", "scan"), ("scan_period", "scan"), ("profile_times", "profile"), ("profile_angles", "profile")):
+        if key in scene and drive != needs:
+            raise chk.error(f"drive = {drive!r} ignores {key!r} (it is read with drive = {needs!r}): remove it, or set the "
+                            "drive.", table, key)
 
 
 def _check_run(chk: Checker, run: dict):

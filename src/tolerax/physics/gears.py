@@ -13,7 +13,7 @@ STEEL = dict(young=206e9, poisson=0.3, density=7850.0)
 
 
 _GEAR_RULES = dict(
-    module=V.POSITIVE("m"),
+    module=V.Rule("m: ISO 54 modules run from 0.05 to 50 mm", low=5e-5, high=0.05),  # a plausible gear, not 1e9 m
     pressure_angle=V.PRESSURE_ANGLE,
     face_width=V.POSITIVE("m"),
     carrier_radius=V.Rule("m", low=0.0, low_open=True, optional=True),
