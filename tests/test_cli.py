@@ -386,6 +386,14 @@ def test_tradeoff_writes_the_curve_and_one_proposal_per_requirement(tmp_path, ca
     table = (out / "tradeoff.md").read_text()
     assert "| 380 |" in table and "| 450 |" in table and "proposal-380.toml" in table
     assert (out / "tradeoff.png").stat().st_size > 10_000
+    # Priced in the shop's units, said so; a zone outside its IT5-IT9 is flagged as extrapolated.
+    assert "cost in the shop's price table's units (IT5 5, IT6 2.5, IT7 1, IT8 0.8, IT9 0.7)" in table
+    assert "1 per feature at IT7" not in table
+    for p in points:
+        zones = tx.load_scene(p["proposal"]).tolerances()
+        grades = np.asarray(tx.grade_of(2 * np.asarray(zones.band), sizes))
+        outside = [n for n, g in zip(zones.names, grades) if not 5 <= g <= 9]
+        assert bool(p["extrapolated"]) == bool(outside) and all(n in " ".join(p["extrapolated"]) for n in outside)
 
 
 def test_ctrl_c_ends_with_one_line_saying_how_to_resume(monkeypatch, capsys):

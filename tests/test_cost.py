@@ -218,3 +218,12 @@ def test_grade_table_is_iso_grade_for_a_constant_factor_and_interpolates_a_quote
     for grades_, costs in (([7], [1.0]), ([7, 6], [1.0, 2.0]), ([6, 7], [1.0, 2.0]), ([6, 7], [2.0, 0.0])):
         with pytest.raises(ValueError, match="GradeTable"):
             GradeTable(grades_, costs)
+
+
+def test_cost_models_say_their_unit_and_range():
+    """Reports print what one unit of cost is; a shop's table says its grades (outside them its
+    prices are extrapolated), the ISO law has no range."""
+    iso, shop = IsoGrade(), GradeTable([5, 6, 7, 8, 9], [4.0, 2.2, 1.0, 0.8, 0.7])
+    assert iso.unit.startswith("relative, 1 per feature at IT7") and iso.grade_range is None
+    assert shop.unit == "the shop's price table's units (IT5 4, IT6 2.2, IT7 1, IT8 0.8, IT9 0.7)"
+    assert shop.grade_range == (5.0, 9.0)

@@ -3,6 +3,7 @@
 import copy
 import inspect
 import json
+import textwrap
 import pathlib
 import sys
 import time
@@ -398,7 +399,7 @@ def tradeoff_command(parser, args) -> int:
         points.append(dict(
             requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
             baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
-            diagnosis=report.diagnosis, names=list(report.names),
+            diagnosis=report.diagnosis, names=list(report.names), cost_unit=report.cost_unit, extrapolated=list(report._extrapolated()),
             nominal_um=(report.nominal * 1e6).tolist(), band_um=(report.band * 1e6).tolist(), proposal=str(path), wall_s=wall,
             check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
         ))
@@ -411,8 +412,9 @@ def tradeoff_command(parser, args) -> int:
     what = "objective (arcsec)" if args.yield_ is None else f"linearised {args.yield_:.1%} quantile (arcsec)"
     text = "\n".join([
         f"# Tolerance cost against the pointing requirement: {scene_file.title}", "",
-        f"RMS pointing, {_statistic(args)}; cost relative, 1 per feature at IT7 (baseline {points[0]['baseline_cost']:.3f}). "
+        f"RMS pointing, {_statistic(args)}; cost in {points[0]['cost_unit']} (baseline {points[0]['baseline_cost']:.3f}). "
         f"Features: {', '.join(points[0]['names'])}.", "",
+        *[f"At {p['requirement']:g} arcsec: {' '.join(p['extrapolated'])}" for p in points if p["extrapolated"]],
         f"| requirement (arcsec) | {what} | cost | outcome | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
         "|---|---|---|---|---|---|---|---|", *rows, "",
         "![cost against requirement](tradeoff.png)", "",
@@ -430,7 +432,7 @@ def tradeoff_command(parser, args) -> int:
     ax.plot([], [], "x", color="C3", label="not a proposal")
     ax.axhline(points[0]["baseline_cost"], color="0.5", ls=":", label="baseline bands")
     ax.set_xlabel("RMS pointing requirement (arcsec)")
-    ax.set_ylabel("tolerance cost (1 per feature at IT7)")
+    ax.set_ylabel("tolerance cost\n(" + textwrap.shorten(points[0]["cost_unit"], 48, placeholder="...") + ")", fontsize=8)
     ax.set_title(_statistic(args).split(":")[0], fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -163,6 +163,17 @@ class AbstractCostModel(eqx.Module):
         """Total cost: the sum over features of `self(band, size_mm)`."""
         return jnp.sum(self(band, size_mm))
 
+    @property
+    def unit(self) -> str:
+        """What one unit of this model's cost is, for reports and plot axes."""
+        return f"{type(self).__name__}'s cost units"
+
+    @property
+    def grade_range(self) -> tuple[float, float] | None:
+        """The ISO grades the model's prices were given for (a shop's table), or `None` where
+        it is a law over every grade; a design outside them is priced by extrapolation."""
+        return None
+
 
 class ReciprocalPower(AbstractCostModel):
     """$c = a + b\\,(t_\\mathrm{ref}/t_\\mathrm{eff})^k$ (Sutherland and Roth's reciprocal power law;
@@ -282,6 +293,11 @@ class IsoGrade(AbstractCostModel):
         """$k = \\ln\\phi / \\ln 10^{1/5}$, the reciprocal-power exponent in the band."""
         return jnp.log(self.factor_per_grade) / math.log(GRADE_RATIO)
 
+    @property
+    def unit(self) -> str:
+        return (f"relative, 1 per feature at IT{self.reference_grade}, x{float(self.factor_per_grade):.3g} per grade tighter "
+                "(ISO 286 reciprocal law)")
+
     def __call__(self, band, size_mm):
         if size_mm is None:
             raise ValueError("IsoGrade needs the nominal size (mm) of every feature, got size_mm=None.")
@@ -323,6 +339,15 @@ class GradeTable(AbstractCostModel):
 
     def __check_init__(self):
         V.check(self, floor=V.POSITIVE("m"))
+
+    @property
+    def unit(self) -> str:
+        pairs = ", ".join(f"IT{g:g} {c:.3g}" for g, c in zip(np.asarray(self.grades), np.exp(np.asarray(self.log_costs))))
+        return f"the shop's price table's units ({pairs})"
+
+    @property
+    def grade_range(self) -> tuple[float, float]:
+        return float(self.grades[0]), float(self.grades[-1])
 
     def __call__(self, band, size_mm):
         if size_mm is None:

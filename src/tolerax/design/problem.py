@@ -46,6 +46,14 @@ class OnHalfWidth(AbstractCostModel):
     def __call__(self, band, size_mm):
         return self.model(2.0 * band, size_mm)
 
+    @property
+    def unit(self) -> str:
+        return self.model.unit
+
+    @property
+    def grade_range(self):
+        return self.model.grade_range
+
 
 @eqx.filter_custom_vjp
 def _unit_output_forward(values, pointing, output, width):

@@ -235,7 +235,8 @@ def propose_design(
         result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
         fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
         solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
-        noise_band=None if twin_costs is None else twin_costs[:2], notes=notes,
+        noise_band=None if twin_costs is None else twin_costs[:2], notes=notes, cost_unit=problem.cost_model.unit,
+        grade_range=problem.cost_model.grade_range,
     )
 
 

@@ -4,6 +4,7 @@ is the older view of a jitter requirement's outcome, kept for code that reads it
 
 import dataclasses
 import math
+import textwrap
 
 import numpy as np
 
@@ -122,6 +123,9 @@ class DesignReport:
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
     - `notes`: what the method did beyond the problem as posed (e.g. finished on secant slopes
       where the tangents stalled), one sentence each.
+    - `cost_unit`: what one unit of `cost` is (the cost model's `unit`); `grade_range`: the
+      grades a shop's price table covers (`GradeTable`), outside which `table()` flags a
+      feature's cost as extrapolated, else `None`.
     """
 
     names: tuple[str, ...]
@@ -146,6 +150,8 @@ class DesignReport:
     status: str = "converged"
     diagnosis: str = ""
     notes: tuple[str, ...] = ()
+    cost_unit: str = "relative, 1 per feature at IT7"
+    grade_range: tuple[float, float] | None = None
     outcomes: tuple[RequirementOutcome, ...] = ()
     noise_band: tuple[float, float] | None = None
 
@@ -198,7 +204,7 @@ class DesignReport:
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         unit = self.outcomes[0].requirement.unit if self.outcomes else "arcsec"
         head = ("" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n") + (
-            f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} (relative, 1 per feature at IT7; baseline {self.baseline[2]:.4g}); {what} "
+            f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} ({self.cost_unit}; baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} {unit} against a requirement of {self.requirement:.1f} {unit} "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
             + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
@@ -207,7 +213,7 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
-        for note in self.notes:
+        for note in self.notes + self._extrapolated():
             head += " " + note
         if self.noise_band is not None:
             head += (f" Cost noise band: {self.noise_band[0]:.4g} with these secant units, {self.noise_band[1]:.4g} with an "
@@ -215,6 +221,17 @@ class DesignReport:
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
         return head + "\n\n" + "\n".join(rows)
+
+    def _extrapolated(self) -> tuple[str, ...]:
+        """A sentence naming the features whose grade lies outside the price table's, if any."""
+        if self.grade_range is None:
+            return ()
+        lo, hi = self.grade_range
+        out = [f"{name} (IT{g:.1f})" for name, g in zip(self.names, np.asarray(self.grade, dtype=float)) if not lo <= g <= hi]
+        if not out:
+            return ()
+        return (f"Priced by extrapolation beyond the price table's IT{lo:g}-IT{hi:g}: {', '.join(out)}; ask the shop for "
+                "those grades.",)
 
     def _weights_text(self) -> str:
         """The simulated sensitivities beside the drawings' weights, each relative to the first
@@ -297,7 +314,7 @@ class DesignReport:
             ax2.set_ylabel("objective / requirement")
         axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
         axes[0].set_xlabel("iteration (one gradient each)")
-        axes[0].set_ylabel("tolerance cost (1 per feature at IT7)")
+        axes[0].set_ylabel("tolerance cost\n(" + textwrap.shorten(self.cost_unit, 40, placeholder="...") + ")", fontsize=8)
         lines = axes[0].get_legend_handles_labels()
         more = ax2.get_legend_handles_labels()
         axes[0].legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper right")

@@ -149,7 +149,7 @@ class SceneFile:
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
         data["title"] = f"Proposal: {self.title}"
         data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "
-                               f"{report.baseline[2]:.4g}, 1 per feature at IT7), RMS pointing requirement {report.requirement:g} arcsec "
+                               f"{report.baseline[2]:.4g}; {getattr(report, 'cost_unit', 'relative, 1 per feature at IT7')}), RMS pointing requirement {report.requirement:g} arcsec "
                                f"({what})" + "".join(f", {o.requirement.text()}" for o in getattr(report, "outcomes", ())[1:])
                                + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + ".")
         return SceneFile.from_data(data, "proposal", "<proposal>")
