@@ -310,6 +310,13 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     assert math.isclose(summary["metrics"]["pointing_rms_arcsec"], rms, rel_tol=1e-12)
     assert summary["result"] == "successful" and "--duration 0.05" in summary["command"]
     assert "RMS pointing error" in (out / "summary.md").read_text()
+    # The jitter (above 20 Hz, to the saves' Nyquist 100 Hz): the baseline for `design --jitter`.
+    from tolerax.mechanism.outputs import pointing_metrics
+
+    jitter = float(pointing_metrics(direct, np.ones(11, dtype=bool), jitter_cutoff=20.0)["pointing_jitter"])
+    assert math.isclose(summary["metrics"]["pointing_jitter_arcsec"], jitter, rel_tol=1e-12)
+    assert summary["metrics"]["jitter_band_hz"] == [20.0, pytest.approx(100.0)]
+    assert "| jitter (RMS of the pointing error over 20-100 Hz) |" in (out / "summary.md").read_text()
 
     # Tolerances no solver can meet: the error control wants a step below dtmin. Only values
     # change, so the compiled program is reused.

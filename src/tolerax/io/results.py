@@ -53,6 +53,8 @@ def timeseries(scene_file: SceneFile, result, series=None):
     return ds
 
 
+JITTER_CUTOFF = 20.0  # Hz: the usual start of a pointing budget's stability band (PointingObjective's)
+
 def _window_stats(scene_file: SceneFile, result) -> dict:
     """Summary numbers over the window `t >= settle` (units in the key names)."""
     from ..mechanism.outputs import pointing_metrics
@@ -72,6 +74,16 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
         pointing_peak_arcsec=float(pointing["pointing_peak"]),
         tracking_speed_error_rms_arcsec_s=float(pointing["tracking_speed_rms"]),
     )
+    # The pointing stability, the baseline a jitter requirement (`tolerax design --jitter`) is
+    # chosen against: the RMS above JITTER_CUTOFF Hz up to the saves' Nyquist frequency, where
+    # the saves resolve it.
+    try:
+        jitter = float(pointing_metrics(result, w, jitter_cutoff=JITTER_CUTOFF)["pointing_jitter"])
+        out["pointing_jitter_arcsec"] = jitter
+        out["jitter_band_hz"] = [JITTER_CUTOFF, 0.5 / float(ts[1] - ts[0])]
+    except ValueError as err:
+        out["pointing_jitter_arcsec"] = None
+        out["jitter_not_resolved"] = str(err)
     for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
         out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
@@ -181,6 +193,9 @@ def summary_md(s: dict) -> str:
             f"| RMS pointing error | {m['pointing_rms_arcsec']:.4g} arcsec |",
             f"| peak pointing error | {m['pointing_peak_arcsec']:.4g} arcsec |",
             f"| RMS tracking speed error | {m['tracking_speed_error_rms_arcsec_s']:.4g} arcsec/s |",
+            (f"| jitter (RMS of the pointing error over {m['jitter_band_hz'][0]:g}-{m['jitter_band_hz'][1]:.4g} Hz) | "
+             f"{m['pointing_jitter_arcsec']:.4g} arcsec |" if m.get("pointing_jitter_arcsec") is not None else
+             f"| jitter above {JITTER_CUTOFF:g} Hz | not resolved by these saves: raise `n_save` |"),
         ]
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
