@@ -126,8 +126,10 @@ def propose_design(
       from the optimum (benchmarks/results/design_comparison.md).
     - `method`: `"sequential"` (default: `sequential_design`, the linearised problem solved
       exactly at each iterate in a trust region, once per width of `widths`, each from the last
-      one's design; at most `max_outer` gradients per width, default 20; `inner_steps` and
-      `learning_rate` unused) or `"augmented-lagrangian"` (`optimise_design`: Adam on the
+      one's design; at most `max_outer` gradients per width, default 20; where the tangent
+      slopes stall (the trust region collapses on a rough response), the last width is solved
+      again from there on secant slopes over units, `_secant_rescue`, and the report's `notes`
+      say so; `inner_steps` and `learning_rate` unused) or `"augmented-lagrangian"` (`optimise_design`: Adam on the
       augmented Lagrangian, on optax, with the `widths` continuation; `max_outer` outer
       iterations, default 6, of `inner_steps` steps at `learning_rate`).
       benchmarks/results/design_comparison.md races the two, SciPy's SLSQP, a calibrated
