@@ -182,8 +182,9 @@ def _design_setup(parser, args, command):
         if any(a <= b for a, b in zip(args.widths, args.widths[1:])):
             parser.error(f"--widths must go wide to narrow (decreasing), got {args.widths}")
         options["widths"] = tuple(args.widths)
-    options |= dict(allow_proxy=args.allow_proxy, start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method, progress=True, fixed=fixed,
-                   min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
+    options |= dict(allow_proxy=args.allow_proxy, start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method,
+                    progress=True, fixed=fixed, min_clearance=minima,
+                    band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
     if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
         from ..io.schema import cost_model
 
@@ -414,7 +415,7 @@ def tradeoff_command(parser, args) -> int:
         f"# Tolerance cost against the pointing requirement: {scene_file.title}", "",
         f"RMS pointing, {_statistic(args)}; cost in {points[0]['cost_unit']} (baseline {points[0]['baseline_cost']:.3f}). "
         f"Features: {', '.join(points[0]['names'])}.", "",
-        *[f"At {p['requirement']:g} arcsec: {' '.join(p['extrapolated'])}" for p in points if p["extrapolated"]],
+        *[line for p in points if p["extrapolated"] for line in (f"At {p['requirement']:g} arcsec: {' '.join(p['extrapolated'])}", "")],
         f"| requirement (arcsec) | {what} | cost | outcome | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
         "|---|---|---|---|---|---|---|---|", *rows, "",
         "![cost against requirement](tradeoff.png)", "",
