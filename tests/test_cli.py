@@ -239,6 +239,12 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     table = (design / "design.md").read_text()
     # The printed verification hint writes into a folder of its own: following it keeps this report.
     assert f"--out {design / 'montecarlo'}`: its own folder" in table
+    # Beside the continuous zones, the drawable ones: whole ISO grades.
+    assert "Drawable design (whole ISO 286 grades" in table and "| azimuth.carrier_clearance | IT" in table
+    drawable = tx.load_scene(design / "proposal_drawable.toml").tolerances()
+    bands = np.asarray(drawable.band)
+    grades = np.asarray(tx.grade_of(2 * bands, np.asarray(tx.design.propose.feature_sizes(proposal.build()))))
+    assert np.allclose(grades[1:], np.round(grades[1:]), atol=1e-6)  # whole grades but the given feature's
     for name, nominal, band in zip(zones.names, np.asarray(zones.nominal), np.asarray(zones.band)):
         given = " (given)" if name == "azimuth.carrier_clearance" else ""
         assert f"| {name}{given} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table

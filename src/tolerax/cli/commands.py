@@ -280,6 +280,11 @@ def design_command(parser, args) -> int:
     # never written as the answer unless the user allows it.
     as_answer = report.accepted or args.allow_unconverged
     proposal = F.save_scene(scene_file.with_proposal(report), out / ("proposal.toml" if as_answer else "best_reached.toml"))
+    if as_answer and report.drawable is not None:  # the same proposal on whole ISO grades, as a scene file too
+        from ..uncertainty.sampling import Tolerances
+
+        d = report.drawable
+        F.save_scene(F.load_scene(proposal).with_tolerances(Tolerances(d.names, d.nominal, d.band)), out / "proposal_drawable.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else

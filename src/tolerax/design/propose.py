@@ -21,6 +21,7 @@ from ..cache import exported_jit
 from .cost import grade_of
 from .features import design_names, lost_motion_weights
 from .objectives import PointingObjective
+from .drawable import round_to_grades
 from .fidelity import check_fidelity
 from .outcome import MODEL_OFF, diagnose
 from .loop import tolerance_worth
@@ -224,6 +225,10 @@ def propose_design(
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
         status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged))
+    drawable = None
+    if method == "sequential":
+        drawable = _drawable(problem, result, outcomes, targets, requirements, yield_, check_units if status == "converged" else 0, widths,
+                             jax.random.key(2) if check_key is None else jax.random.fold_in(check_key, 1))
     first, band = outcomes[0], np.asarray(result.x.band)
     jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = problem.features, problem.x0
@@ -238,8 +243,28 @@ def propose_design(
         fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
         solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
         noise_band=None if twin_costs is None else twin_costs[:2], notes=notes, cost_unit=problem.cost_model.unit,
-        grade_range=problem.cost_model.grade_range,
+        grade_range=problem.cost_model.grade_range, drawable=drawable,
     )
+
+
+def _drawable(problem, result, outcomes, targets, requirements, yield_, check_units, widths, key):
+    """The design on whole ISO grades next to the continuous one (`round_to_grades`, with the
+    continuous design's linear model against what it was solved for), checked on
+    `check_units` simulated units against the requirements where there is a yield."""
+    size, lower, upper = np.asarray(problem.features.size_mm), problem.lower, problem.upper
+    band, limit = np.asarray(result.x.band, dtype=float), np.asarray(result.x.nominal, dtype=float)
+    given = np.asarray(lower.band) == np.asarray(upper.band)
+    fixed = tuple(n for n, g in zip(problem.features.names, given) if g)
+    d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade_of(2 * band, size)),
+                        [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
+                        lambda b: float(problem.cost_model.total(jnp.asarray(b), jnp.asarray(size))),
+                        band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
+    if yield_ is None or not check_units:
+        return d
+    m = requirements.shape[0]
+    got = yield_check(problem.objective.objective, Design(d.nominal, d.band), float(requirements[0]) if m == 1 else tuple(requirements),
+                      check_units, key, widths[-1])
+    return dataclasses.replace(d, checks=got if m > 1 else (got,))
 
 
 def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:

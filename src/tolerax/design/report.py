@@ -8,6 +8,7 @@ import textwrap
 
 import numpy as np
 
+from .drawable import DrawableDesign
 from .reliability import YieldCheck
 from .requirements import Requirement
 from .types import Design, OptimisationResult
@@ -123,6 +124,9 @@ class DesignReport:
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
     - `notes`: what the method did beyond the problem as posed (e.g. finished on secant slopes
       where the tangents stalled), one sentence each.
+    - `drawable`: the design on whole ISO grades next to this one (`DrawableDesign`: grades,
+      zones, cost and the rounding's cost, the linear model's outputs and, with a yield, its
+      own Monte Carlo check), from `propose_design`'s sequential method; else `None`.
     - `cost_unit`: what one unit of `cost` is (the cost model's `unit`); `grade_range`: the
       grades a shop's price table covers (`GradeTable`), outside which `table()` flags a
       feature's cost as extrapolated, else `None`.
@@ -152,6 +156,7 @@ class DesignReport:
     notes: tuple[str, ...] = ()
     cost_unit: str = "relative, 1 per feature at IT7"
     grade_range: tuple[float, float] | None = None
+    drawable: "DrawableDesign | None" = None
     outcomes: tuple[RequirementOutcome, ...] = ()
     noise_band: tuple[float, float] | None = None
 
@@ -220,7 +225,8 @@ class DesignReport:
                      "independent set.")
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
-        return head + "\n\n" + "\n".join(rows)
+        tail = "" if self.drawable is None else "\n\n" + self.drawable.table(self.cost_unit)
+        return head + "\n\n" + "\n".join(rows) + tail
 
     def _extrapolated(self) -> tuple[str, ...]:
         """A sentence naming the features whose grade lies outside the price table's, if any."""

@@ -1,0 +1,170 @@
+"""Drawable tolerances: the continuous optimum put on grades a drawing can call out.
+
+The optimiser's bands are continuous (IT6.2, IT7.8, ...); a drawing calls out a whole ISO 286
+grade. `round_to_grades` puts every designed feature's zone on a whole grade, keeping its lower
+limit (the functional minimum the design found) and choosing for each feature the grade just
+tighter or just looser than its continuous one: the cheapest combination whose linearised
+outputs still meet every requirement (all $2^n$ combinations for up to 16 features; beyond, a
+greedy search that loosens first the feature whose looser grade saves the most cost per arcsec
+it costs). The linear model is the design's own (its sensitivities at the continuous optimum,
+`DesignReport.outcomes`); `propose_design` then checks the drawable design on simulated units
+where the requirement is a yield (`DrawableDesign.checks`).
+
+Grades: ISO 286-1 IT5-IT11 from the standard tolerance factor $i(D)$
+(`tolerax.design.cost.it_tolerance`); outside that range the R5 progression ($10^{1/5}$ per
+grade, of which ISO 286's IT12-IT18 multipliers 160i ... 2500i are the rounded values; IT1-IT4
+follow other formulae) as `grade_of` extrapolates, said as such. Fits (a hole and shaft
+pair such as H7/g6) and gear tooth-thickness tolerances (ISO 21771, DIN 3967) are not chosen
+here: the zone is a whole-grade band on the design's own lower limit.
+"""
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+
+from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, it_tolerance
+
+EXHAUSTIVE = 16  # features up to which every combination of the two grades is tried
+
+
+def width_of_grade(grade: int, size_mm) -> np.ndarray:
+    """The full tolerance width (m) of whole grade IT`grade` at nominal size `size_mm` (mm):
+    ISO 286-1's standard tolerance for IT5-IT11, the R5 progression from the nearest of them
+    beyond (within 1 % of ISO's rounded IT12-IT18 multipliers; an extrapolation for IT1-IT4)."""
+    lo, hi = min(GRADE_MULTIPLIERS), max(GRADE_MULTIPLIERS)
+    g = int(grade)
+    anchor = min(max(g, lo), hi)
+    return np.asarray(it_tolerance(anchor, size_mm), dtype=float) * GRADE_RATIO ** (g - anchor)
+
+
+@dataclasses.dataclass(frozen=True)
+class DrawableDesign:
+    """A design on whole ISO grades (`round_to_grades`).
+
+    - `grades` (one per feature: whole, except a feature in `kept`, which keeps its continuous
+      zone and grade: a fixed one, or one with no whole grade inside the band range), `nominal`
+      and `band` (m: the zone is nominal +- band, its lower limit the continuous design's),
+      `cost` (the cost model's units) and `rounding_cost` (`cost` minus the continuous
+      design's).
+    - `objective`: each requirement's linearised output at the drawable design (the continuous
+      design's linear model), `limit` what it must meet.
+    - `checks`: Monte Carlo checks of the drawable design (`YieldCheck`, one per requirement)
+      where `propose_design` made them, else `()`.
+    - `extrapolated`: the features whose grade lies outside IT5-IT11 (R5 progression).
+    """
+
+    names: tuple[str, ...]
+    grades: np.ndarray
+    nominal: np.ndarray
+    band: np.ndarray
+    cost: float
+    rounding_cost: float
+    objective: np.ndarray
+    limit: np.ndarray
+    checks: tuple = ()
+    extrapolated: tuple[str, ...] = ()
+    kept: tuple[str, ...] = ()
+
+    @property
+    def met(self) -> bool:
+        """Whether the linear model says every requirement is met (and each check reached its
+        yield where there are checks)."""
+        ok = bool(np.all(self.objective <= self.limit * (1 + 1e-9)))
+        return ok and all(c.interval[1] >= c.q for c in self.checks)  # each check reached its yield within its noise
+
+    def table(self, unit: str = "cost units") -> str:
+        """The drawable zones as a Markdown table with a sentence of what rounding cost."""
+        rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) |", "|---|---|---|---|---|"]
+        for k, name in enumerate(self.names):
+            lo, hi = 1e6 * (self.nominal[k] - self.band[k]), 1e6 * (self.nominal[k] + self.band[k])
+            grade = f"IT{self.grades[k]:.1f} (kept)" if name in self.kept else f"IT{int(self.grades[k])}"
+            rows.append(f"| {name} | {grade} | {1e6 * self.nominal[k]:.1f} | {1e6 * self.band[k]:.1f} | "
+                        f"{lo:.1f}–{hi:.1f} |")
+        outputs = ", ".join(f"{float(o):.1f} against {float(r):.1f}" for o, r in zip(self.objective, self.limit))
+        head = (f"Drawable design (whole ISO 286 grades, each zone on the continuous design's lower limit): cost {self.cost:.4g} "
+                f"({unit}), {self.rounding_cost:+.3g} for rounding; linearised output(s) {outputs}"
+                + ("" if self.met or self.checks else "; the linear model says it misses") + ".")
+        if self.checks:
+            head += " " + " ".join(c.text() + "." for c in self.checks)
+        if self.extrapolated:
+            head += f" Grades outside IT5-IT11 (R5 progression): {', '.join(self.extrapolated)}."
+        return head + "\n\n" + "\n".join(rows)
+
+
+def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, slopes, cost, band_range=None,
+                    fixed=()) -> DrawableDesign:
+    """The cheapest whole-grade design next to a continuous one (module docstring).
+
+    **Arguments:**
+
+    - `names`, `size_mm` (mm): the features; `lower_limit`, `band` (m): the continuous design's
+      zones (lower limit, half-width); `grade`: its fractional grades (`grade_of(2 band)`).
+    - `objective` (m,), `limit` (m,): the requirements' linearised outputs at the continuous
+      design and what each must meet; `slopes` (m, n): d output / d half-width at fixed lower
+      limit (output units per m).
+    - `cost`: `cost(band) -> total` in the cost model's units (of the half-widths, m).
+    - `band_range`: (smallest, largest) half-width (m) a zone may have, scalars or one per
+      feature; whole grades outside it
+      are not offered, and a feature with none inside keeps its continuous band (`kept`).
+    - `fixed`: names of features given, not designed: not moved (`kept`).
+    """
+    names = tuple(names)
+    n = len(names)
+    lower_limit, band, grade = (np.asarray(v, dtype=float) for v in (lower_limit, band, grade))
+    objective, limit = np.atleast_1d(np.asarray(objective, dtype=float)), np.atleast_1d(np.asarray(limit, dtype=float))
+    slopes = np.atleast_2d(np.asarray(slopes, dtype=float))
+    size = np.broadcast_to(np.asarray(size_mm, dtype=float), (n,))
+    lo_band, hi_band = (np.zeros(n), np.full(n, np.inf)) if band_range is None else (
+        np.broadcast_to(np.asarray(band_range[0], dtype=float), (n,)), np.broadcast_to(np.asarray(band_range[1], dtype=float), (n,)))
+    options = []  # per feature: [(grade, half-width)], tighter first
+    for k in range(n):
+        if names[k] in fixed:
+            options.append([(None, band[k])])
+            continue
+        g0 = grade[k]
+        whole = sorted({math.floor(g0 + 1e-9), math.ceil(g0 - 1e-9)})
+        cands = [(g, 0.5 * float(width_of_grade(g, size[k]))) for g in whole]
+        cands = [(g, b) for g, b in cands if lo_band[k] * (1 - 1e-9) <= b <= hi_band[k] * (1 + 1e-9)]
+        options.append(cands or [(None, band[k])])
+
+    def evaluate(choice):
+        b = np.array([options[k][c][1] for k, c in enumerate(choice)])
+        return float(cost(b)), objective + slopes @ (b - band), b
+
+    sizes = [len(o) for o in options]
+    best = None
+    if sum(s > 1 for s in sizes) <= EXHAUSTIVE:
+        for choice in itertools.product(*[range(s) for s in sizes]):
+            c, f, b = evaluate(choice)
+            if np.all(f <= limit * (1 + 1e-9)) and (best is None or c < best[0]):
+                best = (c, f, b, choice)
+    else:  # greedy: all tight, then loosen where a looser grade saves the most per arcsec it costs
+        choice = [0] * n
+        while True:
+            c0, f0, _ = evaluate(choice)
+            moves = []
+            for k in range(n):
+                if choice[k] + 1 < sizes[k]:
+                    trial = choice.copy()
+                    trial[k] += 1
+                    c, f, _ = evaluate(trial)
+                    if np.all(f <= limit * (1 + 1e-9)):
+                        moves.append(((c0 - c) / max(float(np.max(f - f0)), 1e-12), k))
+            if not moves:
+                break
+            choice[max(moves)[1]] += 1
+        c, f, b = evaluate(choice)
+        best = (c, f, b, tuple(choice)) if np.all(f <= limit * (1 + 1e-9)) else None
+    if best is None:  # no whole-grade combination meets the linear model: the tightest one, said so
+        choice = tuple(0 for _ in range(n))
+        c, f, b = evaluate(choice)
+        best = (c, f, b, choice)
+    c, f, b, choice = best
+    picked = [options[k][ch][0] for k, ch in enumerate(choice)]
+    kept = tuple(names[k] for k in range(n) if picked[k] is None)
+    grades = np.array([grade[k] if g is None else g for k, g in enumerate(picked)], dtype=float)
+    lo, hi = min(GRADE_MULTIPLIERS), max(GRADE_MULTIPLIERS)
+    extrapolated = tuple(f"{names[k]} (IT{grades[k]:g})" for k in range(n) if picked[k] is not None and not lo <= grades[k] <= hi)
+    return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(cost(band)), f, limit, (), extrapolated, kept)
