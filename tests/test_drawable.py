@@ -30,8 +30,8 @@ def _brute(lower, band, grade, f0, limit, slopes, cost):
     for pick in itertools.product(*choices):
         b = np.array([0.5 * float(width_of_grade(g, s)) for g, s in zip(pick, SIZES)])
         f = f0 + slopes @ (b - band)
-        if np.all(f <= limit) and (best is None or cost(b) < best[0]):
-            best = (cost(b), pick)
+        if np.all(f <= limit) and (best is None or np.sum(cost(b)) < best[0]):
+            best = (float(np.sum(cost(b))), pick)
     return best
 
 
@@ -49,14 +49,14 @@ def test_rounding_is_the_cheapest_whole_grade_design_meeting_the_linear_model(se
     f0 = np.array([700.0, 650.0])
     limit = f0 + rng.uniform(0.0, 60.0, 2)  # a little slack for the rounding to use
     model = IsoGrade()
-    cost = lambda b: float(model.total(2 * np.asarray(b), SIZES))  # noqa: E731
+    cost = lambda b: np.asarray(model(2 * np.asarray(b), SIZES))  # noqa: E731 (per feature)
     d = round_to_grades(["a", "b", "c", "d"], SIZES, lower, band, grade, f0, limit, slopes, cost)
     assert np.all((d.grades == np.floor(grade)) | (d.grades == np.ceil(grade)))
     np.testing.assert_allclose(d.band, [0.5 * float(width_of_grade(int(g), s)) for g, s in zip(d.grades, SIZES)], rtol=1e-12)
     np.testing.assert_allclose(d.nominal - d.band, lower, rtol=1e-12)  # the lower limits kept
     np.testing.assert_allclose(d.objective, f0 + slopes @ (d.band - band), rtol=1e-12)
-    assert d.met and d.cost == pytest.approx(cost(d.band), rel=1e-12)
-    assert d.rounding_cost == pytest.approx(d.cost - cost(band), rel=1e-12)
+    assert d.met and d.cost == pytest.approx(np.sum(cost(d.band)), rel=1e-12)
+    assert d.rounding_cost == pytest.approx(d.cost - np.sum(cost(band)), rel=1e-12)
     best = _brute(lower, band, grade, f0, limit, slopes, cost)
     assert best is not None and d.cost == pytest.approx(best[0], rel=1e-12) and tuple(d.grades.astype(int)) == best[1]
 
@@ -70,7 +70,7 @@ def test_fixed_features_and_band_range_are_kept():
     narrow = (band * 0.99, band * 1.01)  # the second feature's band may not move at all
     lo, hi = np.zeros(4), np.full(4, 1.0)
     lo[1], hi[1] = narrow[0][1], narrow[1][1]
-    cost = lambda b: float(IsoGrade().total(2 * np.asarray(b), SIZES))  # noqa: E731
+    cost = lambda b: np.asarray(IsoGrade()(2 * np.asarray(b), SIZES))  # noqa: E731
     d = round_to_grades(["a", "b", "c", "d"], SIZES, np.full(4, 5e-6), band, grade, [500.0], [1e9], np.ones((1, 4)), cost,
                         band_range=(lo, hi), fixed=("d",))
     assert d.kept == ("b", "d")
@@ -90,7 +90,7 @@ def test_greedy_beyond_sixteen_features_meets_the_model():
     grade = np.asarray(grade_of(2 * band, sizes))
     slopes = rng.uniform(1e6, 1e7, (1, n))
     limit = np.array([1000.0 + 40.0])
-    cost = lambda b: float(IsoGrade().total(2 * np.asarray(b), sizes))  # noqa: E731
+    cost = lambda b: np.asarray(IsoGrade()(2 * np.asarray(b), sizes))  # noqa: E731
     d = round_to_grades([f"f{k}" for k in range(n)], sizes, np.full(n, 5e-6), band, grade, [1000.0], limit, slopes, cost)
     tight = 0.5 * np.array([float(width_of_grade(math.floor(g), s)) for g, s in zip(grade, sizes)])
-    assert d.met and d.cost <= cost(tight) * (1 + 1e-12) and np.any(d.grades > np.floor(grade))
+    assert d.met and d.cost <= np.sum(cost(tight)) * (1 + 1e-12) and np.any(d.grades > np.floor(grade))

@@ -19,7 +19,6 @@ here: the zone is a whole-grade band on the design's own lower limit.
 """
 
 import dataclasses
-import itertools
 import math
 
 import numpy as np
@@ -104,7 +103,8 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
     - `objective` (m,), `limit` (m,): the requirements' linearised outputs at the continuous
       design and what each must meet; `slopes` (m, n): d output / d half-width at fixed lower
       limit (output units per m).
-    - `cost`: `cost(band) -> total` in the cost model's units (of the half-widths, m).
+    - `cost`: `cost(band) -> (n,)`, each feature's cost in the cost model's units (of the
+      half-widths, m; the total is their sum).
     - `band_range`: (smallest, largest) half-width (m) a zone may have, scalars or one per
       feature; whole grades outside it
       are not offered, and a feature with none inside keeps its continuous band (`kept`).
@@ -129,42 +129,46 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
         cands = [(g, b) for g, b in cands if lo_band[k] * (1 - 1e-9) <= b <= hi_band[k] * (1 + 1e-9)]
         options.append(cands or [(None, band[k])])
 
-    def evaluate(choice):
-        b = np.array([options[k][c][1] for k, c in enumerate(choice)])
-        return float(cost(b)), objective + slopes @ (b - band), b
+    # Two candidates per feature (a single one repeated), their half-widths and costs once:
+    # the search is then array arithmetic over combinations (the cost is a sum over features).
+    b_opt = np.array([[o[min(j, len(o) - 1)][1] for o in options] for j in (0, 1)])  # (2, n)
+    c_opt = np.stack([np.asarray(cost(b_opt[j]), dtype=float).reshape(n) for j in (0, 1)])
 
-    sizes = [len(o) for o in options]
-    best = None
-    if sum(s > 1 for s in sizes) <= EXHAUSTIVE:
-        for choice in itertools.product(*[range(s) for s in sizes]):
-            c, f, b = evaluate(choice)
-            if np.all(f <= limit * (1 + 1e-9)) and (best is None or c < best[0]):
-                best = (c, f, b, choice)
+    def evaluate(choice):
+        """Costs (N,), outputs (N, m) and half-widths (N, n) of the combinations `choice` (N, n) in {0, 1}."""
+        b = np.where(choice == 1, b_opt[1], b_opt[0])
+        return np.where(choice == 1, c_opt[1], c_opt[0]).sum(axis=1), objective + (b - band) @ slopes.T, b
+
+    free = [k for k in range(n) if len(options[k]) > 1]
+    ok = lambda f: np.all(f <= limit * (1 + 1e-9), axis=-1)  # noqa: E731
+    if len(free) <= EXHAUSTIVE:
+        bits = (np.arange(2 ** len(free))[:, None] >> np.arange(len(free))) & 1
+        combos = np.zeros((bits.shape[0], n), dtype=int)
+        combos[:, free] = bits
+        c, f, b = evaluate(combos)
+        good = np.flatnonzero(ok(f))
+        choice = combos[good[np.argmin(c[good])]] if good.size else None
     else:  # greedy: all tight, then loosen where a looser grade saves the most per arcsec it costs
-        choice = [0] * n
+        choice = np.zeros(n, dtype=int)
         while True:
-            c0, f0, _ = evaluate(choice)
-            moves = []
-            for k in range(n):
-                if choice[k] + 1 < sizes[k]:
-                    trial = choice.copy()
-                    trial[k] += 1
-                    c, f, _ = evaluate(trial)
-                    if np.all(f <= limit * (1 + 1e-9)):
-                        moves.append(((c0 - c) / max(float(np.max(f - f0)), 1e-12), k))
-            if not moves:
+            c0, f0, _ = evaluate(choice[None])
+            trials = np.repeat(choice[None], len(free), axis=0)
+            trials[np.arange(len(free)), free] = 1
+            c, f, _ = evaluate(trials)
+            gain = (c0 - c) / np.maximum(np.max(f - f0, axis=1), 1e-12)
+            gain[~ok(f) | (choice[free] == 1)] = -np.inf
+            if not np.any(np.isfinite(gain)):
                 break
-            choice[max(moves)[1]] += 1
-        c, f, b = evaluate(choice)
-        best = (c, f, b, tuple(choice)) if np.all(f <= limit * (1 + 1e-9)) else None
-    if best is None:  # no whole-grade combination meets the linear model: the tightest one, said so
-        choice = tuple(0 for _ in range(n))
-        c, f, b = evaluate(choice)
-        best = (c, f, b, choice)
+            choice[free[int(np.argmax(gain))]] = 1
+        choice = choice if ok(evaluate(choice[None])[1])[0] else None
+    if choice is None:  # no whole-grade combination meets the linear model: the tightest one, said so
+        choice = np.zeros(n, dtype=int)
+    c, f, b = (v[0] for v in evaluate(np.asarray(choice)[None]))
+    best = (float(c), f, b, choice)
     c, f, b, choice = best
-    picked = [options[k][ch][0] for k, ch in enumerate(choice)]
+    picked = [options[k][min(int(ch), len(options[k]) - 1)][0] for k, ch in enumerate(choice)]
     kept = tuple(names[k] for k in range(n) if picked[k] is None)
     grades = np.array([grade[k] if g is None else g for k, g in enumerate(picked)], dtype=float)
     lo, hi = min(GRADE_MULTIPLIERS), max(GRADE_MULTIPLIERS)
     extrapolated = tuple(f"{names[k]} (IT{grades[k]:g})" for k in range(n) if picked[k] is not None and not lo <= grades[k] <= hi)
-    return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(cost(band)), f, limit, (), extrapolated, kept)
+    return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(np.sum(cost(band))), f, limit, (), extrapolated, kept)

@@ -257,7 +257,7 @@ def _drawable(problem, result, outcomes, targets, requirements, yield_, check_un
     fixed = tuple(n for n, g in zip(problem.features.names, given) if g)
     d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade_of(2 * band, size)),
                         [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
-                        lambda b: float(problem.cost_model.total(jnp.asarray(b), jnp.asarray(size))),
+                        lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
                         band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
     if yield_ is None or not check_units:
         return d
