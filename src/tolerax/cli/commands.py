@@ -224,10 +224,8 @@ def _propose(pointing, requirement, options, command):
     start = time.perf_counter()
     try:
         report = _p.propose_design(pointing, requirement, **options)
-    except ValueError as err:  # e.g. a starting band outside the optimiser's range, a proxy fidelity
-        text = str(err).replace("build the scene with those joints at that fidelity", "--fidelity planetary (or the scene file's "
-                                "[scene] fidelity)")
-        print(f"tolerax {command}: {text}", file=sys.stderr)
+    except ValueError as err:  # e.g. a starting band outside the optimiser's range
+        print(f"tolerax {command}: {err}", file=sys.stderr)
         return 2
     except RuntimeError as err:  # a failed simulation makes the objective NaN
         print(f"tolerax {command}: {err}", file=sys.stderr)
@@ -238,6 +236,7 @@ def _propose(pointing, requirement, options, command):
 def design_command(parser, args) -> int:
     import matplotlib
 
+    from ..design.fidelity import check_fidelity
     from ..design.requirements import Requirement
 
     matplotlib.use("Agg")
@@ -270,7 +269,15 @@ def design_command(parser, args) -> int:
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
           + "".join(f" and {r.text()}" for r in more) + f"; method {args.method}.")
-    proposed = _propose(pointing, [Requirement("pointing_rms", requirement), *more], options, "design")
+    requirements = [Requirement("pointing_rms", requirement), *more]
+    try:  # before any work: a requirement the scene's joints do not read (tolerax.design.fidelity), with this command's remedy
+        check_fidelity(pointing.scene, requirements + ([Requirement("pointing_jitter", args.jitter)] if cutoff else []),
+                       allow_proxy=args.allow_proxy, who="tolerax design",
+                       remedy="--fidelity planetary (or the scene file's [scene] fidelity)")
+    except ValueError as err:
+        print(err, file=sys.stderr)
+        return 2
+    proposed = _propose(pointing, requirements, options, "design")
     if isinstance(proposed, int):
         return proposed
     report, wall = proposed
@@ -279,12 +286,13 @@ def design_command(parser, args) -> int:
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
     # never written as the answer unless the user allows it.
     as_answer = report.accepted or args.allow_unconverged
-    proposal = F.save_scene(scene_file.with_proposal(report), out / ("proposal.toml" if as_answer else "best_reached.toml"))
+    written = scene_file.with_proposal(report)
+    proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))
     if as_answer and report.drawable is not None:  # the same proposal on whole ISO grades, as a scene file too
         from ..uncertainty.sampling import Tolerances
 
         d = report.drawable
-        F.save_scene(F.load_scene(proposal).with_tolerances(Tolerances(d.names, d.nominal, d.band)), out / "proposal_drawable.toml")
+        F.save_scene(written.with_tolerances(Tolerances(d.names, d.nominal, d.band)), out / "proposal_drawable.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else
@@ -405,7 +413,7 @@ def tradeoff_command(parser, args) -> int:
         points.append(dict(
             requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
             baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
-            diagnosis=report.diagnosis, names=list(report.names), cost_unit=report.cost_unit, extrapolated=list(report._extrapolated()),
+            diagnosis=report.diagnosis, names=list(report.names), cost_unit=report.cost_unit, extrapolated=list(report.extrapolated),
             nominal_um=(report.nominal * 1e6).tolist(), band_um=(report.band * 1e6).tolist(), proposal=str(path), wall_s=wall,
             check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
         ))

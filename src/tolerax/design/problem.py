@@ -230,8 +230,7 @@ def design_problem(
         zones = start.of(names)
         nominal0, band0 = np.array(zones.nominal, dtype=float), np.array(zones.band, dtype=float)  # copies: written below
     if isinstance(fixed, Tolerances):
-        held = fixed.of(fixed.names)
-        given = {name: (float(m), float(b)) for name, m, b in zip(held.names, held.nominal, held.band)}
+        given = {name: (float(m), float(b)) for name, m, b in zip(fixed.names, fixed.nominal, fixed.band)}
     elif isinstance(fixed, Mapping):
         given = {name: (None, half) for name, half in fixed.items()}
     else:

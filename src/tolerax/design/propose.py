@@ -226,15 +226,16 @@ def propose_design(
     if twin_costs is not None and status == "converged":
         status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged))
     drawable = None
-    if method == "sequential":
-        drawable = _drawable(problem, result, outcomes, targets, requirements, yield_, check_units if status == "converged" else 0, widths,
-                             jax.random.key(2) if check_key is None else jax.random.fold_in(check_key, 1))
     first, band = outcomes[0], np.asarray(result.x.band)
+    grade = np.asarray(grade_of(band * 2, problem.features.size_mm))
+    if method == "sequential":
+        drawable = _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units if status == "converged" else 0,
+                             widths, jax.random.key(2) if check_key is None else jax.random.fold_in(check_key, 1))
     jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = problem.features, problem.x0
     return DesignReport(
         names=features.names, nominal=np.asarray(result.x.nominal) + band, band=band,
-        grade=np.asarray(grade_of(band * 2, features.size_mm)), feature_cost=np.asarray(result.feature_cost), cost=float(result.cost),
+        grade=grade, feature_cost=np.asarray(result.feature_cost), cost=float(result.cost),
         objective=first.objective, requirement=first.requirement.limit, constraint_active=first.constraint_active,
         multiplier=first.multiplier, sensitivity=first.sensitivity,
         baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(problem.cost_model.total(x0.band, features.size_mm)),
@@ -247,24 +248,22 @@ def propose_design(
     )
 
 
-def _drawable(problem, result, outcomes, targets, requirements, yield_, check_units, widths, key):
-    """The design on whole ISO grades next to the continuous one (`round_to_grades`, with the
-    continuous design's linear model against what it was solved for), checked on
+def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units, widths, key):
+    """The design on whole ISO grades next to the continuous one (`round_to_grades`, from its
+    grades `grade`, with its linear model against what it was solved for), checked on
     `check_units` simulated units against the requirements where there is a yield."""
     size, lower, upper = np.asarray(problem.features.size_mm), problem.lower, problem.upper
     band, limit = np.asarray(result.x.band, dtype=float), np.asarray(result.x.nominal, dtype=float)
     given = np.asarray(lower.band) == np.asarray(upper.band)
     fixed = tuple(n for n, g in zip(problem.features.names, given) if g)
-    d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade_of(2 * band, size)),
+    d = round_to_grades(problem.features.names, size, limit, band, grade,
                         [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
                         lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
                         band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
     if yield_ is None or not check_units:
         return d
-    m = requirements.shape[0]
-    got = yield_check(problem.objective.objective, Design(d.nominal, d.band), float(requirements[0]) if m == 1 else tuple(requirements),
-                      check_units, key, widths[-1])
-    return dataclasses.replace(d, checks=got if m > 1 else (got,))
+    got = yield_check(problem.objective.objective, Design(d.nominal, d.band), _as_requirement(requirements), check_units, key, widths[-1])
+    return dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
 
 
 def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
@@ -348,6 +347,12 @@ def _secant_rescue(pointing, options, problem, result, checked, requirements, to
     return problem, result, checked, (note + " The tangent design is kept.",)
 
 
+def _as_requirement(requirements):
+    """The requirements (m,) as the optimisers and `yield_check` take them: a float for one, a
+    tuple of m floats for several."""
+    return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
+
+
 def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key, x0=None,
                      trust=0.5):
     """The sequential design with its Monte Carlo checks: `(result, checked)`, `checked` one
@@ -357,15 +362,14 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
     the design solved again from where it was. A design that misses what it was solved for is
     not checked."""
     m = requirements.shape[0]
-    as_requirement = (lambda r: float(r[0])) if m == 1 else (lambda r: tuple(float(v) for v in r))  # noqa: E731
-    result = _sequential_continuation(problem, as_requirement(requirements), widths, max_outer, progress, callback, x0=x0,
+    result = _sequential_continuation(problem, _as_requirement(requirements), widths, max_outer, progress, callback, x0=x0,
                                       trust=trust, tol=tuple(tol))
     target, checked = requirements.copy(), []
     for _ in range(max_checks if check_units else 0):
         if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
             break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
         middle = Design(result.x.nominal + result.x.band, result.x.band)
-        got = yield_check(problem.objective.objective, middle, as_requirement(requirements), check_units, key, widths[-1])
+        got = yield_check(problem.objective.objective, middle, _as_requirement(requirements), check_units, key, widths[-1])
         got = got if m > 1 else (got,)
         checked.append((result, got, target.copy()))
         shift = np.array([c.shift for c in got])
@@ -378,7 +382,7 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
         if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
             break
         target = np.where(moved, corrected, target)
-        again = _sequential_continuation(problem, as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
+        again = _sequential_continuation(problem, _as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
                                          trust=0.1, tol=tuple(tol))
         result = _chain([result, again])  # its history (gradients) continues the one before
     # The proposal: the cheapest checked design whose simulated quantile met the requirement

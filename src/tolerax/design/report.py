@@ -218,7 +218,7 @@ class DesignReport:
         )
         if self.checks:
             head += " " + self.checks[-1].text() + "."
-        for note in self.notes + self._extrapolated():
+        for note in self.notes + self.extrapolated:
             head += " " + note
         if self.noise_band is not None:
             head += (f" Cost noise band: {self.noise_band[0]:.4g} with these secant units, {self.noise_band[1]:.4g} with an "
@@ -228,8 +228,10 @@ class DesignReport:
         tail = "" if self.drawable is None else "\n\n" + self.drawable.table(self.cost_unit)
         return head + "\n\n" + "\n".join(rows) + tail
 
-    def _extrapolated(self) -> tuple[str, ...]:
-        """A sentence naming the features whose grade lies outside the price table's, if any."""
+    @property
+    def extrapolated(self) -> tuple[str, ...]:
+        """A sentence naming the features whose grade lies outside the price table's
+        (`grade_range`), priced by extrapolation; empty if none."""
         if self.grade_range is None:
             return ()
         lo, hi = self.grade_range

@@ -126,6 +126,11 @@ class SceneFile:
         design features) written in: their nominals under `[design]`, their half-widths under
         `[tolerances.bands]`, their distribution. `tolerances()` of the result gives them
         back."""
+        return SceneFile.from_data(self._data_with(tolerances), self.name, self.source)
+
+    def _data_with(self, tolerances) -> dict:
+        """A copy of this scene's data with the zones of `tolerances` written in (`with_tolerances`),
+        not yet validated; a zone for a feature the scene lacks is refused naming it."""
         names = _design.design_names(self.build())
         unknown = [n for n in tolerances.names if n not in names]
         if unknown:
@@ -136,7 +141,7 @@ class SceneFile:
         tol = data.setdefault("tolerances", {})
         tol["bands"] = {**tol.get("bands", {}), **{n: float(b) for n, b in zip(tolerances.names, tolerances.band)}}
         tol["distribution"] = tolerances.distribution
-        return SceneFile.from_data(data, self.name, self.source)
+        return data
 
     def with_proposal(self, report) -> "SceneFile":
         """This scene with a tolerance proposal (`tolerax.propose_design`'s `DesignReport`)
@@ -144,7 +149,7 @@ class SceneFile:
         `[tolerances.bands]`, the requirement, uniform manufacturing (what the design assumed),
         and a description with the cost. `tolerax design` writes it as `proposal.toml`;
         `tolerax run`, `montecarlo` and `design` read it back as any scene file."""
-        data = copy.deepcopy(self.with_tolerances(report.tolerances).data)
+        data = self._data_with(report.tolerances)
         data["tolerances"]["requirement"] = float(report.requirement)
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
         data["title"] = f"Proposal: {self.title}"

@@ -154,10 +154,10 @@ class Tolerances(eqx.Module):
     def bounds(self) -> np.ndarray:
         """The tolerance box as an array of `[low, high]` rows (m): nominal ± band, the low end
         clipped at `lower`."""
-        low = np.asarray(self.nominal - self.band)
+        low = np.asarray(self.lower_limit)
         if self.lower is not None:
             low = np.maximum(low, np.asarray(self.lower))
-        return np.stack([low, np.asarray(self.nominal + self.band)], axis=1)
+        return np.stack([low, np.asarray(self.upper_limit)], axis=1)
 
     def to_json(self) -> dict:
         """The tolerances as JSON-ready Python values (for manifests and dataset attributes)."""
