@@ -28,7 +28,10 @@ what the requirements' tolerances resolve). Requirements: RMS `--rms-fraction` x
 baseline's (scene values +- 10 um) linearised quantile, jitter `--jitter-requirement` arcsec
 (or `--jitter-fraction` x the baseline's). Each design is verified on `--verify-units` fresh
 units at `--verify-fidelity` (default the full stage; `tolerax.monte_carlo`, key 2026): the
-yield on each requirement with its 95 % Wilson interval, side by side.
+yield on each requirement with its 95 % Wilson interval, side by side. `--log-fit`: the jitter's
+secant line is fitted to its logarithm (`Requirement(log_fit=True)`, `LinearisedYield.log_outputs`:
+its scatter over units grows with its level, `results/jitter_reach.md`); writes
+`design_stability_<fidelity>_log.md`.
 """
 
 import time
@@ -69,6 +72,8 @@ def main():
     parser.add_argument("--width", type=float, default=1e-7)
     parser.add_argument("--mass-scaling", type=float, default=1000.0)
     parser.add_argument("--chunk", type=int, default=10)
+    parser.add_argument("--log-fit", action="store_true",
+                        help="fit the jitter's secant line to its logarithm (Requirement(log_fit=True): a scatter relative to its level)")
     parser.add_argument("--no-scatter", dest="scatter", action="store_false",
                         help="leave the secant fits' residual scatter out of the linearised quantiles (LinearisedYield(scatter=))")
     args = harness.parse_args(parser)
@@ -83,7 +88,8 @@ def main():
 
     pointing = objective(args.fidelity)
     scene = pointing.scene
-    both = design_problem(pointing, yield_=args.yield_, secant_units=args.secant_units, output=OUTPUTS, scatter=args.scatter)
+    both = design_problem(pointing, yield_=args.yield_, secant_units=args.secant_units, output=OUTPUTS, scatter=args.scatter,
+                          log_outputs=("pointing_jitter",) if args.log_fit else ())
     width = jnp.asarray(args.width)
     baseline = np.asarray(eqx.filter_jit(lambda o, x, d, w: o(x, d, w))(both.objective, both.x0, both.draws, width))
     R = np.array([args.rms_fraction, args.jitter_fraction]) * baseline
@@ -92,7 +98,8 @@ def main():
     print(f"baseline {args.yield_:.0%} quantiles: RMS {baseline[0]:.1f}, jitter {baseline[1]:.3f} arcsec; requirements {R}", flush=True)
     options = dict(yield_=args.yield_, secant_units=args.secant_units, scatter=args.scatter, widths=(args.width,),
                    max_outer=args.max_iterations, check_units=0, progress=True, allow_proxy=args.fidelity != "planetary")
-    rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol)
+    rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol,
+                                                                                  log_fit=args.log_fit)
     designs = {}
     for label, requirements in (("lost motion alone", [rms]), ("lost motion and stability", [rms, jitter])):
         wall, report = harness.wall(tx.propose_design, pointing, requirements, **options)
@@ -123,7 +130,7 @@ def main():
         print(rows[-1], flush=True)
     total = time.perf_counter() - start
     harness.write_table(
-        f"design_stability_{args.fidelity}",
+        f"design_stability_{args.fidelity}" + ("_log" if args.log_fit else ""),
         f"A stability (jitter) requirement beside the lost-motion one, designed at {args.fidelity} fidelity, verified at "
         f"{args.verify_fidelity}",
         harness.command(args),
@@ -139,7 +146,8 @@ def main():
                + f", verified on {args.verify_units} fresh units at {args.verify_fidelity}; window {args.settle}-{args.horizon} s, "
                f"{args.save_rate:g} saves/s, jitter above {args.cutoff:g} Hz; requirements at yield {args.yield_:.0%}: RMS <= {R[0]:.1f} "
                f"({args.rms_fraction:g} x baseline {baseline[0]:.1f}), jitter <= {R[1]:.3f} (baseline {baseline[1]:.3f}) arcsec; both "
-               f"linearised by secants over {args.secant_units} units{' with their residual scatter' if args.scatter else ' (lines only)'}. "
+               f"linearised by secants over {args.secant_units} units{' with their residual scatter' if args.scatter else ' (lines only)'}"
+               + (", the jitter's line fitted to its logarithm (`--log-fit`)" if args.log_fit else "") + ". "
                f"Total wall {total:.0f} s, compilation included."),
     )
 

@@ -340,3 +340,45 @@ def test_the_proposal_after_checks_is_the_cheapest_accepted():
     assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
     assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
     assert _propose._cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None
+
+
+def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
+    """`log_outputs`: on a response exactly log-linear in the features, y = exp(a + s.(v - m0))
+    (the simulation replaced), the fit recovers a and s to rounding with no residual; the
+    quantile is the closed form exp(a + s.(m - m0) + |s| b (2q - 1)) of one uniform feature
+    (quantiles commute with exp); its derivative in the middle is Q s (by the chain rule through
+    exp, the slopes held); the Monte Carlo check's linear predictions are the response itself
+    (shift 0); the secant standard error is that of the log, 0 here; the gradient noise is
+    scaled by Q. Refused without secants or for an output the objective lacks."""
+    a, s_true, m0 = np.log(0.3), 2.0e4, 40e-6  # jitter-like: 0.3 arcsec, x e per 50 um
+
+    def fake(values, pointing, output, width):
+        y = jnp.exp(a + (values[0] - m0) * s_true)
+        return jnp.stack([y]) if isinstance(output, tuple) else y
+
+    monkeypatch.setattr(rel, "unit_output", fake)
+    monkeypatch.setattr(rel, "_simulate_units", lambda p, o, units, w: jax.vmap(lambda v: fake(v, p, o, w))(units))
+    objective = rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, secant_units=6, scatter=True,
+                                    log_outputs=("pointing_jitter",))
+    x = tx.Design(jnp.array([50e-6]), jnp.array([20e-6]))
+    f, s, sigma = eqx.filter_jit(lambda o, x_: o.model(x_, None))(objective, x)
+    assert float(f) == pytest.approx(a + (50e-6 - m0) * s_true, rel=1e-12)
+    assert float(s[0]) == pytest.approx(s_true, rel=1e-9) and abs(float(sigma)) < 1e-9
+    draws = rel.yield_draws(2, 4096)
+    q = float(eqx.filter_jit(objective)(x, draws, None))
+    exact = np.exp(a + (50e-6 - m0) * s_true + s_true * 20e-6 * (2 * 0.9 - 1))
+    assert q == pytest.approx(exact, rel=2e-3)  # Harrell-Davis on 4096 Sobol draws
+    grad = eqx.filter_jit(jax.grad(lambda v: objective(tx.Design(v, x.band), draws, None)))(x.nominal)
+    assert float(grad[0]) == pytest.approx(q * s_true, rel=1e-9)
+    check = rel.yield_check(objective, x, 0.35, 8, jax.random.key(0))
+    np.testing.assert_allclose(check.linear, check.simulated, rtol=1e-9)
+    assert rel.secant_standard_error(objective, x) == pytest.approx(0.0, abs=1e-9)
+    noise = rel.secant_gradient_noise(objective, x, draws)
+    linear_fit = rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, secant_units=6, scatter=True)
+    with pytest.raises(ValueError, match="needs secant_units"):
+        rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, log_outputs=("pointing_jitter",))
+    with pytest.raises(ValueError, match="not among the outputs"):
+        rel.LinearisedYield(scan_pointing, q=0.9, secant_units=6, log_outputs=("pointing_jitter",))
+    assert noise.shape == (2,) and np.all(np.isfinite(noise)) and linear_fit.log == (False,)
+    with pytest.raises(ValueError, match="needs secants=True"):
+        tx.Requirement("pointing_rms", 10.0, log_fit=True)

@@ -165,6 +165,7 @@ def design_problem(
     fixed=(),
     secant_seed: int = 1,
     start: Tolerances | None = None,
+    log_outputs: tuple[str, ...] = (),
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -201,7 +202,9 @@ def design_problem(
       forward solves only; where tangents are noise, a line through the units is not);
       `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
       (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter); `secant_seed`:
-      which set of secant units (`LinearisedYield.secant_seed`).
+      which set of secant units (`LinearisedYield.secant_seed`); `log_outputs` (with
+      `secant_units`): outputs whose line is fitted to their logarithm, a scatter relative to
+      their level (`LinearisedYield.log_outputs`: the jitter).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
       a mapping name -> its half-width (m), held at the starting nominal +- that, or a
@@ -261,7 +264,8 @@ def design_problem(
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
-                                    None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed))
+                                    None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed),
+                                    tuple(log_outputs))
         draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
     return DesignProblem(
         objective=FromLowerLimit(objective),

@@ -306,6 +306,7 @@ def _requirements_and_options(pointing, requirement, jitter, method, yield_, opt
         if options.get("secant_units") is None:
             options["secant_units"] = max(16, 2 * len(design_names(pointing.scene)) + 2)
         options.setdefault("scatter", True)
+        options.setdefault("log_outputs", tuple(r.output for r in requirements_ if r.secants and r.log_fit))
     return requirements_, options
 
 
@@ -321,7 +322,9 @@ def _tolerances(requirements_, problem, width) -> np.ndarray:
         se = np.atleast_1d(secant_standard_error(problem.objective.objective, Design(x0.nominal + x0.band, x0.band), width))
         for k, r in enumerate(requirements_):
             if r.secants and r.tol is None:
-                tol[k] = min(max(0.01, 2.0 * float(se[k]) / r.limit), 0.5)
+                # On the log scale (`log_outputs`) the standard error is already relative.
+                relative = float(se[k]) if r.output in problem.objective.objective.log_outputs else float(se[k]) / r.limit
+                tol[k] = min(max(0.01, 2.0 * relative), 0.5)
     return tol
 
 

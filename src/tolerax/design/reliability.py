@@ -103,8 +103,27 @@ def secant_draws(n_features: int, n_units: int, seed: int = 1) -> Array:
     return jnp.concatenate([jnp.zeros((1, int(n_features))), jnp.asarray(2.0 * points - 1.0)])
 
 
+def _fitted(values, log):
+    """`values` (units, outputs) on the scale their line is fitted on: the logarithm of the
+    outputs where `log` (a tuple of bools, one per output) holds, non-positive values then NaN
+    (left out of the fit like a failed solve)."""
+    if not any(log):
+        return values
+    mask = jnp.asarray(log)
+    return jnp.where(mask, jnp.log(jnp.where(mask & (values > 0), values, 1.0)), values) + jnp.where(mask & ~(values > 0), jnp.nan, 0.0)
+
+
+def _unfitted(values, log):
+    """The inverse of `_fitted` along the last axis (a scalar: the one output's value): `exp` of
+    the log-fitted outputs."""
+    if not any(log):
+        return values
+    mask = jnp.asarray(log) if jnp.ndim(values) else jnp.asarray(log[0])
+    return jnp.where(mask, jnp.exp(jnp.where(mask, values, 0.0)), values)
+
+
 @eqx.filter_custom_vjp
-def value_and_secants(middle, band, positions, pointing, output, width):
+def value_and_secants(middle, band, positions, pointing, output, width, log=()):
     """`(f, s, sigma)`: the least-squares line $f + s \\cdot (v - m)$ through `output` at the units
     $v$ = `realise(Design(middle, band), positions)` (m; `positions` from `secant_draws`): the
     statistical linearisation of the response over the zone, from forward solves only (no
@@ -113,10 +132,11 @@ def value_and_secants(middle, band, positions, pointing, output, width):
     differentiated: pass the band through `jax.lax.stop_gradient`). A tuple of outputs: `f` of
     shape (k,) and `s` (k, n), all fitted from the same solves. `sigma`: the residual standard
     deviation about the line (output units; the unit-to-unit scatter the features do not
-    explain), not differentiated."""
+    explain), not differentiated. `log` (one bool per output; default none): fit those outputs'
+    logarithm instead, and `f`, `s`, `sigma` are then on that scale (`LinearisedYield.log_outputs`)."""
     units = realise(Design(middle, band), positions)
     values = jax.vmap(lambda v: unit_output(v, pointing, output, width))(units)
-    values = values.reshape(units.shape[0], -1)  # (units, outputs)
+    values = _fitted(values.reshape(units.shape[0], -1), log)  # (units, outputs)
     ok = jnp.all(jnp.isfinite(values), axis=1)
     scale = jnp.where(band > 0, band, 1.0)
     rows = jnp.concatenate([jnp.ones((units.shape[0], 1)), (units - middle) / scale], axis=1)
@@ -129,13 +149,13 @@ def value_and_secants(middle, band, positions, pointing, output, width):
 
 
 @value_and_secants.def_fwd
-def _value_and_secants_fwd(perturbed, middle, band, positions, pointing, output, width):
-    value, slopes, sigma = value_and_secants(middle, band, positions, pointing, output, width)
+def _value_and_secants_fwd(perturbed, middle, band, positions, pointing, output, width, log=()):
+    value, slopes, sigma = value_and_secants(middle, band, positions, pointing, output, width, log)
     return (value, slopes, sigma), slopes
 
 
 @value_and_secants.def_bwd
-def _value_and_secants_bwd(slopes, cotangent, perturbed, middle, band, positions, pointing, output, width):
+def _value_and_secants_bwd(slopes, cotangent, perturbed, middle, band, positions, pointing, output, width, log=()):
     return jnp.tensordot(cotangent[0], slopes, axes=jnp.ndim(cotangent[0]))
 
 
@@ -176,7 +196,17 @@ class LinearisedYield(eqx.Module):
 
     `secant_seed`: the seed of the secant units' Latin hypercube (`secant_draws`). Two seeds are
     two independent sets of units: where the response is chaotic the design found with each
-    differs by the fits' noise (`propose_design`'s noise band)."""
+    differs by the fits' noise (`propose_design`'s noise band).
+
+    `log_outputs` (with `secant_units`): outputs whose line is fitted to their logarithm,
+    $\\log y \\approx f + s\\cdot(v - m) + \\sigma z$, and whose quantile is then $\\exp$ of that
+    one's (quantiles commute with a monotone map). For a positive output whose unit-to-unit
+    scatter grows with its level: the jitter of a rattling stage, whose standard deviation over
+    units of one zone is about proportional to its mean across the design space
+    (benchmarks/results/jitter_reach.md). Fitted on its own scale, such a scatter is the one
+    measured at the current zone and held fixed, so the optimiser cannot see that a tighter zone
+    scatters less, and a requirement below the scatter reads as unreachable; on the log scale
+    the scatter is relative and moves with the level."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -185,6 +215,7 @@ class LinearisedYield(eqx.Module):
     secant_units: int | None = eqx.field(static=True, default=None)
     scatter: bool = eqx.field(static=True, default=False)
     secant_seed: int = eqx.field(static=True, default=1)
+    log_outputs: tuple[str, ...] = eqx.field(static=True, default=())
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -195,6 +226,20 @@ class LinearisedYield(eqx.Module):
             raise ValueError("LinearisedYield: give slope_width (tangents at a wider smoothing) or secant_units (a fit over units), not both.")
         if self.scatter and self.secant_units is None:
             raise ValueError("LinearisedYield: scatter (the secant fit's residual) needs secant_units.")
+        unknown = [o for o in self.log_outputs if o not in self.outputs]
+        if unknown:
+            raise ValueError(f"LinearisedYield: log_outputs {unknown} are not among the outputs {self.outputs}.")
+        if self.log_outputs and self.secant_units is None:
+            raise ValueError("LinearisedYield: log_outputs (a line through the logarithm over units) needs secant_units.")
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        return self.output if isinstance(self.output, tuple) else (self.output,)
+
+    @property
+    def log(self) -> tuple[bool, ...]:
+        """Per output: is its line fitted to its logarithm (`log_outputs`)."""
+        return tuple(o in self.log_outputs for o in self.outputs)
 
     def linear_model(self, x: Design, width):
         """`(f, s)` for the design `x` (`Design(middle, half-width)`, m): the value at the zone
@@ -204,11 +249,13 @@ class LinearisedYield(eqx.Module):
 
     def model(self, x: Design, width):
         """`(f, s, sigma)`: `linear_model` and the residual scatter `sigma` about it (output
-        units; `None` unless `scatter`), from the same solves."""
+        units; `None` unless `scatter`), from the same solves; on the log scale for the
+        `log_outputs`."""
         middle = x.nominal
         if self.secant_units is not None:
             positions = secant_draws(middle.shape[0], self.secant_units, self.secant_seed)
-            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width)
+            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width,
+                                            self.log)
             return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
         if self.slope_width is None:
             return (*value_and_slopes(middle, self.pointing, self.output, width), None)
@@ -218,7 +265,8 @@ class LinearisedYield(eqx.Module):
 
     def __call__(self, x: Design, draws, width) -> Array:
         value, slopes, sigma = self.model(x, width)
-        return linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma)
+        quantile = linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma)
+        return _unfitted(quantile, self.log) if any(self.log) else quantile
 
 
 @dataclasses.dataclass(frozen=True)
@@ -269,14 +317,16 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     draws at the design `x` (`Design(middle, half-width)`, m), from one batch of its
     `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
     errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
-    fit's design matrix), slopes' in output units per m; `sigma` the residual standard deviation."""
+    fit's design matrix), slopes' in output units per m; `sigma` the residual standard deviation.
+    All on the fitted scale: the logarithm for `objective.log_outputs`."""
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
     n = middle.shape[0]
     units = realise(Design(middle, band), secant_draws(n, objective.secant_units, objective.secant_seed))
     width = None if width is None else jnp.asarray(width, dtype=float)
-    values = np.asarray(_simulate_units(objective.pointing, objective.output, units, width)).reshape(units.shape[0], -1)
+    values = np.asarray(_fitted(_simulate_units(objective.pointing, objective.output, units, width).reshape(units.shape[0], -1),
+                                objective.log))
     ok = np.all(np.isfinite(values), axis=1)
     scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
     rows = np.concatenate([np.ones((units.shape[0], 1)), (np.asarray(units) - np.asarray(middle)) / scale], axis=1)[ok]
@@ -299,7 +349,8 @@ def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
     its trend from unit to unit (chaotic rattle: the jitter), the linearised quantile moves by
     about this much from one design to the next for no other reason; a tolerance on that
     constraint below it makes an optimiser chase noise (`sequential_design(tol=...)`). One batch
-    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`."""
+    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`. For
+    an output in `objective.log_outputs` the standard error of its logarithm: a relative error."""
     se = _secant_noise(objective, x, width)[2]
     return se if isinstance(objective.output, tuple) else float(se[0])
 
@@ -318,7 +369,8 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     dependence of $\\bar u$ on $s$ (which units sit at the quantile) is left out. Evaluated at
     the zone `x` = `Design(middle, half-width)` (m), with the quantile draws `draws`
     (`yield_draws`). For `sequential_design(gradient_noise=...)` and `optimality_residual`'s
-    `gradient_se`. One batch of `secant_units` forward solves."""
+    `gradient_se`. One batch of `secant_units` forward solves. For an output in
+    `objective.log_outputs` ($Q = \\exp Q_{\\log}$) the log scale's standard errors times $Q$."""
     value, slopes, _, slope_se, residual = _secant_noise(objective, x, width)
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
     n = middle.shape[0]
@@ -328,12 +380,13 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     z = (jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12)) if objective.scatter
          else jnp.zeros(draws.shape[0]))
 
-    def weights(f, s, sd):  # d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
-        return jax.grad(lambda t: robust(f + u @ t + sd * z, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
+    def weights(f, s, sd):  # Q and d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
+        return jax.value_and_grad(lambda t: robust(f + u @ t + sd * z, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
 
-    u_bar = np.asarray(jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(sigma)))
+    quantile, u_bar = (np.asarray(a) for a in jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(sigma)))
     band_factor = np.abs(1.0 + u_bar) if lower_limit else np.abs(u_bar)
     noise = np.concatenate([slope_se, slope_se * band_factor], axis=1)
+    noise = noise * np.where(objective.log, np.exp(np.where(objective.log, quantile, 0.0)), 1.0)[:, None]  # d exp(Q) = exp(Q) dQ
     return noise if isinstance(objective.output, tuple) else noise[0]
 
 
@@ -357,6 +410,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
         # independent draw of it (seeded), so that the model's quantile over these units is the
         # one the optimiser met.
         linear = linear + np.atleast_1d(np.asarray(sigma)) * np.random.default_rng(0).standard_normal((int(n), len(outputs)))
+    linear = np.asarray(_unfitted(jnp.asarray(linear), objective.log))  # from the log scale for `log_outputs`
     simulated = np.concatenate([
         np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)).reshape(-1, len(outputs))
         for i in range(0, int(n), chunk)

@@ -23,6 +23,9 @@ from .objectives import UNITS
 # Outputs whose scatter from unit to unit is mostly not carried by the features (chaotic
 # rattle): linearised by secants over units, with the fit's residual scatter.
 SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
+# Of those, outputs whose scatter grows with their level: their secant line is fitted to their
+# logarithm (a relative scatter), benchmarks/results/jitter_reach.md.
+LOG_FIT_OUTPUTS = frozenset()
 
 NAMES = {
     "pointing_rms": "RMS pointing error", "pointing_peak": "peak pointing error", "pointing_smooth_peak": "smooth peak pointing error",
@@ -44,6 +47,10 @@ class Requirement:
       at most 50 %).
     - `secants` (optional): linearise it by secants over units with their residual scatter
       (needs a yield requirement); default: for the outputs in `SCATTERING_OUTPUTS`.
+    - `log_fit` (optional, with `secants`): fit the secant line to the output's logarithm, so
+      that its unit-to-unit scatter is relative to its level (`LinearisedYield.log_outputs`);
+      default: for the outputs in `LOG_FIT_OUTPUTS` (the jitter, whose scatter grows with its
+      level: benchmarks/results/jitter_reach.md).
     - `label` (optional): its name in reports; default from the output.
     - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
       takes it from `PointingObjective.units`, a metric's own included).
@@ -58,6 +65,7 @@ class Requirement:
     limit: float = math.nan
     tol: float | None = None
     secants: bool | None = None
+    log_fit: bool | None = None
     label: str | None = None
     unit: str | None = None
     fidelity: str | None = None
@@ -73,6 +81,10 @@ class Requirement:
             raise ValueError(f"Requirement({self.output!r}): tol must be in (0, 1) (relative), got {self.tol!r}.")
         if self.secants is None:
             object.__setattr__(self, "secants", self.output in SCATTERING_OUTPUTS)
+        if self.log_fit is None:
+            object.__setattr__(self, "log_fit", bool(self.secants) and self.output in LOG_FIT_OUTPUTS)
+        elif self.log_fit and not self.secants:
+            raise ValueError(f"Requirement({self.output!r}): log_fit (a line through the logarithm over units) needs secants=True.")
         if self.unit is None:
             object.__setattr__(self, "unit", UNITS.get(self.output, "arcsec"))
         if self.fidelity not in (None, "any", "lumped", "planetary-scaled", "planetary"):
