@@ -94,3 +94,26 @@ def test_greedy_beyond_sixteen_features_meets_the_model():
     d = round_to_grades([f"f{k}" for k in range(n)], sizes, np.full(n, 5e-6), band, grade, [1000.0], limit, slopes, cost)
     tight = 0.5 * np.array([float(width_of_grade(math.floor(g), s)) for g, s in zip(grade, sizes)])
     assert d.met and d.cost <= np.sum(cost(tight)) * (1 + 1e-12) and np.any(d.grades > np.floor(grade))
+
+
+def test_journal_clearances_get_the_loosest_iso_286_fit_inside_their_zone():
+    """A journal's drawable zone names the loosest ISO 286 hole-basis fit inside it: at Ø30 mm
+    the zone 3.5-20.5 um is exactly H7/g6's (ISO 286-2: H7 +21/0, g6 -7/-20 -> radial
+    (0 + 7)/2 to (21 + 20)/2), and nothing looser fits in it; a zone narrower than any fit
+    gets none; a backlash gets no fit; the drawable design's table carries them."""
+    from tolerax.design.drawable import journal_fits
+    from tolerax.design.fits import Fit, fits_covering
+
+    got = journal_fits(["carrier_clearance", "sun_backlash", "planet_clearance"], [30.0, 30.0, 10.0],
+                       [3.5e-6, 5e-6, 10e-6], [20.5e-6, 50e-6, 10.5e-6])
+    first = fits_covering(3.5e-6, 20.5e-6, 30.0)[0]
+    assert got[0].startswith(f"{first} (") and Fit("H7", "g6") in fits_covering(3.5e-6, 20.5e-6, 30.0)
+    lo, hi = first.radial_clearance(30.0)
+    assert 3.5e-6 - 1e-12 <= lo and hi <= 20.5e-6 + 1e-12 and hi - lo >= 17e-6 - 1e-12  # as wide as H7/g6's zone
+    assert got[1] == "" and got[2] == "none inside the zone"
+    grade = np.array([7.4, 8.5])
+    band = 0.5 * np.asarray(width_of_grade(7, SIZES[:2])) * 1.5848931924611136 ** (grade - 7)
+    cost = lambda b: np.asarray(IsoGrade()(2 * np.asarray(b), SIZES[:2]))  # noqa: E731
+    d = round_to_grades(["carrier_clearance", "ring_backlash"], SIZES[:2], np.full(2, 20e-6), band,
+                        np.asarray(grade_of(2 * band, SIZES[:2])), [500.0], [1e9], np.ones((1, 2)), cost)
+    assert len(d.fits) == 2 and d.fits[1] == "" and "ISO 286 fit" in d.table()

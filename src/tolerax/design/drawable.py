@@ -13,9 +13,14 @@ where the requirement is a yield (`DrawableDesign.checks`).
 Grades: ISO 286-1 IT5-IT11 from the standard tolerance factor $i(D)$
 (`tolerax.design.cost.it_tolerance`); outside that range the R5 progression ($10^{1/5}$ per
 grade, of which ISO 286's IT12-IT18 multipliers 160i ... 2500i are the rounded values; IT1-IT4
-follow other formulae) as `grade_of` extrapolates, said as such. Fits (a hole and shaft
-pair such as H7/g6) and gear tooth-thickness tolerances (ISO 21771, DIN 3967) are not chosen
-here: the zone is a whole-grade band on the design's own lower limit.
+follow other formulae) as `grade_of` extrapolates, said as such.
+
+A journal bearing's radial clearance is not made to a grade of its own but by a bore and a
+journal, each toleranced: for every clearance feature the drawable design also names the
+loosest ISO 286 hole-basis fit (H6-H9 with d-k shafts of grades 5-9) whose whole clearance
+zone lies inside the drawable zone (`tolerax.design.fits.nearest_fit`), or says that none does.
+A backlash is called out as its whole IT grade on the backlash itself; a gear tooth-thickness
+tolerance (ISO 21771, DIN 3967) is not chosen here.
 """
 
 import dataclasses
@@ -24,6 +29,7 @@ import math
 import numpy as np
 
 from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, it_tolerance
+from .fits import SMALLEST_SIZE, nearest_fit
 
 EXHAUSTIVE = 16  # features up to which every combination of the two grades is tried
 
@@ -52,6 +58,9 @@ class DrawableDesign:
     - `checks`: Monte Carlo checks of the drawable design (`YieldCheck`, one per requirement)
       where `propose_design` made them, else `()`.
     - `extrapolated`: the features whose grade lies outside IT5-IT11 (R5 progression).
+    - `fits`: per feature, the ISO 286 fit a drawing calls the zone out as (`journal_fits`):
+      `"H8/e7 (20.0-45.5 µm)"` with its radial clearance zone, `"none inside the zone"`, or `""`
+      for a feature that is not a journal's clearance (a backlash).
     """
 
     names: tuple[str, ...]
@@ -65,6 +74,7 @@ class DrawableDesign:
     checks: tuple = ()
     extrapolated: tuple[str, ...] = ()
     kept: tuple[str, ...] = ()
+    fits: tuple[str, ...] = ()
 
     @property
     def met(self) -> bool:
@@ -75,12 +85,14 @@ class DrawableDesign:
 
     def table(self, unit: str = "cost units") -> str:
         """The drawable zones as a Markdown table with a sentence of what rounding cost."""
-        rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) |", "|---|---|---|---|---|"]
+        rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) | ISO 286 fit inside the zone (radial clearance, µm) |",
+                "|---|---|---|---|---|---|"]
+        fits = self.fits or ("",) * len(self.names)
         for k, name in enumerate(self.names):
             lo, hi = 1e6 * (self.nominal[k] - self.band[k]), 1e6 * (self.nominal[k] + self.band[k])
             grade = f"IT{self.grades[k]:.1f} (kept)" if name in self.kept else f"IT{int(self.grades[k])}"
             rows.append(f"| {name} | {grade} | {1e6 * self.nominal[k]:.1f} | {1e6 * self.band[k]:.1f} | "
-                        f"{lo:.1f}–{hi:.1f} |")
+                        f"{lo:.1f}–{hi:.1f} | {fits[k] or '- (a backlash: its IT grade)'} |")
         outputs = ", ".join(f"{float(o):.1f} against {float(r):.1f}" for o, r in zip(self.objective, self.limit))
         head = (f"Drawable design (whole ISO 286 grades, each zone on the continuous design's lower limit): cost {self.cost:.4g} "
                 f"({unit}), {self.rounding_cost:+.3g} for rounding; linearised output(s) {outputs}"
@@ -90,6 +102,26 @@ class DrawableDesign:
         if self.extrapolated:
             head += f" Grades outside IT5-IT11 (R5 progression): {', '.join(self.extrapolated)}."
         return head + "\n\n" + "\n".join(rows)
+
+
+def journal_fits(names, size_mm, lower_limit, upper_limit) -> tuple[str, ...]:
+    """Per feature: the loosest ISO 286 fit (`tolerax.design.fits.nearest_fit`) whose radial
+    clearance zone lies inside [`lower_limit`, `upper_limit`] (m) at the journal diameter
+    `size_mm` (mm), as `"H8/e7 (20.0-45.5 µm)"`; `"none inside the zone"` where no H6-H9 fit
+    does (a zone too narrow or too tight for a standard fit: call out bore and journal
+    diameters yourself); `""` for a feature that is not a clearance (a backlash)."""
+    out = []
+    for name, size, lo, hi in zip(names, np.broadcast_to(np.asarray(size_mm, dtype=float), (len(names),)), lower_limit, upper_limit):
+        if not name.endswith("_clearance") or not SMALLEST_SIZE <= size <= 500.0:
+            out.append("" if not name.endswith("_clearance") else f"none: Ø{size:g} mm is outside ISO 286's 1-500 mm")
+            continue
+        fit = nearest_fit(float(lo), float(hi), float(size))
+        if fit is None:
+            out.append("none inside the zone")
+            continue
+        c_lo, c_hi = fit.radial_clearance(float(size))
+        out.append(f"{fit} ({1e6 * c_lo:.1f}–{1e6 * c_hi:.1f})")
+    return tuple(out)
 
 
 def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, slopes, cost, band_range=None,
@@ -171,4 +203,5 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
     grades = np.array([grade[k] if g is None else g for k, g in enumerate(picked)], dtype=float)
     lo, hi = min(GRADE_MULTIPLIERS), max(GRADE_MULTIPLIERS)
     extrapolated = tuple(f"{names[k]} (IT{grades[k]:g})" for k in range(n) if picked[k] is not None and not lo <= grades[k] <= hi)
-    return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(np.sum(cost(band))), f, limit, (), extrapolated, kept)
+    return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(np.sum(cost(band))), f, limit, (), extrapolated, kept,
+                          journal_fits(names, size, lower_limit, lower_limit + 2 * b))
