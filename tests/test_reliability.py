@@ -380,5 +380,17 @@ def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
     with pytest.raises(ValueError, match="not among the outputs"):
         rel.LinearisedYield(scan_pointing, q=0.9, secant_units=6, log_outputs=("pointing_jitter",))
     assert noise.shape == (2,) and np.all(np.isfinite(noise)) and linear_fit.log == (False,)
+    # `secant_reach`: the units span +-30 um about a zone of +-5 um; on this exact line the fit
+    # is the same, and the quantile is still over the zone's own units (its closed form at 5 um).
+    wide = rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, secant_units=6, scatter=True,
+                               log_outputs=("pointing_jitter",), secant_reach=30e-6)
+    narrow = tx.Design(jnp.array([50e-6]), jnp.array([5e-6]))
+    assert float(wide.fit_band(narrow.band)[0]) == 30e-6 and float(wide.fit_band(x.band)[0]) == 30e-6
+    f_w, s_w, _ = eqx.filter_jit(lambda o, x_: o.model(x_, None))(wide, narrow)
+    assert float(s_w[0]) == pytest.approx(s_true, rel=1e-9) and float(f_w) == pytest.approx(float(f), rel=1e-12)
+    q_w = float(eqx.filter_jit(wide)(narrow, draws, None))
+    assert q_w == pytest.approx(np.exp(a + (50e-6 - m0) * s_true + s_true * 5e-6 * (2 * 0.9 - 1)), rel=2e-3)
+    with pytest.raises(ValueError, match="secant_reach"):
+        rel.LinearisedYield(scan_pointing, q=0.9, secant_reach=1e-5)
     with pytest.raises(ValueError, match="needs secants=True"):
         tx.Requirement("pointing_rms", 10.0, log_fit=True)

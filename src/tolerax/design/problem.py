@@ -166,6 +166,7 @@ def design_problem(
     secant_seed: int = 1,
     start: Tolerances | None = None,
     log_outputs: tuple[str, ...] = (),
+    secant_reach: float | None = None,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -204,7 +205,9 @@ def design_problem(
       (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter); `secant_seed`:
       which set of secant units (`LinearisedYield.secant_seed`); `log_outputs` (with
       `secant_units`): outputs whose line is fitted to their logarithm, a scatter relative to
-      their level (`LinearisedYield.log_outputs`: the jitter).
+      their level (`LinearisedYield.log_outputs`: the jitter); `secant_reach` (m, with
+      `secant_units`): the secant units span the middle +- at least this much
+      (`LinearisedYield.secant_reach`: a trend resolved over a wider neighbourhood than a tight zone).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
       a mapping name -> its half-width (m), held at the starting nominal +- that, or a
@@ -265,7 +268,7 @@ def design_problem(
     else:
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
                                     None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed),
-                                    tuple(log_outputs))
+                                    tuple(log_outputs), None if secant_reach is None else float(secant_reach))
         draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
     return DesignProblem(
         objective=FromLowerLimit(objective),

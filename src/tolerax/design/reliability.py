@@ -206,7 +206,15 @@ class LinearisedYield(eqx.Module):
     (benchmarks/results/jitter_reach.md). Fitted on its own scale, such a scatter is the one
     measured at the current zone and held fixed, so the optimiser cannot see that a tighter zone
     scatters less, and a requirement below the scatter reads as unreachable; on the log scale
-    the scatter is relative and moves with the level."""
+    the scatter is relative and moves with the level.
+
+    `secant_reach` (m, with `secant_units`): the secant units span the middle +- at least this
+    much, wider than a narrower zone: the line is the response's trend over that neighbourhood.
+    Where a chaotic output's trend is small against its scatter per micrometre (the jitter:
+    about 1 % per um against a 29 % scatter, `jitter_reach.md`), a fit over a tight zone's
+    units is noise; over +-25 um its slopes are resolved. The quantile is still over the zone's
+    own units (its band), the residual scatter that of the wider fit (which includes the
+    trend's curvature over it: conservative)."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -216,6 +224,7 @@ class LinearisedYield(eqx.Module):
     scatter: bool = eqx.field(static=True, default=False)
     secant_seed: int = eqx.field(static=True, default=1)
     log_outputs: tuple[str, ...] = eqx.field(static=True, default=())
+    secant_reach: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -231,6 +240,13 @@ class LinearisedYield(eqx.Module):
             raise ValueError(f"LinearisedYield: log_outputs {unknown} are not among the outputs {self.outputs}.")
         if self.log_outputs and self.secant_units is None:
             raise ValueError("LinearisedYield: log_outputs (a line through the logarithm over units) needs secant_units.")
+        if self.secant_reach is not None and (self.secant_units is None or not self.secant_reach > 0):
+            raise ValueError(f"LinearisedYield: secant_reach must be > 0 (m) and needs secant_units, got {self.secant_reach!r}.")
+
+    def fit_band(self, band):
+        """The half-widths (m) the secant units span about the middle: the zone's, at least
+        `secant_reach`."""
+        return band if self.secant_reach is None else jnp.maximum(band, self.secant_reach)
 
     @property
     def outputs(self) -> tuple[str, ...]:
@@ -254,8 +270,8 @@ class LinearisedYield(eqx.Module):
         middle = x.nominal
         if self.secant_units is not None:
             positions = secant_draws(middle.shape[0], self.secant_units, self.secant_seed)
-            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(x.band), positions, self.pointing, self.output, width,
-                                            self.log)
+            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing, self.output,
+                                            width, self.log)
             return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
         if self.slope_width is None:
             return (*value_and_slopes(middle, self.pointing, self.output, width), None)
@@ -321,7 +337,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     All on the fitted scale: the logarithm for `objective.log_outputs`."""
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
-    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
+    middle, band = jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band))
     n = middle.shape[0]
     units = realise(Design(middle, band), secant_draws(n, objective.secant_units, objective.secant_seed))
     width = None if width is None else jnp.asarray(width, dtype=float)
@@ -372,7 +388,7 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     `gradient_se`. One batch of `secant_units` forward solves. For an output in
     `objective.log_outputs` ($Q = \\exp Q_{\\log}$) the log scale's standard errors times $Q$."""
     value, slopes, _, slope_se, residual = _secant_noise(objective, x, width)
-    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)
+    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)  # the zone's units, whatever the fit spanned
     n = middle.shape[0]
     deltas = realise(Design(middle, band), draws[:, :n]) - middle
     u = deltas / jnp.where(band > 0, band, 1.0)
