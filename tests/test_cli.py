@@ -415,3 +415,17 @@ def test_ctrl_c_ends_with_one_line_saying_how_to_resume(monkeypatch, capsys):
     assert cli.main(["montecarlo", "--n", "4"]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["tolerax montecarlo: interrupted; finished chunks are kept under OUT/chunks: rerun the same command to resume"]
+
+
+def test_run_says_roughly_how_long_before_it_starts(tmp_path, capsys):
+    """`tolerax run` prints a rough wall time from its joints' fidelities (`ROUGH_COST`, from
+    benchmarks/results/mechanism_cost.md) before it starts: a billion simulated seconds of the
+    full stage reads in years and asks for --progress; a short lumped run says seconds."""
+    from tolerax.cli.common import ROUGH_COST, human_seconds, rough_wall
+
+    full = rough_wall(tx.scan("azimuth", fidelity=("planetary", "ideal")), 1e9)
+    assert full == pytest.approx(1e9 * (ROUGH_COST["planetary"] + ROUGH_COST["ideal"]))
+    assert human_seconds(full).endswith("years") and human_seconds(59.0) == "59 s" and human_seconds(600.0) == "10 min"
+    assert cli.main(["run", "scan-azimuth", "--duration", "0.02", "--settle", "0", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "roughly 1 s on one core plus compilation" in out and "--progress shows" not in out

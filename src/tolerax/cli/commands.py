@@ -8,8 +8,8 @@ import pathlib
 import sys
 import time
 
-from .common import (check_clipping, check_out, command_line, has_features, load_average, read_scene_file, settings, versions,
-                     with_tolerances)
+from .common import (check_clipping, check_out, command_line, has_features, human_seconds, load_average, read_scene_file, rough_wall,
+                     settings, versions, with_tolerances)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
@@ -474,7 +474,11 @@ def run_command(parser, args) -> int:
     if scene_file is None:
         return 2
     out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name)
-    print(f"tolerax run: {scene_file.title} ({scene_file.source}); {scene_file.run['duration']} s simulated; results in {out}/")
+    estimate = rough_wall(scene_file.build(), scene_file.run["duration"])
+    guess = "" if estimate is None else f", roughly {human_seconds(max(estimate, 1.0))} on one core plus compilation"
+    print(f"tolerax run: {scene_file.title} ({scene_file.source}); {scene_file.run['duration']} s simulated{guess}; results in {out}/")
+    if estimate is not None and estimate > 120 and not args.progress:
+        print("tolerax run: a long run: --progress shows how far it got (Ctrl-C stops it; --duration shortens it)")
     start = time.perf_counter()
     try:
         result = scene_file.simulate(throw=False, progress=args.progress)

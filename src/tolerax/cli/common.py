@@ -78,6 +78,31 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
     return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
 
 
+# Rough wall seconds per simulated second of one joint at each fidelity, on one core of the
+# development machine: half the dual antenna's, benchmarks/results/mechanism_cost.md (Tsit5,
+# rtol 1e-6, steady start, 0.98 deg/s). A scan's reversals, a tighter tolerance or another
+# machine change it by 2x or more: an estimate to say before a long run, not a promise.
+ROUGH_COST = {"ideal": 0.03, "lumped": 0.22, "planetary-scaled": 3.2, "planetary": 8.1}
+
+
+def rough_wall(scene, duration: float) -> float | None:
+    """A rough wall time (s) for simulating `scene` over `duration` (s) on one core
+    (`ROUGH_COST` per joint), or None for a joint of a class tolerax does not know."""
+    from ..design.fidelity import joint_fidelities
+
+    costs = [ROUGH_COST.get(f) for f in joint_fidelities(scene).values()]
+    return None if any(c is None for c in costs) else float(duration) * sum(costs)
+
+
+def human_seconds(seconds: float) -> str:
+    """`42 s`, `7 min`, `3.1 h`, `12 days`, `4.0e+03 years`."""
+    for unit, size in (("years", 3.156e7), ("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= 2 * size:
+            value = seconds / size
+            return f"{value:.2g} {unit}" if value < 1e4 else f"{value:.1e} {unit}"
+    return f"{seconds:.0f} s"
+
+
 def check_out(parser, out) -> pathlib.Path:
     """The output folder `out`, refused (exit 2, before any work) where it names an existing
     file: results must never be computed and then lost for want of a place to write them."""
