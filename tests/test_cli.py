@@ -3,6 +3,7 @@ antenna), and bad input. `run` is tested with the scene files (tests/test_scenef
 `demo --bench` with the bench (tests/test_bench.py). Sizes are tiny: these check the wiring, not
 the numbers, which the modules' own tests check."""
 
+import re
 import json
 
 import numpy as np
@@ -429,3 +430,22 @@ def test_run_says_roughly_how_long_before_it_starts(tmp_path, capsys):
     assert cli.main(["run", "scan-azimuth", "--duration", "0.02", "--settle", "0", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "roughly 1 s on one core plus compilation" in out and "--progress shows" not in out
+
+
+def test_lengths_take_a_unit_suffix():
+    """Lengths on the command line take a unit suffix in any option (`--band 10um`, `0.01mm`,
+    `1e-5m`, `--widths 1um`), returned in the option's own unit exactly; a bare number keeps it;
+    an unknown unit or a bare metre value for a um option is refused with what to write."""
+    import argparse
+
+    from tolerax.cli.common import band_um, length_in, positive_length
+
+    for text in ("10", "10um", "10µm", "0.01mm", "1e-5m", "10000nm"):
+        assert band_um(text) == 10.0
+    assert positive_length("m")("1um") == 1e-6 and positive_length("m")("1e-7") == 1e-7
+    for bad, message in (("10 furlongs", "with a unit such as 10um"), ("1e-5", "give 10 (or 10um)"), ("-3um", "non-negative")):
+        with pytest.raises(argparse.ArgumentTypeError, match=re.escape(message)):
+            band_um(bad)
+    with pytest.raises(argparse.ArgumentTypeError, match="positive length"):
+        positive_length("m")("0um")
+    assert length_in("um")("0.1mm") == 100.0

@@ -3,9 +3,11 @@ its overrides, and the argument types."""
 
 import argparse
 import copy
+import decimal
 import math
 import os
 import pathlib
+import re
 import shlex
 import sys
 
@@ -139,6 +141,28 @@ def has_features(scene_file, command) -> bool:
 # demo
 
 
+POWER_OF_METRE = {"m": 0, "mm": -3, "um": -6, "µm": -6, "μm": -6, "nm": -9}  # 10^k m
+_LENGTH = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zµμ]*)\s*$")
+
+
+def length_in(unit: str):
+    """An argparse type for a length whose bare number is in `unit` ("m" or "um"), and which
+    also takes a unit suffix (`10um`, `0.01mm`, `1e-5m`, `100nm`), returned in `unit`: the
+    command line takes some lengths in um and others in m, and a suffix makes either unambiguous."""
+
+    def parse(text):
+        match = _LENGTH.match(str(text))
+        if match is None or match.group(2) not in ("", *POWER_OF_METRE):
+            raise argparse.ArgumentTypeError(f"must be a length: a number in {unit}, or with a unit such as 10um, 0.01mm, "
+                                             f"1e-5m, got {text!r}")
+        if not match.group(2):
+            return float(match.group(1))
+        # Decimal: 0.01mm is exactly 10 um, not 10.000000000000002.
+        return float(decimal.Decimal(match.group(1)).scaleb(POWER_OF_METRE[match.group(2)] - POWER_OF_METRE[unit]))
+
+    return parse
+
+
 def positive(text):
     value = float(text)
     if not (math.isfinite(value) and value > 0):
@@ -146,13 +170,28 @@ def positive(text):
     return value
 
 
+def positive_length(unit: str):
+    """`length_in(unit)`, positive."""
+    parse = length_in(unit)
+
+    def check(text):
+        value = parse(text)
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"must be a positive length, got {text!r}")
+        return value
+
+    return check
+
+
 def band_um(text):
-    """A tolerance half-width in µm: non-negative, and 0 or at least 0.01 µm (a band below that is
-    a length given in metres, e.g. 1e-5 for 10 µm)."""
-    value = non_negative(text)
+    """A tolerance half-width in µm (or with a unit suffix, `length_in`): non-negative, and 0 or
+    at least 0.01 µm (a bare number below that is a length given in metres, e.g. 1e-5 for 10 µm)."""
+    value = length_in("um")(text)
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a non-negative length, got {text!r}")
     if 0 < value < 0.01:
         raise argparse.ArgumentTypeError(f"is a half-width in um: {text} um is {value * 1e3:g} nm, below any manufacturing band; "
-                                         f"for {value * 1e6:g} um give {value * 1e6:g}")
+                                         f"for {value * 1e6:g} um give {value * 1e6:g} (or {value * 1e6:g}um)")
     return value
 
 

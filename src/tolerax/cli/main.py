@@ -38,7 +38,7 @@ import textwrap
 
 from .. import __version__
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
-from .common import DEFAULT_SCENE, EPILOG, band_um, count, non_negative, positive, scene_options
+from .common import DEFAULT_SCENE, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
 from .demo import demo_command
 
 # What an interrupted command has kept, and how to go on.
@@ -60,8 +60,8 @@ def optimiser_options(parser):
                         help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
                         "iterations (default 6)")
     parser.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
-    parser.add_argument("--widths", type=positive, nargs="+", default=None, metavar="W",
-                        help="smoothing widths of the contacts, m, wide to narrow; the design is judged at the last (default "
+    parser.add_argument("--widths", type=positive_length("m"), nargs="+", default=None, metavar="W",
+                        help="smoothing widths of the contacts, m (or with a unit: 1um), wide to narrow; the design is judged at the last (default "
                         "1e-6 1e-7; propose_design's widths)")
     parser.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
                         help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
@@ -114,8 +114,10 @@ def main(argv=None) -> int:
                       help="RMS pointing requirement of the proposal, arcsec (default 700)")
     demo.add_argument("--bench", action="store_true", help="run the default joint on its test bench instead (bench.png, summary.json)")
     demo.add_argument("--rate", type=float, default=None, help="with --bench: commanded output rate, deg/s (default 0.98)")
-    demo.add_argument("--clearance", type=float, default=None, help="with --bench: every radial clearance, um (default 100)")
-    demo.add_argument("--backlash", type=float, default=None, help="with --bench: every mesh backlash, um (default 100)")
+    demo.add_argument("--clearance", type=length_in("um"), default=None,
+                      help="with --bench: every radial clearance, um (or with a unit: 0.1mm; default 100)")
+    demo.add_argument("--backlash", type=length_in("um"), default=None,
+                      help="with --bench: every mesh backlash, um (or with a unit: 0.1mm; default 100)")
     demo.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
     demo.add_argument("--progress", action="store_true", help="show the integrator's progress")
     run = sub.add_parser(
@@ -189,7 +191,7 @@ def main(argv=None) -> int:
     scene_options(mc, "per-unit")
     mc.add_argument("--n", type=count(1), default=64, help="manufactured units (default 64)")
     mc.add_argument("--band", type=band_um, default=None,
-                    help="override the tolerance half-width of every feature, um, e.g. 10 for +-10 um (default: the scene's "
+                    help="override the tolerance half-width of every feature, um, e.g. 10 (or 10um, 0.01mm) for +-10 um (default: the scene's "
                     "[tolerances])")
     mc.add_argument("--distribution", default=None, choices=("uniform", "normal"), help="override [tolerances] distribution")
     mc.add_argument("--requirement", type=positive, default=None,
