@@ -185,9 +185,39 @@ class DesignReport:
             return self.solved_for
         return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
 
+    def plain(self) -> str:
+        """The proposal in plain words, first in `table()`: what to put on the drawing (the
+        drawable zones where there are some: whole grades, and each journal's ISO 286 fit),
+        what it meets and how that was checked, what it costs against the baseline, and which
+        feature the pointing is most sensitive to."""
+        d = self.drawable
+        nominal, band = (d.nominal, d.band) if d is not None else (self.nominal, self.band)
+        fits = d.fits if d is not None and d.fits else ("",) * len(self.names)
+        grades = d.grades if d is not None else self.grade
+        zones = []
+        for k, name in enumerate(self.names):
+            lo, hi = 1e6 * (nominal[k] - band[k]), 1e6 * (nominal[k] + band[k])
+            callout = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else (
+                f"IT{int(grades[k])}" if d is not None and name not in d.kept else f"IT{float(grades[k]):.1f}")
+            zones.append(f"{name} {lo:.1f}–{hi:.1f} µm ({callout}{', given' if name in self.fixed else ''})")
+        requirements = [o.requirement.text() for o in self.outcomes] or [f"{self.requirement:g} arcsec"]
+        where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
+        checks = d.checks if d is not None and d.checks else self.checks[-1:]
+        units = [o.requirement.unit for o in self.outcomes] or ["arcsec"]
+        checked = (" Checked on " + ", ".join(f"{c.n - c.n_failed} simulated units: {c.yield_simulated:.1%} met {c.requirement:g} {u}"
+                                              for c, u in zip(checks, units + units[-1:] * len(checks))) + ".") if checks else ""
+        cost = d.cost if d is not None else self.cost
+        baseline = float(self.baseline[2])
+        change = f", {cost / baseline - 1:+.0%} against the baseline's {baseline:.3g}" if baseline > 0 else ""
+        k = int(np.argmax(np.abs(np.asarray(self.sensitivity.nominal))))
+        verb = "Put on the drawing" if self.accepted else f"Not a proposal ({self.status}); the best design reached would put on the drawing"
+        return (f"{verb}: {'; '.join(zones)}. It meets {' and '.join(requirements)}{where} by the design's linear model.{checked} "
+                f"Cost {cost:.3g} ({self.cost_unit}){change}. The pointing is most sensitive to {self.names[k]} "
+                f"({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal).")
+
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature, after a paragraph on each
-        requirement."""
+        requirement; `plain` first."""
         geometric, more = self.lost_motion is not None, self.outcomes[1:]
         rows = [
             "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
@@ -226,7 +256,7 @@ class DesignReport:
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
         tail = "" if self.drawable is None else "\n\n" + self.drawable.table(self.cost_unit)
-        return head + "\n\n" + "\n".join(rows) + tail
+        return self.plain() + "\n\n" + head + "\n\n" + "\n".join(rows) + tail
 
     @property
     def extrapolated(self) -> tuple[str, ...]:
