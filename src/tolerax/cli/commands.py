@@ -310,7 +310,7 @@ def design_command(parser, args) -> int:
         + (f" and jitter (RMS pointing error above {cutoff:g} Hz) <= {args.jitter:g} arcsec" if cutoff else "")
         + "".join(f" and {r.text()}" for r in more) + f", {_statistic(args)}. Scene `{scene_file.source}`; "
         f"the {'proposal' if report.accepted else 'best design reached'} as a scene file: [{proposal.name}]({proposal.name}).", "",
-        "## Proposal", "", report.table(), "", "![optimiser history and sensitivities](design.png)", "",
+        "## Proposal", "", report.table(), "", "![the zones with their grades and fits, the sensitivities, the optimiser history](design.png)", "",
     ]
     _write_report(out, sections, scene_file, args, wall)
     print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'}, {out / 'design.png'} and {out / 'report.md'}")

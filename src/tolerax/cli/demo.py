@@ -118,26 +118,8 @@ def _demo_figure(result, scene_file, report):
     ax2.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     if report is not None:
-        ax = axes[1, 0]
-        y = np.arange(len(report.names))
-        base_nominal, base_band = report.baseline[0], report.baseline[1]
-        ax.barh(y + 0.2, 2e6 * base_band, left=1e6 * (base_nominal - base_band), height=0.35, color="0.7",
-                label=f"baseline: cost {report.baseline[2]:.3g}, {report.baseline[3]:.0f} arcsec")
-        ax.barh(y - 0.2, 2e6 * report.band, left=1e6 * (report.nominal - report.band), height=0.35, color="C0",
-                label=f"proposal: cost {report.cost:.3g}, {report.objective:.0f} arcsec")
-        right = 1e6 * max(np.max(report.nominal + report.band), np.max(base_nominal + base_band))
-        for k, grade in enumerate(np.asarray(report.grade, dtype=float)):  # the ISO grade a drawing would call out, near it
-            ax.text(1e6 * float(report.nominal[k] + report.band[k]) + 0.01 * right, y[k] - 0.2, f"IT{grade:.1f}", va="center",
-                    fontsize=7)
-        ax.set_xlim(0, right * 1.15)
-        ax.set_ylim(-0.6, len(report.names) + 0.4)  # room above the bars for the legend
-        joints = {n.partition(".")[0] for n in report.names}
-        ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in report.names], fontsize=8)
-        ax.set_xlabel("tolerance zone (µm)")
-        ax.set_title(f"Azimuth scan: tolerance zones for {report.requirement:.0f} arcsec (mean + 1 std of the RMS), "
-                     f"{len(report.result.history.cost)} iterations", fontsize=9)
-        ax.legend(fontsize=7, loc="upper center", ncol=2)
-        ax.grid(alpha=0.3, axis="x")
+        report.plot_zones(axes[1, 0], f"Azimuth scan: tolerance zones for {report.requirement:.0f} arcsec (mean + 1 std of the RMS), "
+                                      f"{len(report.result.history.cost)} iterations")
     fig.tight_layout()
     return fig
 

@@ -329,37 +329,75 @@ class DesignReport:
             return f"the last of {n} iterations"
         return f"iteration {chosen + 1} of {n}, the cheapest that met the requirement"
 
+    def plot_zones(self, ax, title: str | None = None):
+        """The tolerance zones on `ax`: the baseline's, the proposal's and, where there is one,
+        the drawable design's, each feature's whole grade or ISO 286 fit written beside it
+        (what a drawing calls out)."""
+        y = np.arange(len(self.names))
+        base_nominal, base_band = np.asarray(self.baseline[0]), np.asarray(self.baseline[1])
+        d = self.drawable
+        rows = [(base_nominal, base_band, "0.7", f"baseline: cost {self.baseline[2]:.3g}")]
+        rows.append((self.nominal, self.band, "C0", f"proposal: cost {self.cost:.3g}"))
+        if d is not None:
+            rows.append((d.nominal, d.band, "C2", f"drawable: cost {d.cost:.3g}"))
+        height = 0.8 / len(rows)
+        offsets = (np.arange(len(rows))[::-1] - (len(rows) - 1) / 2) * height
+        for (nominal, band, color, label), off in zip(rows, offsets):
+            ax.barh(y + off, 2e6 * np.asarray(band), left=1e6 * (np.asarray(nominal) - np.asarray(band)), height=height * 0.9,
+                    color=color, label=label)
+        right = 1e6 * max(float(np.max(np.asarray(r[0]) + np.asarray(r[1]))) for r in rows)
+        nominal, band, _, _ = rows[-1]
+        fits = d.fits if d is not None and d.fits else ("",) * len(self.names)
+        grades = d.grades if d is not None else self.grade
+        for k in range(len(self.names)):
+            fit = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else ""
+            grade = f"IT{float(grades[k]):.1f}" if d is None or self.names[k] in d.kept else f"IT{int(grades[k])}"
+            ax.text(1e6 * float(nominal[k] + band[k]) + 0.01 * right, y[k] + offsets[-1], grade + (f", {fit}" if fit else ""),
+                    va="center", fontsize=7)
+        ax.set_xlim(0, right * 1.22)
+        ax.set_ylim(-0.6, len(self.names) + 0.2)  # room above the bars for the legend
+        joints = {n.partition(".")[0] for n in self.names}
+        ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in self.names], fontsize=8)
+        ax.set_xlabel("tolerance zone (µm)")
+        ax.set_title(title or ("tolerance zones" + (": the proposal and its whole grades / fits" if d is not None else "")), fontsize=9)
+        ax.legend(fontsize=7, loc="upper center", ncol=len(rows))
+        ax.grid(alpha=0.3, axis="x")
+
     def plot(self):
-        """History (cost, objective) and sensitivities; returns the matplotlib figure."""
+        """The zones (baseline, proposal, drawable with its grades and fits), what drives them
+        (the simulated sensitivities) and the optimiser's history; returns the matplotlib figure."""
         import matplotlib.pyplot as plt
 
+        fig = plt.figure(figsize=(10, 6.5))
+        grid = fig.add_gridspec(2, 2, height_ratios=[1.15, 1.0])
+        self.plot_zones(fig.add_subplot(grid[0, :]))
+        sens, hist_ax = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
+        y = np.arange(len(self.names))
+        sens.barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
+        sens.set_yticks(y, self.names, fontsize=7)
+        first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
+        sens.set_xlabel(f"d {first.name} / d nominal ({first.unit}/µm)", fontsize=8)
+        sens.set_title("why: the simulated sensitivity at the proposal", fontsize=9)
         hist = self.result.history
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
         it = np.arange(1, len(np.asarray(hist.cost)) + 1)
-        axes[0].plot(it, np.asarray(hist.cost), "o-", label="cost")
-        ax2 = axes[0].twinx()
+        hist_ax.plot(it, np.asarray(hist.cost), "o-", label="cost")
+        ax2 = hist_ax.twinx()
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         objective = np.asarray(hist.objective)
         if objective.ndim == 1:
-            first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
             ax2.plot(it, objective, "s--", color="C1", label=f"{what}, {first.unit}")
             ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
-            ax2.set_ylabel(f"{first.name} ({first.unit})")
+            ax2.set_ylabel(f"{first.name} ({first.unit})", fontsize=8)
         else:  # requirements of different sizes: each over its own
             for k, (o, marker) in enumerate(zip(self.outcomes, "s^vD<>ph")):
                 ax2.plot(it, objective[:, k] / o.requirement.limit, f"{marker}--", color=f"C{k + 1}", label=f"{o.requirement.name} / limit")
             ax2.axhline(1.0, color="0.3", lw=0.8, ls=":", label="requirement")
-            ax2.set_ylabel("objective / requirement")
-        axes[0].axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
-        axes[0].set_xlabel("iteration (one gradient each)")
-        axes[0].set_ylabel("tolerance cost\n(" + textwrap.shorten(self.cost_unit, 40, placeholder="...") + ")", fontsize=8)
-        lines = axes[0].get_legend_handles_labels()
-        more = ax2.get_legend_handles_labels()
-        axes[0].legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper right")
-        y = np.arange(len(self.names))
-        axes[1].barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
-        axes[1].set_yticks(y, self.names, fontsize=7)
-        axes[1].set_xlabel("d objective / d nominal (arcsec/µm)")
-        axes[1].set_title("simulated sensitivity at the proposal", fontsize=9)
+            ax2.set_ylabel("objective / requirement", fontsize=8)
+        hist_ax.axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
+        hist_ax.set_xlabel("iteration (one gradient each)")
+        hist_ax.set_ylabel("tolerance cost\n(" + textwrap.shorten(self.cost_unit, 40, placeholder="...") + ")", fontsize=8)
+        hist_ax.set_title("how the optimiser got there", fontsize=9)
+        lines, more = hist_ax.get_legend_handles_labels(), ax2.get_legend_handles_labels()
+        hist_ax.legend(lines[0] + more[0], lines[1] + more[1], fontsize=6, loc="best")
         fig.tight_layout()
         return fig
