@@ -258,6 +258,7 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     report = (design / "report.md").read_text()
     for part in ("## Proposal", "## Verification", "verify/histogram.png", "## Scene", "ring_teeth = 72", "jax ", "reproduce with"):
         assert part in report, part
+    assert (design / ".tolerax-command").read_text().strip() == "design"  # claimed: a montecarlo there is refused
     # Verify it as a user would: the same seed and chunk give the same units and the same yield.
     mc = tmp_path / "mc"
     assert cli.main(["montecarlo", str(design / "proposal.toml"), "--n", "6", "--chunk", "3", "--out", str(mc)]) == 0
@@ -364,6 +365,19 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     assert not (tmp_path / "mc" / "chunks").exists()
     assert cli.main(["montecarlo", "scan-azimut", "--out", str(tmp_path / "mc")]) == 2
     assert "(did you mean 'scan-azimuth'?)" in capsys.readouterr().err
+    # A folder holding another command's report is refused (it would be overwritten), with the
+    # folder to use instead; the same command may write there again.
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    (shared / "report.md").write_text("# Tolerance proposal\n")
+    (shared / ".tolerax-command").write_text("design\n")
+    with pytest.raises(SystemExit) as info:
+        cli.main(["montecarlo", "--n", "2", "--out", str(shared)])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "holds the report of `tolerax design`" in err and f"--out {shared / 'montecarlo'}" in err
+    from tolerax.cli.common import check_out
+
+    assert check_out(None, shared, "design") == shared
     with pytest.raises(SystemExit) as info:
         cli.main(["--version"])
     assert info.value.code == 0 and capsys.readouterr().out.strip() == f"tolerax {tx.__version__}"

@@ -8,8 +8,8 @@ import pathlib
 import sys
 import time
 
-from .common import (check_clipping, check_out, command_line, has_features, human_seconds, load_average, read_scene_file, rough_wall,
-                     settings, versions, with_tolerances)
+from .common import (check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
+                     read_scene_file, rough_wall, settings, versions, with_tolerances)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
@@ -48,7 +48,7 @@ def studies_command(parser, args) -> int:
 
 
 def montecarlo_command(parser, args) -> int:
-    out = check_out(parser, args.out)
+    out = check_out(parser, args.out, "montecarlo")
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return 2
@@ -135,6 +135,7 @@ def _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed
         *_scene_and_settings(scene_file, f"- {load_average()}",
                              f"- `tolerax {command}`; rerun the same command to resume, or with a larger --n to extend"),
     ]
+    claim_out(out, "montecarlo")
     (out / "report.md").write_text("\n".join(sections))
 
 
@@ -150,7 +151,7 @@ def _design_setup(parser, args, command):
     options), or `None` after printing why (exit 2)."""
     from ..io import scenefile as F
 
-    out = check_out(parser, args.out)
+    out = check_out(parser, args.out, args.command)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return None
@@ -353,6 +354,7 @@ def _write_report(out, sections, scene_file, args, wall):
         *sections, *_scene_and_settings(scene_file, f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
                                         f"- reproduce with: `{command_line(args)}`"),
     ])
+    claim_out(out, args.command)
     (out / "report.md").write_text(text)
 
 

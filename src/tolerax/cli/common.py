@@ -105,13 +105,31 @@ def human_seconds(seconds: float) -> str:
     return f"{seconds:.0f} s"
 
 
-def check_out(parser, out) -> pathlib.Path:
+OWNER = ".tolerax-command"  # in an output folder: the command whose report.md it holds
+
+
+def check_out(parser, out, command: str | None = None) -> pathlib.Path:
     """The output folder `out`, refused (exit 2, before any work) where it names an existing
-    file: results must never be computed and then lost for want of a place to write them."""
+    file: results must never be computed and then lost for want of a place to write them. With
+    `command` (one that writes `report.md`): refused too where the folder holds another
+    command's report (`claim_out`), which this one would overwrite."""
     path = pathlib.Path(out)
     if path.exists() and not path.is_dir():
         parser.error(f"--out {str(out)!r} is an existing file, not a folder: name a folder (created if missing)")
+    owner = path / OWNER
+    if command is not None and owner.is_file() and (path / "report.md").is_file():
+        other = owner.read_text().strip()
+        if other and other != command:
+            parser.error(f"--out {str(out)!r} holds the report of `tolerax {other}`, which this `tolerax {command}` would "
+                         f"overwrite: give it its own folder, e.g. --out {path / command}")
     return path
+
+
+def claim_out(out, command: str) -> None:
+    """Mark `out` as holding `tolerax command`'s report (`check_out` reads it)."""
+    path = pathlib.Path(out)
+    path.mkdir(parents=True, exist_ok=True)
+    (path / OWNER).write_text(command + "\n")
 
 
 def check_clipping(parser, tolerances, allow: bool):
