@@ -1,0 +1,169 @@
+"""Archard wear of the stage's clearances (`tolerax.physics.wear`): the closed form, the sliding
+speeds against rigid rolling, integration over a run, and refused input."""
+
+import types
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import tolerax as tx
+from tolerax import planetary as P
+from tolerax.mechanism.joints import planet_spin_ratio
+from tolerax.physics import wear as W
+
+
+def rigid_rolling_speeds(stage, omega_c):
+    """Stage speeds of the rigid train on the fixed ring: sun at i * omega_c, planets at the
+    rigid-rolling spin, no translation."""
+    lay = stage.layout
+    u = jnp.zeros(lay.size).at[lay.carrier_theta].set(omega_c).at[lay.sun_theta].set(stage.ratio * omega_c)
+    return u.at[lay.planet_theta].set(planet_spin_ratio(stage) * omega_c)
+
+
+def test_contact_names_and_relative_rotations():
+    stage = tx.default_stage()
+    assert stage.contact_names == ("sun", "carrier", "planet0", "planet1", "planet2")
+    lay = stage.layout
+    u = jnp.arange(1.0, lay.size + 1.0)  # theta_s' = 1, theta_c' = 2, theta_p' = 3, 4, 5
+    np.testing.assert_allclose(W.relative_angular_velocities(stage, None, u), [1.0, 2.0, 1.0, 2.0, 3.0], rtol=0, atol=0)
+    # Rigid planet pins: only the sun and carrier contacts remain, in that order.
+    no_pins = tx.default_stage(planet_support="rigid")
+    assert no_pins.contact_names == ("sun", "carrier")
+    assert W.sliding_speeds(no_pins, None, jnp.ones(no_pins.layout.size)).shape == (2,)
+
+
+@pytest.mark.parametrize("omega_c", [0.05, -0.3])
+def test_sliding_speeds_rigid_rolling(omega_c):
+    """Closed form of the rigid train with the ring fixed: the sun turns at (1 + z_r/z_s) omega_c
+    in the housing, the carrier at omega_c, each planet at -(z_r/z_p) omega_c on its pin."""
+    stage = tx.default_stage()
+    u = rigid_rolling_speeds(stage, omega_c)
+    q = jnp.zeros(stage.layout.size)
+    # The speeds are rigid rolling of the code's own model: both meshes' deflection rates vanish.
+    rates = jax.jvp(lambda q_: P.deflections(stage, q_), (q,), (u,))[1]
+    np.testing.assert_allclose(rates["sun_drive"], 0.0, atol=1e-15)
+    np.testing.assert_allclose(rates["ring_drive"], 0.0, atol=1e-15)
+    zs, zp, zr = stage.sun_teeth, stage.planet_teeth, stage.ring_teeth
+    expected = np.abs(omega_c) * np.array([5e-3 * (1 + zr / zs), 15e-3, 4e-3 * zr / zp, 4e-3 * zr / zp, 4e-3 * zr / zp])
+    np.testing.assert_allclose(W.sliding_speeds(stage, q, u), expected, rtol=1e-13)
+    # Batched speeds: leading axes kept.
+    both = jnp.stack([u, 2 * u])
+    np.testing.assert_allclose(W.sliding_speeds(stage, jnp.zeros_like(both), both), np.stack([expected, 2 * expected]), rtol=1e-13)
+
+
+def test_archard_closed_form():
+    """Constant load F at constant relative speed omega over t: h = k F/(2 R L) * omega R * t."""
+    stage = tx.default_stage()
+    k, force, t, omega_c = 3e-15, 12.5, 7.0, 0.2
+    u = rigid_rolling_speeds(stage, omega_c)
+    q = jnp.zeros(stage.layout.size)
+    model = W.ArchardWear(k)
+    depth = W.wear_depth_rates(stage, q, u, jnp.full(5, force), model) * t
+    zs, zp, zr = stage.sun_teeth, stage.planet_teeth, stage.ring_teeth
+    radius = np.array([5e-3, 15e-3, 4e-3, 4e-3, 4e-3])
+    omega = omega_c * np.array([1 + zr / zs, 1.0, zr / zp, zr / zp, zr / zp])
+    length = 8e-3
+    expected = k * force / (2 * radius * length) * omega * radius * t
+    np.testing.assert_allclose(depth, expected, rtol=1e-12)
+    # Per-contact rates and lengths, and a force of zero (or the never-produced negative) wears nothing.
+    rates, lengths = jnp.array([1.0, 2.0, 3.0, 4.0, 5.0]) * 1e-15, jnp.array([4.0, 5.0, 6.0, 7.0, 8.0]) * 1e-3
+    forces = jnp.array([force, 0.0, force, -1.0, force])
+    got = W.wear_depth_rates(stage, q, u, forces, W.ArchardWear(rates, lengths)) * t
+    want = np.asarray(rates) * np.maximum(np.asarray(forces), 0) / (2 * np.asarray(lengths)) * omega * t
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert got[1] == 0.0 and got[3] == 0.0
+
+
+def _fake_run(stage, ts, q, u, forces, name="azimuth"):
+    """The fields `wear_over_run` reads, for a mechanism whose azimuth joint is the full stage."""
+    mech = tx.Mechanism(azimuth=tx.PlanetaryJoint(stage), pitch=tx.IdealJoint(), base="fixed")
+    result = types.SimpleNamespace(ts=ts, states=(q, u, None), azimuth_contact=forces, azimuth_contact_names=stage.contact_names,
+                                   pitch_contact=jnp.zeros((ts.shape[0], 0)), pitch_contact_names=())
+    return mech, result
+
+
+def test_wear_over_run_constant_series():
+    """The trapezoid over a constant series is exact, on uneven saves too."""
+    stage = tx.default_stage()
+    k, force, omega_c = 2e-15, 30.0, 0.1
+    ts = jnp.array([0.0, 0.1, 0.15, 0.4, 1.0, 1.3])
+    u = jnp.tile(rigid_rolling_speeds(stage, omega_c), (ts.shape[0], 1))
+    q = jnp.cumsum(u, axis=0)  # any configuration: the speeds carry the wear
+    mech, result = _fake_run(stage, ts, q, u, jnp.full((ts.shape[0], 5), force))
+    out = W.wear_over_run(mech, result, W.ArchardWear(k))
+    assert list(out) == ["azimuth"] and tuple(out["azimuth"]) == stage.contact_names
+    zs, zp, zr = stage.sun_teeth, stage.planet_teeth, stage.ring_teeth
+    omega = omega_c * np.array([1 + zr / zs, 1.0, zr / zp, zr / zp, zr / zp])
+    radius = np.array([5e-3, 15e-3, 4e-3, 4e-3, 4e-3])
+    expected = k * force / (2 * radius * 8e-3) * omega * radius * 1.3
+    np.testing.assert_allclose([out["azimuth"][c] for c in stage.contact_names], expected, rtol=1e-12)
+    # A dict of models: only the joints named are computed.
+    assert W.wear_over_run(mech, result, {"pitch": W.ArchardWear(k)}) == {}
+
+
+def test_wear_over_run_real_run():
+    """A short planetary run: finite, non-negative depths, zero where a contact never carried
+    force, and the same as an independent trapezoid over the run's own states and forces."""
+    scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
+    result = tx.simulate(scene, 0.05, start="steady", n_save=51)
+    model = W.ArchardWear.from_lubricant("MoS2 sputtered film, vacuum")
+    out = W.wear_over_run(scene, result, model)
+    assert list(out) == ["azimuth"]  # the pitch joint is ideal
+    stage = scene.azimuth.stage
+    depth = np.array([out["azimuth"][c] for c in stage.contact_names])
+    assert np.all(np.isfinite(depth)) and np.all(depth >= 0.0)
+    forces = np.asarray(result.azimuth_contact)
+    np.testing.assert_array_equal(depth[np.all(forces <= 0.0, axis=0)], 0.0)
+
+    def independent(forces):
+        u = np.asarray(result.states[1])[:, scene.layout.azimuth_u]
+        omega = np.abs(np.stack([u[:, 0], u[:, 1], *(u[:, 2 + n] - u[:, 1] for n in range(3))], axis=1))
+        rate = model.rate * np.maximum(forces, 0) * omega / (2 * 8e-3)
+        return np.trapezoid(rate, np.asarray(result.ts), axis=0)
+
+    np.testing.assert_allclose(depth, independent(forces), rtol=1e-12, atol=0)
+    # With a load on every contact (the run's own speeds), every depth is positive and matches.
+    loaded = jnp.full_like(result.azimuth_contact, 5.0)
+    out = W.wear_over_run(scene, eqx.tree_at(lambda r: r.azimuth_contact, result, loaded), model)
+    depth = np.array([out["azimuth"][c] for c in stage.contact_names])
+    assert np.all(depth > 0.0)
+    np.testing.assert_allclose(depth, independent(np.asarray(loaded)), rtol=1e-12)
+
+
+def test_lubricant_table():
+    for name, lub in W.LUBRICANTS.items():
+        assert 0.0 < lub.low <= lub.median <= lub.high < 1e-12, name  # m^3/(N m): tables give mm^3/(N m) x 1e-9
+        assert lub.source
+    model = W.ArchardWear.from_lubricant("PFPE grease (Braycote-type), vacuum", "high", length=5e-3)
+    assert float(model.rate) == W.LUBRICANTS["PFPE grease (Braycote-type), vacuum"].high
+    assert float(model.length) == 5e-3
+
+
+def test_bad_input_refused():
+    stage = tx.default_stage()
+    q = u = jnp.zeros(stage.layout.size)
+    with pytest.raises(ValueError, match=r"ArchardWear.rate must be finite and >= 0"):
+        W.ArchardWear(-1e-15)
+    with pytest.raises(ValueError, match=r"ArchardWear.length must be finite and > 0"):
+        W.ArchardWear(1e-15, length=-8e-3)
+    with pytest.raises(ValueError, match=r"ArchardWear.length must be finite and > 0"):
+        W.ArchardWear(1e-15, length=jnp.array([8e-3, 0.0, 8e-3, 8e-3, 8e-3]))
+    with pytest.raises(TypeError, match=r"ArchardWear.rate must be a real number"):
+        W.ArchardWear("MoS2")
+    with pytest.raises(ValueError, match=r"Unknown lubricant 'grease'; known: \["):
+        W.ArchardWear.from_lubricant("grease")
+    with pytest.raises(ValueError, match=r"estimate='mean' is unknown"):
+        W.ArchardWear.from_lubricant("MoS2 sputtered film, vacuum", "mean")
+    with pytest.raises(ValueError, match=r"rate has 3 values for the stage's 5 contacts"):
+        W.wear_depth_rates(stage, q, u, jnp.zeros(5), W.ArchardWear(jnp.ones(3) * 1e-15))
+    with pytest.raises(ValueError, match=r"forces must end in one column per contact, 5"):
+        W.wear_depth_rates(stage, q, u, jnp.zeros(4), W.ArchardWear(1e-15))
+    with pytest.raises(ValueError, match=r"Lubricant rates must satisfy low <= median <= high"):
+        W.Lubricant(median=1e-15, low=2e-15, high=3e-15, source="x")
+    ts = jnp.array([0.0, 0.1, jnp.inf])
+    mech, result = _fake_run(stage, ts, jnp.zeros((3, stage.layout.size)), jnp.zeros((3, stage.layout.size)), jnp.zeros((3, 5)))
+    with pytest.raises(ValueError, match=r"non-finite save times"):
+        W.wear_over_run(mech, result, W.ArchardWear(1e-15))
