@@ -301,9 +301,9 @@ def design_command(parser, args) -> int:
                       + f" (verify it with `tolerax montecarlo {proposal} --n 200 --out {out / 'montecarlo'}`: its own folder, "
                       "so this report is kept)."])
     (out / "design.md").write_text(text + "\n")
-    fig = report.plot()
-    fig.savefig(out / "design.png", dpi=120)
-    plt.close(fig)
+    for fig, name in ((report.plot(), "design.png"), (report.plot_history(), "design_history.png")):
+        fig.savefig(out / name, dpi=120)
+        plt.close(fig)
     print(text)
     sections = [
         f"# Tolerance proposal: {scene_file.title}", "",
@@ -311,10 +311,12 @@ def design_command(parser, args) -> int:
         + (f" and jitter (RMS pointing error above {cutoff:g} Hz) <= {args.jitter:g} arcsec" if cutoff else "")
         + "".join(f" and {r.text()}" for r in more) + f", {_statistic(args)}. Scene `{scene_file.source}`; "
         f"the {'proposal' if report.accepted else 'best design reached'} as a scene file: [{proposal.name}]({proposal.name}).", "",
-        "## Proposal", "", report.table(), "", "![the zones with their grades and fits, the sensitivities, the optimiser history](design.png)", "",
+        "## Proposal", "", report.table(), "", "![the zones with their grades and fits, and the sensitivities](design.png)", "",
+        "![the optimiser's history](design_history.png)", "",
     ]
     _write_report(out, sections, scene_file, args, wall)
-    print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'}, {out / 'design.png'} and {out / 'report.md'}")
+    print(f"wrote {out / 'scene.toml'}, {proposal}, {out / 'design.md'}, {out / 'design.png'}, {out / 'design_history.png'} and "
+          f"{out / 'report.md'}")
     if not as_answer:
         print(f"tolerax design: not a proposal ({report.status}): {report.diagnosis} The best design reached is in {proposal}; "
               f"--allow-unconverged writes it as proposal.toml (exit {NOT_A_PROPOSAL}).", file=sys.stderr)

@@ -70,9 +70,9 @@ def demo_command(parser, args) -> int:
         if report is not None:
             (out / "design").mkdir(exist_ok=True)
             (out / "design" / "design.md").write_text(report.table() + "\n")
-            fig = report.plot()
-            fig.savefig(out / "design" / "design.png", dpi=120)
-            plt.close(fig)
+            for fig, name in ((report.plot(), "design.png"), (report.plot_history(), "design_history.png")):
+                fig.savefig(out / "design" / name, dpi=120)
+                plt.close(fig)
             used = int(report.result.history.steps[-1])
             lines += [f"{used} {'gradients' if args.method == 'sequential' else 'optimiser steps'} over {args.draws} units "
                       f"({args.method}) in {design_wall:.1f} s of wall time (compilation included). Files: `design/`.", "",

@@ -141,7 +141,7 @@ def main(argv=None) -> int:
             "Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and half-width) of lowest "
             "cost (ISO 286 grades) whose RMS pointing error meets the requirement: mean + 1 std over a few manufactured units, "
             "or with --yield Y in a fraction Y of all units (tolerax.propose_design). Starts from the scene's zones (its design and "
-            "its [tolerances] bands). Writes scene.toml, design.md, design.png and proposal.toml (the scene with the proposed "
+            "its [tolerances] bands). Writes scene.toml, design.md, design.png, design_history.png and proposal.toml (the scene with the proposed "
             "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", 100),
         epilog=PATH + "\n\n" + EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )

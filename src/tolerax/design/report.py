@@ -211,9 +211,15 @@ class DesignReport:
         change = f", {cost / baseline - 1:+.0%} against the baseline's {baseline:.3g}" if baseline > 0 else ""
         k = int(np.argmax(np.abs(np.asarray(self.sensitivity.nominal))))
         verb = "Put on the drawing" if self.accepted else f"Not a proposal ({self.status}); the best design reached would put on the drawing"
+        why = ""
+        if self.lost_motion is not None:
+            lost, dynamics, _ = self.split
+            if math.isfinite(lost):
+                why = (f"; {lost:.0%} of the output's spread over these zones is lost motion through the gear ratios (what "
+                       f"a stack-up of the drawings sees) and {dynamics:.0%} dynamics the geometry does not see")
         return (f"{verb}: {'; '.join(zones)}. It meets {' and '.join(requirements)}{where} by the design's linear model.{checked} "
-                f"Cost {cost:.3g} ({self.cost_unit}){change}. The pointing is most sensitive to {self.names[k]} "
-                f"({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal).")
+                f"Cost {cost:.3g} ({self.cost_unit}){change}. Why these zones: the pointing is most sensitive to "
+                f"{self.names[k]} ({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal){why}.")
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature, after a paragraph on each
@@ -359,26 +365,42 @@ class DesignReport:
         joints = {n.partition(".")[0] for n in self.names}
         ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in self.names], fontsize=8)
         ax.set_xlabel("tolerance zone (µm)")
-        ax.set_title(title or ("tolerance zones" + (": the proposal and its whole grades / fits" if d is not None else "")), fontsize=9)
+        if title is None:
+            met = " and ".join(o.requirement.text() for o in self.outcomes) or f"{self.requirement:g} arcsec"
+            where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
+            checks = d.checks if d is not None and d.checks else self.checks[-1:]
+            checked = ("; checked: " + ", ".join(f"{c.yield_simulated:.1%} of {c.n - c.n_failed} units" for c in checks)) if checks else ""
+            title = f"tolerance zones for {met}{where}{checked}"
+        ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7, loc="upper center", ncol=len(rows))
         ax.grid(alpha=0.3, axis="x")
 
     def plot(self):
-        """The zones (baseline, proposal, drawable with its grades and fits), what drives them
-        (the simulated sensitivities) and the optimiser's history; returns the matplotlib figure."""
+        """The figure an engineer reads: the zones (baseline, proposal, drawable with its
+        grades and fits, the requirement and the checked yield in the title) above what drives
+        them (the simulated sensitivities); returns the matplotlib figure. The optimiser's
+        history is `plot_history`."""
         import matplotlib.pyplot as plt
 
-        fig = plt.figure(figsize=(10, 6.5))
-        grid = fig.add_gridspec(2, 2, height_ratios=[1.15, 1.0])
-        self.plot_zones(fig.add_subplot(grid[0, :]))
-        sens, hist_ax = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
+        fig, (zones, sens) = plt.subplots(2, 1, figsize=(9, 6.5), height_ratios=[1.2, 1.0])
+        self.plot_zones(zones)
         y = np.arange(len(self.names))
         sens.barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
         sens.set_yticks(y, self.names, fontsize=7)
         first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
         sens.set_xlabel(f"d {first.name} / d nominal ({first.unit}/µm)", fontsize=8)
         sens.set_title("why: the simulated sensitivity at the proposal", fontsize=9)
+        fig.tight_layout()
+        return fig
+
+    def plot_history(self):
+        """The optimiser's history: cost and each requirement's objective per iteration, the
+        proposed iterate marked; returns the matplotlib figure."""
+        import matplotlib.pyplot as plt
+
+        fig, hist_ax = plt.subplots(figsize=(6.5, 3.5))
         hist = self.result.history
+        first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
         it = np.arange(1, len(np.asarray(hist.cost)) + 1)
         hist_ax.plot(it, np.asarray(hist.cost), "o-", label="cost")
         ax2 = hist_ax.twinx()
