@@ -217,7 +217,8 @@ class DesignReport:
             if math.isfinite(lost):
                 why = (f"; {lost:.0%} of the output's spread over these zones is lost motion through the gear ratios (what "
                        f"a stack-up of the drawings sees) and {dynamics:.0%} dynamics the geometry does not see")
-        return (f"{verb}: {'; '.join(zones)}. It meets {' and '.join(requirements)}{where} by the design's linear model.{checked} "
+        return (f"{verb}: {'; '.join(zones)}. It meets {' and '.join(requirements)}{where} by the design's "
+                f"{'linear model' if self.yield_ is not None else 'statistic over its simulated units'}.{checked} "
                 f"Cost {cost:.3g} ({self.cost_unit}){change}. Why these zones: the pointing is most sensitive to "
                 f"{self.names[k]} ({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal){why}.")
 
