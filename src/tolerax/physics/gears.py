@@ -17,8 +17,9 @@ _GEAR_RULES = dict(
     pressure_angle=V.PRESSURE_ANGLE,
     face_width=V.POSITIVE("m"),
     carrier_radius=V.Rule("m", low=0.0, low_open=True, optional=True),
-    density=V.POSITIVE("kg/m^3"),
-    young=V.POSITIVE("Pa"),
+    # Plausible gear materials, polymers to tungsten alloys: outside, a slip of unit (g/cm^3, GPa).
+    density=V.Rule("kg/m^3: gear materials run from about 900 (polymers) to 19300 (tungsten)", low=500.0, high=25000.0),
+    young=V.Rule("Pa: gear materials run from about 1 GPa (polymers) to 700 GPa (carbides)", low=5e8, high=1e12),
     poisson=V.Rule("-", low=-1.0, high=0.5, low_open=True, high_open=True),
     mesh_stiffness=V.POSITIVE("N/m"),
     contact_ratio=V.CONTACT_RATIO,
@@ -67,6 +68,11 @@ def _check_gear_data(args: dict) -> None:
                 f"default_stage({part}_clearance={args[part + '_clearance']!r}) must be smaller than "
                 f"{part}_journal_radius={args[part + '_journal_radius']!r} (m): clearances are µm, journals mm."
             )
+    backlash, module = np.asarray(args["backlash"], dtype=float), float(args["module"])
+    if not np.all(backlash < module):
+        raise ValueError(f"default_stage(backlash={args['backlash']!r}) must be below the module ({module!r} m): a backlash of a "
+                         "whole module leaves the teeth barely in mesh (gear standards' backlash is a few % of the module, "
+                         "DIN 3967); lengths are in m.")
 
 
 def default_stage(
