@@ -242,7 +242,9 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     assert f"--out {design / 'montecarlo'}`: its own folder" in table
     # Beside the continuous zones, the drawable ones: whole ISO grades.
     assert "Drawable design (whole ISO 286 grades" in table and "| azimuth.carrier_clearance | IT" in table
-    drawable = tx.load_scene(design / "proposal_drawable.toml").tolerances()
+    drawable_file = tx.load_scene(design / "proposal_drawable.toml")
+    drawable = drawable_file.tolerances()
+    assert "On whole grades, as drawn: azimuth.carrier_clearance " in drawable_file.data["description"]  # the callouts
     bands = np.asarray(drawable.band)
     grades = np.asarray(tx.grade_of(2 * bands, np.asarray(tx.design.propose.feature_sizes(proposal.build()))))
     assert np.allclose(grades[1:], np.round(grades[1:]), atol=1e-6)  # whole grades but the given feature's

@@ -293,7 +293,10 @@ def design_command(parser, args) -> int:
         from ..uncertainty.sampling import Tolerances
 
         d = report.drawable
-        F.save_scene(written.with_tolerances(Tolerances(d.names, d.nominal, d.band)), out / "proposal_drawable.toml")
+        drawn = written.with_tolerances(Tolerances(d.names, d.nominal, d.band))
+        data = {**drawn.data, "description": drawn.data.get("description", "") + " On whole grades, as drawn: " + "; ".join(d.callouts())
+                + f" (cost {d.cost:.4g})."}
+        F.save_scene(F.SceneFile.from_data(data, drawn.name, drawn.source), out / "proposal_drawable.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else

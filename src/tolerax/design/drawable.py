@@ -83,6 +83,18 @@ class DrawableDesign:
         ok = bool(np.all(self.objective <= self.limit * (1 + 1e-9)))
         return ok and all(c.interval[1] >= c.q for c in self.checks)  # each check reached its yield within its noise
 
+    def callouts(self) -> tuple[str, ...]:
+        """Per feature, what a drawing calls out: its zone (µm) and whole grade, with the ISO
+        286 fit inside it for a journal: `"azimuth.planet_clearance 5.0–27.5 µm (IT8, H8/f7)"`."""
+        fits = self.fits or ("",) * len(self.names)
+        out = []
+        for k, name in enumerate(self.names):
+            lo, hi = 1e6 * (self.nominal[k] - self.band[k]), 1e6 * (self.nominal[k] + self.band[k])
+            grade = f"IT{self.grades[k]:.1f}, kept" if name in self.kept else f"IT{int(self.grades[k])}"
+            fit = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else ""
+            out.append(f"{name} {lo:.1f}–{hi:.1f} µm ({grade}{', ' + fit if fit else ''})")
+        return tuple(out)
+
     def table(self, unit: str = "cost units") -> str:
         """The drawable zones as a Markdown table with a sentence of what rounding cost."""
         rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) | ISO 286 fit inside the zone (radial clearance, µm) |",

@@ -191,15 +191,11 @@ class DesignReport:
         what it meets and how that was checked, what it costs against the baseline, and which
         feature the pointing is most sensitive to."""
         d = self.drawable
-        nominal, band = (d.nominal, d.band) if d is not None else (self.nominal, self.band)
-        fits = d.fits if d is not None and d.fits else ("",) * len(self.names)
-        grades = d.grades if d is not None else self.grade
-        zones = []
-        for k, name in enumerate(self.names):
-            lo, hi = 1e6 * (nominal[k] - band[k]), 1e6 * (nominal[k] + band[k])
-            callout = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else (
-                f"IT{int(grades[k])}" if d is not None and name not in d.kept else f"IT{float(grades[k]):.1f}")
-            zones.append(f"{name} {lo:.1f}–{hi:.1f} µm ({callout}{', given' if name in self.fixed else ''})")
+        if d is not None:
+            zones = [c[:-1] + ", given)" if name in self.fixed else c for c, name in zip(d.callouts(), self.names)]
+        else:
+            zones = [f"{name} {1e6 * (m - b):.1f}–{1e6 * (m + b):.1f} µm (IT{float(g):.1f}{', given' if name in self.fixed else ''})"
+                     for name, m, b, g in zip(self.names, self.nominal, self.band, self.grade)]
         requirements = [o.requirement.text() for o in self.outcomes] or [f"{self.requirement:g} arcsec"]
         where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
         checks = d.checks if d is not None and d.checks else self.checks[-1:]
