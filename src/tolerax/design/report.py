@@ -206,7 +206,7 @@ class DesignReport:
         baseline = float(self.baseline[2])
         change = f", {cost / baseline - 1:+.0%} against the baseline's {baseline:.3g}" if baseline > 0 else ""
         k = int(np.argmax(np.abs(np.asarray(self.sensitivity.nominal))))
-        verb = "Put on the drawing" if self.accepted else f"Not a proposal ({self.status}); the best design reached would put on the drawing"
+        verb = "Put on the drawing" if self.accepted else "The best design reached (not a proposal) would put on the drawing"
         why = ""
         if self.lost_motion is not None:
             lost, dynamics, _ = self.split
@@ -220,7 +220,7 @@ class DesignReport:
 
     def table(self) -> str:
         """A Markdown table of the proposal, one row per feature, after a paragraph on each
-        requirement; `plain` first."""
+        requirement; `plain` first (after what makes it not a proposal, where it is not)."""
         geometric, more = self.lost_motion is not None, self.outcomes[1:]
         rows = [
             "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
@@ -241,7 +241,8 @@ class DesignReport:
             rows += [x for o in more for x in ("", self._split_text(o))]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         unit = self.outcomes[0].requirement.unit if self.outcomes else "arcsec"
-        head = ("" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n") + (
+        banner = "" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n"
+        head = (
             f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} ({self.cost_unit}; baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} {unit} against a requirement of {self.requirement:.1f} {unit} "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
@@ -259,7 +260,7 @@ class DesignReport:
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
         tail = "" if self.drawable is None else "\n\n" + self.drawable.table(self.cost_unit)
-        return self.plain() + "\n\n" + head + "\n\n" + "\n".join(rows) + tail
+        return banner + self.plain() + "\n\n" + head + "\n\n" + "\n".join(rows) + tail
 
     @property
     def extrapolated(self) -> tuple[str, ...]:
