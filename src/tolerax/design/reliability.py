@@ -206,15 +206,19 @@ class LinearisedYield(eqx.Module):
     (benchmarks/results/jitter_reach.md). Fitted on its own scale, such a scatter is the one
     measured at the current zone and held fixed, so the optimiser cannot see that a tighter zone
     scatters less, and a requirement below the scatter reads as unreachable; on the log scale
-    the scatter is relative and moves with the level.
+    the scatter is relative and moves with the level. Measured: it does not by itself make the
+    full stage's stability design converge (its slopes within a zone are still noise,
+    benchmarks/results/design_stability_planetary_log.md); opt-in (`Requirement(log_fit=True)`).
 
     `secant_reach` (m, with `secant_units`): the secant units span the middle +- at least this
     much, wider than a narrower zone: the line is the response's trend over that neighbourhood.
     Where a chaotic output's trend is small against its scatter per micrometre (the jitter:
     about 1 % per um against a 29 % scatter, `jitter_reach.md`), a fit over a tight zone's
-    units is noise; over +-25 um its slopes are resolved. The quantile is still over the zone's
-    own units (its band), the residual scatter that of the wider fit (which includes the
-    trend's curvature over it: conservative)."""
+    units is noise; over +-25 um with 32 units a slope's standard error is about 0.4 % per um.
+    The quantile is still over the zone's own units (its band), the residual scatter that of the
+    wider fit (which includes the trend's curvature over it: conservative). Measured: with it the
+    full stage's stability design still stalls far above the requirement
+    (design_stability_planetary_log.md)."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
