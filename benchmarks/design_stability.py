@@ -34,6 +34,9 @@ its scatter over units grows with its level, `results/jitter_reach.md`); writes
 `design_stability_<fidelity>_log.md`. `--secant-reach` (m): the secant units span the zone's
 middle +- at least this much (`LinearisedYield.secant_reach`: the jitter's trend, about 1 % per
 um against a 29 % scatter, resolved over a wider neighbourhood than a tight zone); adds `_reach`.
+`--surface LO HI` (m): both outputs fitted once over `--secant-units` units spread over [LO, HI]
+for every feature, the design made on that response surface (`design_problem(surface_box=...)`);
+adds `_surface`.
 """
 
 import time
@@ -78,6 +81,9 @@ def main():
                         help="fit the jitter's secant line to its logarithm (Requirement(log_fit=True): a scatter relative to its level)")
     parser.add_argument("--secant-reach", type=float, default=None,
                         help="m: the secant units span the middle +- at least this much (LinearisedYield.secant_reach)")
+    parser.add_argument("--surface", type=float, nargs=2, default=None, metavar=("LO", "HI"),
+                        help="m: design on a response surface fitted once over units spread over [LO, HI] for every feature "
+                        "(design_problem(surface_box=...)), --secant-units of them")
     parser.add_argument("--no-scatter", dest="scatter", action="store_false",
                         help="leave the secant fits' residual scatter out of the linearised quantiles (LinearisedYield(scatter=))")
     args = harness.parse_args(parser)
@@ -93,7 +99,8 @@ def main():
     pointing = objective(args.fidelity)
     scene = pointing.scene
     both = design_problem(pointing, yield_=args.yield_, secant_units=args.secant_units, output=OUTPUTS, scatter=args.scatter,
-                          log_outputs=("pointing_jitter",) if args.log_fit else (), secant_reach=args.secant_reach)
+                          log_outputs=("pointing_jitter",) if args.log_fit else (), secant_reach=args.secant_reach,
+                          surface_box=None if args.surface is None else tuple(args.surface), surface_width=args.width)
     width = jnp.asarray(args.width)
     baseline = np.asarray(eqx.filter_jit(lambda o, x, d, w: o(x, d, w))(both.objective, both.x0, both.draws, width))
     R = np.array([args.rms_fraction, args.jitter_fraction]) * baseline
@@ -102,7 +109,8 @@ def main():
     print(f"baseline {args.yield_:.0%} quantiles: RMS {baseline[0]:.1f}, jitter {baseline[1]:.3f} arcsec; requirements {R}", flush=True)
     options = dict(yield_=args.yield_, secant_units=args.secant_units, scatter=args.scatter, widths=(args.width,),
                    max_outer=args.max_iterations, check_units=0, progress=True, allow_proxy=args.fidelity != "planetary",
-                   secant_reach=args.secant_reach)
+                   secant_reach=args.secant_reach, surface_box=None if args.surface is None else tuple(args.surface),
+                   surface_width=args.width)
     rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol,
                                                                                   log_fit=args.log_fit)
     designs = {}
@@ -135,7 +143,8 @@ def main():
         print(rows[-1], flush=True)
     total = time.perf_counter() - start
     harness.write_table(
-        f"design_stability_{args.fidelity}" + ("_log" if args.log_fit else "") + ("_reach" if args.secant_reach else ""),
+        f"design_stability_{args.fidelity}" + ("_log" if args.log_fit else "") + ("_reach" if args.secant_reach else "")
+        + ("_surface" if args.surface else ""),
         f"A stability (jitter) requirement beside the lost-motion one, designed at {args.fidelity} fidelity, verified at "
         f"{args.verify_fidelity}",
         harness.command(args),
@@ -154,6 +163,8 @@ def main():
                f"linearised by secants over {args.secant_units} units{' with their residual scatter' if args.scatter else ' (lines only)'}"
                + (", the jitter's line fitted to its logarithm (`--log-fit`)" if args.log_fit else "")
                + (f", the secant units spanning at least +-{args.secant_reach * 1e6:g} um (`--secant-reach`)" if args.secant_reach else "")
+               + (f", on a response surface fitted once over [{args.surface[0] * 1e6:g}, {args.surface[1] * 1e6:g}] um (`--surface`)"
+                  if args.surface else "")
                + ". "
                f"Total wall {total:.0f} s, compilation included."),
     )

@@ -392,5 +392,19 @@ def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
     assert q_w == pytest.approx(np.exp(a + (50e-6 - m0) * s_true + s_true * 5e-6 * (2 * 0.9 - 1)), rel=2e-3)
     with pytest.raises(ValueError, match="secant_reach"):
         rel.LinearisedYield(scan_pointing, q=0.9, secant_reach=1e-5)
+    # `surface`: one fit over a fixed box (20-80 um), then no simulation per evaluation: the
+    # value at any middle is the line's, the quantile the same closed form, its derivative Q s.
+    calls = []
+    monkeypatch.setattr(rel, "_simulate_units", lambda p, o, units, w: calls.append(1) or jax.vmap(lambda v: fake(v, p, o, w))(units))
+    sf = rel.fit_surface(objective, [20e-6], [80e-6])
+    assert len(calls) == 1 and float(sf.slopes[0, 0]) == pytest.approx(s_true, rel=1e-9) and float(sf.sigma[0]) < 1e-9
+    on_surface = eqx.tree_at(lambda o: o.surface, objective, sf, is_leaf=lambda v: v is None)
+    q_s = float(eqx.filter_jit(on_surface)(narrow, draws, None))
+    assert q_s == pytest.approx(np.exp(a + (50e-6 - m0) * s_true + s_true * 5e-6 * (2 * 0.9 - 1)), rel=2e-3)
+    g_s = eqx.filter_jit(jax.grad(lambda v: on_surface(tx.Design(v, narrow.band), draws, None)))(narrow.nominal)
+    assert float(g_s[0]) == pytest.approx(q_s * s_true, rel=1e-9)
+    assert rel.secant_standard_error(on_surface, narrow) == pytest.approx(0.0, abs=1e-9) and len(calls) == 1
+    with pytest.raises(ValueError, match="0 <= lower < upper"):
+        rel.fit_surface(objective, [80e-6], [20e-6])
     with pytest.raises(ValueError, match="needs secants=True"):
         tx.Requirement("pointing_rms", 10.0, log_fit=True)

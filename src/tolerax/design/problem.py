@@ -16,7 +16,7 @@ from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
 from .objectives import PointingObjective, unit_output, value_and_jacobian
-from .reliability import LinearisedYield, secant_gradient_noise, yield_draws
+from .reliability import LinearisedYield, fit_surface, secant_gradient_noise, yield_draws
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
 from ..uncertainty.sampling import Tolerances, unit_draws
@@ -167,6 +167,8 @@ def design_problem(
     start: Tolerances | None = None,
     log_outputs: tuple[str, ...] = (),
     secant_reach: float | None = None,
+    surface_box: tuple | None = None,
+    surface_width: float | None = None,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -207,7 +209,10 @@ def design_problem(
       `secant_units`): outputs whose line is fitted to their logarithm, a scatter relative to
       their level (`LinearisedYield.log_outputs`: the jitter); `secant_reach` (m, with
       `secant_units`): the secant units span the middle +- at least this much
-      (`LinearisedYield.secant_reach`: a trend resolved over a wider neighbourhood than a tight zone).
+      (`LinearisedYield.secant_reach`: a trend resolved over a wider neighbourhood than a tight zone);
+      `surface_box` (`(lower, upper)`, m, scalars or one per feature; with `secant_units`): fit
+      the outputs once over units spread over that box (`fit_surface`, at smoothing
+      `surface_width`, m) and design on that response surface (`LinearisedYield.surface`).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
       a mapping name -> its half-width (m), held at the starting nominal +- that, or a
@@ -269,6 +274,9 @@ def design_problem(
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
                                     None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed),
                                     tuple(log_outputs), None if secant_reach is None else float(secant_reach))
+        if surface_box is not None:
+            objective = eqx.tree_at(lambda o: o.surface, objective, fit_surface(objective, *surface_box, surface_width),
+                                    is_leaf=lambda v: v is None)
         draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
     return DesignProblem(
         objective=FromLowerLimit(objective),

@@ -159,6 +159,21 @@ def _value_and_secants_bwd(slopes, cotangent, perturbed, middle, band, positions
     return jnp.tensordot(cotangent[0], slopes, axes=jnp.ndim(cotangent[0]))
 
 
+class Surface(eqx.Module):
+    """A response surface fitted once over a fixed box of feature values (`fit_surface`): per
+    output the least-squares line $f_0 + s\\cdot(v - c)$ through units spread over the box
+    (centre $c$, m), with the standard errors of $f_0$ and $s$ and the residual scatter $\\sigma$
+    (on the log scale for a `log_outputs` output). Shapes: `center` (n,), `value`, `value_se`,
+    `sigma` (k,), `slopes`, `slope_se` (k, n) (output units per m)."""
+
+    center: Array
+    value: Array
+    slopes: Array
+    value_se: Array
+    slope_se: Array
+    sigma: Array
+
+
 class LinearisedYield(eqx.Module):
     """`objective(x, draws, width)`: the `q`-quantile (arcsec) of `output` over units made to
     the design `x` (`Design(middle, half-width)`, m), linearised at the zone middles (see the
@@ -218,7 +233,15 @@ class LinearisedYield(eqx.Module):
     The quantile is still over the zone's own units (its band), the residual scatter that of the
     wider fit (which includes the trend's curvature over it: conservative). Measured: with it the
     full stage's stability design still stalls far above the requirement
-    (design_stability_planetary_log.md)."""
+    (design_stability_planetary_log.md).
+
+    `surface` (optional, a `Surface` from `fit_surface`): one line per output fitted once over a
+    fixed box of feature values (the design bounds' range) instead of over each zone: the value
+    at a zone's middle $m$ is $f_0 + s\\cdot(m - c)$, its slopes and scatter the surface's, with no
+    simulation per evaluation. Where an output's trend is resolved only across the whole bounds
+    (the jitter: `jitter_reach.md`), a local fit follows noise and the global one does not; what
+    the line misses of the response's curvature over the box is in its scatter (conservative).
+    Checked by the Monte Carlo verification like any linearisation."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -229,6 +252,7 @@ class LinearisedYield(eqx.Module):
     secant_seed: int = eqx.field(static=True, default=1)
     log_outputs: tuple[str, ...] = eqx.field(static=True, default=())
     secant_reach: float | None = eqx.field(static=True, default=None)
+    surface: Surface | None = None
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -272,6 +296,15 @@ class LinearisedYield(eqx.Module):
         units; `None` unless `scatter`), from the same solves; on the log scale for the
         `log_outputs`."""
         middle = x.nominal
+        if self.surface is not None:
+            sf = self.surface
+            slopes = jax.lax.stop_gradient(sf.slopes)
+            value = sf.value + slopes @ (middle - sf.center)
+            if not isinstance(self.output, tuple):
+                value, slopes, sigma = value[0], slopes[0], sf.sigma[0]
+            else:
+                sigma = sf.sigma
+            return value, slopes, (sigma if self.scatter else None)
         if self.secant_units is not None:
             positions = secant_draws(middle.shape[0], self.secant_units, self.secant_seed)
             f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing, self.output,
@@ -338,10 +371,20 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
     errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
     fit's design matrix), slopes' in output units per m; `sigma` the residual standard deviation.
-    All on the fitted scale: the logarithm for `objective.log_outputs`."""
+    All on the fitted scale: the logarithm for `objective.log_outputs`. With a `surface`, its
+    own fit, no simulation (the value's standard error is the surface's at its centre)."""
+    if objective.surface is not None:
+        sf = objective.surface
+        slopes = np.asarray(sf.slopes)
+        return (np.asarray(sf.value) + slopes @ (np.asarray(x.nominal) - np.asarray(sf.center)), slopes, np.asarray(sf.value_se),
+                np.asarray(sf.slope_se), np.asarray(sf.sigma))
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
-    middle, band = jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band))
+    return _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width)
+
+
+def _fit_units(objective: LinearisedYield, middle, band, width):
+    """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
     n = middle.shape[0]
     units = realise(Design(middle, band), secant_draws(n, objective.secant_units, objective.secant_seed))
     width = None if width is None else jnp.asarray(width, dtype=float)
@@ -359,6 +402,27 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
     per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
     return coef[0], coef[1:].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1:] * per_m, sigma
+
+
+def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface:
+    """The `Surface` of `objective`'s outputs over the box `lower` <= v <= `upper` (m, scalars or
+    one per feature): `objective.secant_units` units spread over it (`secant_draws`, seed
+    `objective.secant_seed`), one batch of forward solves at smoothing `width` (m), their
+    least-squares line per output (on the log scale for `log_outputs`). Give the result to
+    `LinearisedYield(surface=...)` (`design_problem(surface_box=...)` does)."""
+    if objective.secant_units is None:
+        raise ValueError("fit_surface: give the objective secant_units (the units spread over the box).")
+    from .features import design_names
+
+    sized = [np.size(v) for v in (lower, upper) if np.ndim(v)]
+    n = sized[0] if sized else len(design_names(objective.pointing.scene))
+    lower, upper = (np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (lower, upper))
+    if not (np.all(np.isfinite(lower)) and np.all(upper > lower) and np.all(lower >= 0)):
+        raise ValueError(f"fit_surface: the box must have 0 <= lower < upper (m), finite; got {lower} and {upper}.")
+    value, slopes, value_se, slope_se, sigma = _fit_units(objective, jnp.asarray(0.5 * (lower + upper)),
+                                                          jnp.asarray(0.5 * (upper - lower)), width)
+    return Surface(jnp.asarray(0.5 * (lower + upper)), jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(value_se),
+                   jnp.asarray(slope_se), jnp.asarray(sigma))
 
 
 def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
