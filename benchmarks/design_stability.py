@@ -81,6 +81,9 @@ def main():
                         help="fit the jitter's secant line to its logarithm (Requirement(log_fit=True): a scatter relative to its level)")
     parser.add_argument("--secant-reach", type=float, default=None,
                         help="m: the secant units span the middle +- at least this much (LinearisedYield.secant_reach)")
+    parser.add_argument("--check-units", type=int, default=0,
+                        help="propose_design's Monte Carlo check and re-solve (SORA) with this many units per check (default 0: "
+                        "none, the verification below is the check)")
     parser.add_argument("--surface", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                         help="m: design on a response surface fitted once over units spread over [LO, HI] for every feature "
                         "(design_problem(surface_box=...)), --secant-units of them")
@@ -108,7 +111,7 @@ def main():
         R[1] = args.jitter_requirement
     print(f"baseline {args.yield_:.0%} quantiles: RMS {baseline[0]:.1f}, jitter {baseline[1]:.3f} arcsec; requirements {R}", flush=True)
     options = dict(yield_=args.yield_, secant_units=args.secant_units, scatter=args.scatter, widths=(args.width,),
-                   max_outer=args.max_iterations, check_units=0, progress=True, allow_proxy=args.fidelity != "planetary",
+                   max_outer=args.max_iterations, check_units=args.check_units, progress=True, allow_proxy=args.fidelity != "planetary",
                    secant_reach=args.secant_reach, surface_box=None if args.surface is None else tuple(args.surface),
                    surface_width=args.width)
     rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol,
@@ -144,7 +147,7 @@ def main():
     total = time.perf_counter() - start
     harness.write_table(
         f"design_stability_{args.fidelity}" + ("_log" if args.log_fit else "") + ("_reach" if args.secant_reach else "")
-        + ("_surface" if args.surface else ""),
+        + ("_surface" if args.surface else "") + ("_checked" if args.check_units else ""),
         f"A stability (jitter) requirement beside the lost-motion one, designed at {args.fidelity} fidelity, verified at "
         f"{args.verify_fidelity}",
         harness.command(args),
