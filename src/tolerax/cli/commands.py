@@ -290,13 +290,7 @@ def design_command(parser, args) -> int:
     written = scene_file.with_proposal(report)
     proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))
     if as_answer and report.drawable is not None:  # the same proposal on whole ISO grades, as a scene file too
-        from ..uncertainty.sampling import Tolerances
-
-        d = report.drawable
-        drawn = written.with_tolerances(Tolerances(d.names, d.nominal, d.band))
-        data = {**drawn.data, "description": drawn.data.get("description", "") + " On whole grades, as drawn: " + "; ".join(d.callouts())
-                + f" (cost {d.cost:.4g})."}
-        F.save_scene(F.SceneFile.from_data(data, drawn.name, drawn.source), out / "proposal_drawable.toml")
+        F.save_scene(written.with_drawable(report.drawable), out / "proposal_drawable.toml")
     text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else

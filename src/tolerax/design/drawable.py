@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, it_tolerance
+from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, SIZE_STEPS, it_tolerance
 from .fits import SMALLEST_SIZE, nearest_fit
 
 EXHAUSTIVE = 16  # features up to which every combination of the two grades is tried
@@ -83,17 +83,19 @@ class DrawableDesign:
         ok = bool(np.all(self.objective <= self.limit * (1 + 1e-9)))
         return ok and all(c.interval[1] >= c.q for c in self.checks)  # each check reached its yield within its noise
 
+    def callout(self, k: int) -> str:
+        """Feature `k`'s grade, with the ISO 286 fit inside its zone for a journal: `"IT8, H8/f7"`
+        (`"IT5.2, kept"` for a feature that keeps its continuous grade)."""
+        name, text = self.names[k], self.fits[k] if self.fits else ""
+        grade = f"IT{self.grades[k]:.1f}, kept" if name in self.kept else f"IT{int(self.grades[k])}"
+        fit = text.split(" (")[0] if text and not text.startswith("none") else ""
+        return grade + (f", {fit}" if fit else "")
+
     def callouts(self) -> tuple[str, ...]:
-        """Per feature, what a drawing calls out: its zone (µm) and whole grade, with the ISO
-        286 fit inside it for a journal: `"azimuth.planet_clearance 5.0–27.5 µm (IT8, H8/f7)"`."""
-        fits = self.fits or ("",) * len(self.names)
-        out = []
-        for k, name in enumerate(self.names):
-            lo, hi = 1e6 * (self.nominal[k] - self.band[k]), 1e6 * (self.nominal[k] + self.band[k])
-            grade = f"IT{self.grades[k]:.1f}, kept" if name in self.kept else f"IT{int(self.grades[k])}"
-            fit = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else ""
-            out.append(f"{name} {lo:.1f}–{hi:.1f} µm ({grade}{', ' + fit if fit else ''})")
-        return tuple(out)
+        """Per feature, what a drawing calls out: its zone (µm) and `callout`:
+        `"azimuth.planet_clearance 5.0–27.5 µm (IT8, H8/f7)"`."""
+        return tuple(f"{name} {1e6 * (self.nominal[k] - self.band[k]):.1f}–{1e6 * (self.nominal[k] + self.band[k]):.1f} µm "
+                     f"({self.callout(k)})" for k, name in enumerate(self.names))
 
     def table(self, unit: str = "cost units") -> str:
         """The drawable zones as a Markdown table with a sentence of what rounding cost."""
@@ -124,8 +126,9 @@ def journal_fits(names, size_mm, lower_limit, upper_limit) -> tuple[str, ...]:
     diameters yourself); `""` for a feature that is not a clearance (a backlash)."""
     out = []
     for name, size, lo, hi in zip(names, np.broadcast_to(np.asarray(size_mm, dtype=float), (len(names),)), lower_limit, upper_limit):
-        if not name.endswith("_clearance") or not SMALLEST_SIZE <= size <= 500.0:
-            out.append("" if not name.endswith("_clearance") else f"none: Ø{size:g} mm is outside ISO 286's 1-500 mm")
+        if not name.endswith("_clearance") or not SMALLEST_SIZE <= size <= SIZE_STEPS[-1]:
+            out.append("" if not name.endswith("_clearance") else
+                       f"none: Ø{size:g} mm is outside ISO 286's {SMALLEST_SIZE:g}-{SIZE_STEPS[-1]:g} mm")
             continue
         fit = nearest_fit(float(lo), float(hi), float(size))
         if fit is None:
@@ -208,8 +211,7 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
     if choice is None:  # no whole-grade combination meets the linear model: the tightest one, said so
         choice = np.zeros(n, dtype=int)
     c, f, b = (v[0] for v in evaluate(np.asarray(choice)[None]))
-    best = (float(c), f, b, choice)
-    c, f, b, choice = best
+    c = float(c)
     picked = [options[k][min(int(ch), len(options[k]) - 1)][0] for k, ch in enumerate(choice)]
     kept = tuple(names[k] for k in range(n) if picked[k] is None)
     grades = np.array([grade[k] if g is None else g for k, g in enumerate(picked)], dtype=float)

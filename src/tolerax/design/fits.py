@@ -78,14 +78,19 @@ SLACK = 1e-12  # m: a fit's zone counts as inside limits it passes by less (floa
 _CLASS = re.compile(r"([A-Za-z]{1,2})(0|[1-9][0-9]?)")
 
 
+def _real(value, message: str) -> float:
+    """`value` as a float, or `ValueError(message)` where it is not one real number."""
+    if isinstance(value, (bool, str, bytes)) or value is None or np.ndim(value) != 0:
+        raise ValueError(message)
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+
+
 def _step(diameter_mm) -> int:
     """Index into SIZE_STEPS of the step holding `diameter_mm`, after checking it."""
-    if isinstance(diameter_mm, (bool, str, bytes)) or diameter_mm is None or np.ndim(diameter_mm) != 0:
-        raise ValueError(f"diameter_mm must be a real number (the nominal diameter, mm), got {diameter_mm!r}.")
-    try:
-        d = float(diameter_mm)
-    except (TypeError, ValueError):
-        raise ValueError(f"diameter_mm must be a real number (the nominal diameter, mm), got {diameter_mm!r}.") from None
+    d = _real(diameter_mm, f"diameter_mm must be a real number (the nominal diameter, mm), got {diameter_mm!r}.")
     if not (math.isfinite(d) and SMALLEST_SIZE <= d <= SIZE_STEPS[-1]):
         hint = " (a diameter below 1 is probably given in m: give it in mm)" if math.isfinite(d) and 0 < d < SMALLEST_SIZE else ""
         raise ValueError(
@@ -254,12 +259,7 @@ def _classes(values, kind: str, name: str) -> tuple[str, ...]:
 
 
 def _limit(value, name: str) -> float:
-    if isinstance(value, (bool, str, bytes)) or value is None or np.ndim(value) != 0:
-        raise ValueError(f"fits_covering: {name} must be a real number (radial clearance, m), got {value!r}.")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"fits_covering: {name} must be a real number (radial clearance, m), got {value!r}.") from None
+    v = _real(value, f"fits_covering: {name} must be a real number (radial clearance, m), got {value!r}.")
     if not math.isfinite(v):
         raise ValueError(f"fits_covering: {name} must be finite (radial clearance, m), got {value!r}.")
     return v

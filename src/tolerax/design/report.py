@@ -351,13 +351,9 @@ class DesignReport:
                     color=color, label=label)
         right = 1e6 * max(float(np.max(np.asarray(r[0]) + np.asarray(r[1]))) for r in rows)
         nominal, band, _, _ = rows[-1]
-        fits = d.fits if d is not None and d.fits else ("",) * len(self.names)
-        grades = d.grades if d is not None else self.grade
         for k in range(len(self.names)):
-            fit = fits[k].split(" (")[0] if fits[k] and not fits[k].startswith("none") else ""
-            grade = f"IT{float(grades[k]):.1f}" if d is None or self.names[k] in d.kept else f"IT{int(grades[k])}"
-            ax.text(1e6 * float(nominal[k] + band[k]) + 0.01 * right, y[k] + offsets[-1], grade + (f", {fit}" if fit else ""),
-                    va="center", fontsize=7)
+            label = d.callout(k) if d is not None else f"IT{float(self.grade[k]):.1f}"
+            ax.text(1e6 * float(nominal[k] + band[k]) + 0.01 * right, y[k] + offsets[-1], label, va="center", fontsize=7)
         ax.set_xlim(0, right * 1.22)
         ax.set_ylim(-0.6, len(self.names) + 0.2)  # room above the bars for the legend
         joints = {n.partition(".")[0] for n in self.names}

@@ -159,6 +159,19 @@ class SceneFile:
                                + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + ".")
         return SceneFile.from_data(data, "proposal", "<proposal>")
 
+    def with_drawable(self, drawable) -> "SceneFile":
+        """This scene (a proposal, `with_proposal`) with the zones of its drawable twin
+        (`DrawableDesign`: whole ISO grades) written in and their callouts (zone, grade, each
+        journal's ISO 286 fit) added to its description. `tolerax design` writes it as
+        `proposal_drawable.toml`."""
+        from ..uncertainty.sampling import Tolerances
+
+        d = drawable
+        data = self._data_with(Tolerances(d.names, d.nominal, d.band))
+        data["description"] = (data.get("description", "") + f" On whole grades, as drawn: {'; '.join(d.callouts())} "
+                               f"(cost {d.cost:.4g}).")
+        return SceneFile.from_data(data, self.name, self.source)
+
     @property
     def requirement(self) -> float | None:
         """RMS pointing requirement (arcsec) of `[tolerances]`, if given."""
