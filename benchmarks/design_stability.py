@@ -36,7 +36,9 @@ middle +- at least this much (`LinearisedYield.secant_reach`: the jitter's trend
 um against a 29 % scatter, resolved over a wider neighbourhood than a tight zone); adds `_reach`.
 `--surface LO HI` (m): both outputs fitted once over `--secant-units` units spread over [LO, HI]
 for every feature, the design made on that response surface (`design_problem(surface_box=...)`);
-adds `_surface`.
+adds `_surface`. `--surface-rounds K` (default 4): then up to K - 1 more surfaces, each fitted
+over the last design's zones, the design solved again on it (`propose_design(surface_rounds=)`);
+adds `_rounds` (1: the single surface of the earlier results).
 """
 
 import time
@@ -87,6 +89,9 @@ def main():
     parser.add_argument("--surface", type=float, nargs=2, default=None, metavar=("LO", "HI"),
                         help="m: design on a response surface fitted once over units spread over [LO, HI] for every feature "
                         "(design_problem(surface_box=...)), --secant-units of them")
+    parser.add_argument("--surface-rounds", type=int, default=4,
+                        help="with --surface: at most this many response surfaces, each after the first over the last design's "
+                        "zones (propose_design(surface_rounds=...); 1: the one surface over [LO, HI])")
     parser.add_argument("--no-scatter", dest="scatter", action="store_false",
                         help="leave the secant fits' residual scatter out of the linearised quantiles (LinearisedYield(scatter=))")
     args = harness.parse_args(parser)
@@ -113,7 +118,7 @@ def main():
     options = dict(yield_=args.yield_, secant_units=args.secant_units, scatter=args.scatter, widths=(args.width,),
                    max_outer=args.max_iterations, check_units=args.check_units, progress=True, allow_proxy=args.fidelity != "planetary",
                    secant_reach=args.secant_reach, surface_box=None if args.surface is None else tuple(args.surface),
-                   surface_width=args.width)
+                   surface_width=args.width, surface_rounds=args.surface_rounds)
     rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol,
                                                                                   log_fit=args.log_fit)
     designs = {}
@@ -124,6 +129,8 @@ def main():
         designs[label] = dict(report=report, wall=wall, quantiles=quantiles)
         print(f"{label}: cost {report.cost:.3f}, status {report.status}, noise band {report.noise_band}, quantiles {quantiles}, "
               f"bands {np.round(report.band * 1e6, 1)} um, {wall:.0f} s; {report.diagnosis}", flush=True)
+        for note in report.notes:
+            print(f"  note: {note}", flush=True)
 
     verify = _design.at_width(objective(args.verify_fidelity), args.width)
     rows = []
@@ -147,7 +154,8 @@ def main():
     total = time.perf_counter() - start
     harness.write_table(
         f"design_stability_{args.fidelity}" + ("_log" if args.log_fit else "") + ("_reach" if args.secant_reach else "")
-        + ("_surface" if args.surface else "") + ("_checked" if args.check_units else ""),
+        + ("_surface" if args.surface else "") + ("_rounds" if args.surface and args.surface_rounds > 1 else "")
+        + ("_checked" if args.check_units else ""),
         f"A stability (jitter) requirement beside the lost-motion one, designed at {args.fidelity} fidelity, verified at "
         f"{args.verify_fidelity}",
         harness.command(args),
@@ -166,8 +174,9 @@ def main():
                f"linearised by secants over {args.secant_units} units{' with their residual scatter' if args.scatter else ' (lines only)'}"
                + (", the jitter's line fitted to its logarithm (`--log-fit`)" if args.log_fit else "")
                + (f", the secant units spanning at least +-{args.secant_reach * 1e6:g} um (`--secant-reach`)" if args.secant_reach else "")
-               + (f", on a response surface fitted once over [{args.surface[0] * 1e6:g}, {args.surface[1] * 1e6:g}] um (`--surface`)"
-                  if args.surface else "")
+               + (f", on a response surface fitted over [{args.surface[0] * 1e6:g}, {args.surface[1] * 1e6:g}] um (`--surface`)"
+                  + (f", then again over each design's zones, at most {args.surface_rounds} surfaces (`--surface-rounds`)"
+                     if args.surface_rounds > 1 else "") if args.surface else "")
                + ". "
                f"Total wall {total:.0f} s, compilation included."),
     )

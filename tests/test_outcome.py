@@ -138,11 +138,11 @@ def test_a_stalled_tangent_design_is_finished_on_secant_slopes(monkeypatch):
     calls, real = [], P._solve_and_check
 
     def spy(problem, *args, **kwargs):
-        result, checked = real(problem, *args, **kwargs)
+        problem, result, checked, notes = real(problem, *args, **kwargs)
         calls.append((problem.objective.objective.secant_units, kwargs.get("x0"), result))
         if len(calls) == 1:
             result = eqx.tree_at(lambda r: r.stalled, result, jnp.asarray(True), is_leaf=lambda v: v is None)
-        return result, checked
+        return problem, result, checked, notes
 
     monkeypatch.setattr(P, "_solve_and_check", spy)
     pointing = tx.load_scene("scan-azimuth").objective(duration=0.3, settle=0.1, n_save=31)

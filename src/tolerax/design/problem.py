@@ -143,6 +143,16 @@ class DesignProblem:
             return None
         return lambda x, width: secant_gradient_noise(inner, Design(x.nominal + x.band, x.band), self.draws, width)
 
+    def refit_surface(self, lower, upper, width=None) -> "DesignProblem":
+        """This problem on its outputs' response surface fitted again over the box `lower` <= v
+        <= `upper` (m, one value per feature; `fit_surface` with the objective's secant units,
+        at smoothing `width`, m): one batch of forward solves."""
+        inner = self.objective.objective
+        if not isinstance(inner, LinearisedYield) or inner.secant_units is None:
+            raise ValueError("DesignProblem.refit_surface: the objective fits no secants (design_problem(secant_units=...)).")
+        inner = eqx.tree_at(lambda o: o.surface, inner, fit_surface(inner, lower, upper, width), is_leaf=lambda v: v is None)
+        return dataclasses.replace(self, objective=FromLowerLimit(inner))
+
 
 def design_problem(
     pointing: PointingObjective,

@@ -100,6 +100,7 @@ def propose_design(
     jitter: float | None = None,
     noise_band: bool | None = None,
     allow_proxy: bool = False,
+    surface_rounds: int = 4,
     **problem,
 ) -> DesignReport:
     """Propose nominal clearances/backlash and tolerance bands for `pointing.scene` that meet
@@ -162,6 +163,15 @@ def propose_design(
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
+    - `surface_rounds` (with `surface_box`): at most this many response surfaces, each after the
+      first fitted over the zones the last one's design gave (widened to `secant_reach` about
+      their middles where set) and the design solved again on it from there, until the zones
+      settle (moving the box to them would move each output by at most its requirement's
+      tolerance along the surface's slopes); then the checks. A surface over
+      the whole bounds finds where the requirement can be met but reads the quantile where the
+      design lands with the bounds' average misfit; the last surface is fitted over that
+      design's own units (benchmarks/results/design_stability_planetary_log_surface_rounds.md).
+      1: the one surface over `surface_box`. The report's `notes` list the boxes.
     - `allow_proxy`: design requirements whose output the scene's joints do not read as the
       full stage does (a jitter requirement on a lumped or mass-scaled joint:
       `tolerax.design.fidelity`) instead of refusing them; the report's `notes` say so.
@@ -185,6 +195,8 @@ def propose_design(
         raise ValueError("propose_design: a yield requirement's Monte Carlo check needs method='sequential' (or check_units=0).")
     if max_outer is None:
         max_outer = 20 if method == "sequential" else 6
+    if int(surface_rounds) < 1:
+        raise ValueError(f"propose_design: surface_rounds must be >= 1 (1: one response surface), got {surface_rounds!r}.")
     requirements_, options = _requirements_and_options(pointing, requirement, jitter, method, yield_, problem)
     proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=allow_proxy))
     problem = design_problem(pointing, **options)
@@ -195,7 +207,11 @@ def propose_design(
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     if method == "sequential":
         key = jax.random.key(1) if check_key is None else check_key
-        result, checked = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key)
+        rounds = None if options.get("surface_box") is None else (int(surface_rounds), options.get("surface_width"),
+                                                                   options.get("secant_reach"))
+        problem, result, checked, zoomed = _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback,
+                                                            check_units, max_checks, key, rounds=rounds)
+        notes += zoomed
         if bool(result.stalled) and options.get("secant_units") is None:
             problem, result, checked, rescue = _secant_rescue(pointing, options, problem, result, checked, requirements, tol, widths,
                                                       max_outer, progress, callback, check_units, max_checks, key)
@@ -204,7 +220,8 @@ def propose_design(
         if noise_band if noise_band is not None else any(r.secants for r in requirements_):
             seed = int(options.get("secant_seed", 1)) + 1
             twin = design_problem(pointing, **(options | {"secant_seed": seed}))
-            other, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, None, check_units, max_checks, key)
+            _, other, _, _ = _solve_and_check(twin, requirements, tol, widths, max_outer, progress, None, check_units, max_checks, key,
+                                              rounds=rounds)
             twin_costs = (float(result.cost), float(other.cost), seed)
     else:
         schedule = lambda i: jnp.asarray(widths)[jnp.minimum(i, len(widths) - 1)]  # noqa: E731
@@ -339,8 +356,8 @@ def _secant_rescue(pointing, options, problem, result, checked, requirements, to
     solve's; and a note saying what was done."""
     units = max(16, 2 * len(problem.features.names) + 2)
     secant = design_problem(pointing, **(options | {"secant_units": units}))
-    again, again_checked = _solve_and_check(secant, requirements, tol, widths[-1:], max_outer, progress, callback, check_units,
-                                            max_checks, key, x0=result.x, trust=0.1)
+    _, again, again_checked, _ = _solve_and_check(secant, requirements, tol, widths[-1:], max_outer, progress, callback, check_units,
+                                                  max_checks, key, x0=result.x, trust=0.1)
     met = np.all(np.atleast_1d(np.asarray(again.objective, dtype=float)) <= requirements * (1 + tol))
     note = (f"The tangent slopes stalled at the {widths[-1]:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
             f"gradients; the design was finished from there on secant slopes over {units} units of the zone "
@@ -356,17 +373,61 @@ def _as_requirement(requirements):
     return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
 
 
+def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, widths, max_outer, progress, callback):
+    """`propose_design(surface_rounds=...)`: the response surface fitted again over the zones
+    `result`'s design gave (each zone $[l, l + 2b]$, widened to `reach` (m) about its middle where
+    given) and the design solved again on it from there, until the zones settle (moving the
+    box's edges to them would change each output by at most its requirement's tolerance `tol`
+    along the surface's slopes) or `rounds` surfaces were fitted. Returns `(problem,
+    result, notes)`: the problem on the last surface, the design (its history continuing
+    `result`'s) and a note listing the boxes."""
+    surface = problem.objective.objective.surface
+    boxes = [(np.asarray(surface.center - surface.half), np.asarray(surface.center + surface.half))]
+    settled = False
+    for _ in range(rounds - 1):
+        lo = np.asarray(result.x.nominal, dtype=float)
+        hi = lo + 2.0 * np.asarray(result.x.band, dtype=float)
+        if reach is not None:
+            middle, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), float(reach))
+            lo, hi = np.maximum(middle - half, 0.0), middle + half
+        last_lo, last_hi = boxes[-1]
+        inner = problem.objective.objective
+        # Settled: moving the box's edges to the zones would change each output by no more than
+        # its requirement's tolerance along the surface's slopes (a feature the output does not
+        # depend on may drift; its box does not matter).
+        moved = np.abs(np.asarray(inner.surface.slopes)) @ np.maximum(np.abs(lo - last_lo), np.abs(hi - last_hi))
+        if np.all(moved <= tol * np.where(inner.log, 1.0, requirements)):
+            settled = True
+            break
+        problem = problem.refit_surface(lo, hi, width)
+        boxes.append((lo, hi))
+        again = _sequential_continuation(problem, _as_requirement(requirements), widths[-1:], max_outer, progress, callback,
+                                         x0=result.x, trust=0.5, tol=tuple(tol))
+        result = _chain([result, again])
+    if len(boxes) == 1:
+        return problem, result, ()
+    text = "; ".join(f"[{', '.join(f'{a * 1e6:.3g}-{b * 1e6:.3g}' for a, b in zip(lo, hi))}] um" for lo, hi in boxes)
+    return problem, result, (
+        f"Designed on {len(boxes)} response surfaces, each after the first fitted over the last design's zones ({text}); "
+        + ("the zones settled." if settled else f"the zones had not settled after {rounds} (surface_rounds)."),)
+
+
 def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key, x0=None,
-                     trust=0.5):
-    """The sequential design with its Monte Carlo checks: `(result, checked)`, `checked` one
-    `(result, checks (one per requirement), requirements solved for)` per check, the last the
-    returned design's. Where a check finds the linear model off by more than its noise (and by
-    less than `MODEL_OFF` of the requirement), the requirements are shifted by that (SORA) and
-    the design solved again from where it was. A design that misses what it was solved for is
-    not checked."""
+                     trust=0.5, rounds=None):
+    """The sequential design with its Monte Carlo checks: `(problem, result, checked, notes)`,
+    `checked` one `(result, checks (one per requirement), requirements solved for)` per check,
+    the last the returned design's. With `rounds` (`(surface_rounds, surface_width,
+    secant_reach)`), first the response surface's rounds (`_surface_rounds`: `problem` is then
+    the one on the last surface, `notes` say what was done). Where a check finds the linear
+    model off by more than its noise (and by less than `MODEL_OFF` of the requirement), the
+    requirements are shifted by that (SORA) and the design solved again from where it was. A
+    design that misses what it was solved for is not checked."""
     m = requirements.shape[0]
     result = _sequential_continuation(problem, _as_requirement(requirements), widths, max_outer, progress, callback, x0=x0,
                                       trust=trust, tol=tuple(tol))
+    notes = ()
+    if rounds is not None:
+        problem, result, notes = _surface_rounds(problem, result, *rounds, requirements, tol, widths, max_outer, progress, callback)
     target, checked = requirements.copy(), []
     for _ in range(max_checks if check_units else 0):
         if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
@@ -396,7 +457,7 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
     if k is not None:
         checked = checked[: k + 1]
         result = checked[-1][0]
-    return result, checked
+    return problem, result, checked, notes
 
 
 def _outcomes(requirements_, result, baseline, targets, tol, checked) -> tuple[RequirementOutcome, ...]:

@@ -162,11 +162,13 @@ def _value_and_secants_bwd(slopes, cotangent, perturbed, middle, band, positions
 class Surface(eqx.Module):
     """A response surface fitted once over a fixed box of feature values (`fit_surface`): per
     output the least-squares line $f_0 + s\\cdot(v - c)$ through units spread over the box
-    (centre $c$, m), with the standard errors of $f_0$ and $s$ and the residual scatter $\\sigma$
-    (on the log scale for a `log_outputs` output). Shapes: `center` (n,), `value`, `value_se`,
+    (centre $c$, half-widths `half`, m), with the standard errors of $f_0$ and $s$ and the
+    residual scatter $\\sigma$ (on the log scale for a `log_outputs` output). Shapes: `center`,
+    `half` (n,), `value`, `value_se`,
     `sigma` (k,), `slopes`, `slope_se` (k, n) (output units per m)."""
 
     center: Array
+    half: Array
     value: Array
     slopes: Array
     value_se: Array
@@ -421,7 +423,7 @@ def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface
         raise ValueError(f"fit_surface: the box must have 0 <= lower < upper (m), finite; got {lower} and {upper}.")
     value, slopes, value_se, slope_se, sigma = _fit_units(objective, jnp.asarray(0.5 * (lower + upper)),
                                                           jnp.asarray(0.5 * (upper - lower)), width)
-    return Surface(jnp.asarray(0.5 * (lower + upper)), jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(value_se),
+    return Surface(jnp.asarray(0.5 * (lower + upper)), jnp.asarray(0.5 * (upper - lower)), jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(value_se),
                    jnp.asarray(slope_se), jnp.asarray(sigma))
 
 
