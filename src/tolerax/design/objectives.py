@@ -15,9 +15,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 from .features import with_design
+from .life import MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
 
+EOL = "_eol"
+"""The suffix of an output's end-of-life twin (`PointingObjective(life=...)`)."""
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms", "pointing_jitter")
 UNITS = {
     "pointing_rms": "arcsec", "pointing_peak": "arcsec", "pointing_smooth_peak": "arcsec", "tracking_speed_rms": "arcsec/s",
@@ -73,6 +76,12 @@ class PointingObjective(eqx.Module):
     recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
     step-size controller's coefficients (`simulate`; default the I-controller).
 
+    `life` (optional, a `MissionLife`): the clearances worn over the mission's life
+    (`tolerax.design.life`); every output then has an end-of-life twin named `<output>_eol`
+    (e.g. `pointing_rms_eol`), from the scene re-simulated at `life.points` life points as its
+    journal clearances grow by Archard wear (`points + 1` solves per call); the outputs without
+    the suffix stay the beginning of life's and `success` covers every solve.
+
     `adjoint` (optional): how derivatives pass through the solve, a diffrax adjoint handed to
     `simulate` (default `None`: `diffrax.RecursiveCheckpointAdjoint()`, reverse mode;
     `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). benchmarks/results/gradient_methods.md compares
@@ -96,6 +105,7 @@ class PointingObjective(eqx.Module):
     icoeff: float = eqx.field(static=True, default=1.0)
     jitter_cutoff: float | None = eqx.field(static=True, default=None)
     metrics: tuple[AbstractMetric, ...] = ()
+    life: MissionLife | None = None
 
     def __check_init__(self):
         if not (0.0 <= self.settle < self.duration):
@@ -109,12 +119,14 @@ class PointingObjective(eqx.Module):
     def outputs(self) -> tuple[str, ...]:
         """The scalar outputs this objective computes (`pointing_jitter` only with `jitter_cutoff`)."""
         own = tuple(o for o in OUTPUTS if o != "pointing_jitter" or self.jitter_cutoff is not None)
-        return own + tuple(m.name for m in self.metrics)
+        names = own + tuple(m.name for m in self.metrics)
+        return names if self.life is None else names + tuple(f"{o}{EOL}" for o in names)
 
     @property
     def units(self) -> dict[str, str]:
         """The unit of each output."""
-        return UNITS | {m.name: m.unit for m in self.metrics}
+        units = UNITS | {m.name: m.unit for m in self.metrics}
+        return units | {f"{o}{EOL}": u for o, u in units.items()}
 
     def with_width(self, values, smoothing_width=None):
         """The scene with design `values` and, if given, every stage's smoothing width (m)."""
@@ -126,10 +138,13 @@ class PointingObjective(eqx.Module):
 
     def run(self, values, smoothing_width=None):
         """The scene's result for design `values` (`throw=False`: read `success`)."""
+        return self.simulate_scene(self.with_width(values, smoothing_width))
+
+    def simulate_scene(self, scene):
+        """`scene`'s result with this objective's run settings (`throw=False`)."""
         return simulate(
-            self.with_width(values, smoothing_width), self.duration, start=self.start, n_save=self.n_save,
-            rtol=self.rtol, atol=self.atol, max_steps=self.max_steps, pcoeff=self.pcoeff, icoeff=self.icoeff,
-            throw=False, adjoint=self.adjoint,
+            scene, self.duration, start=self.start, n_save=self.n_save, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
+            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint,
         )
 
     def jitter_window(self) -> np.ndarray:
@@ -141,7 +156,43 @@ class PointingObjective(eqx.Module):
 
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
         window = None if self.jitter_cutoff is None else self.jitter_window()  # check before the solve
-        res = self.run(values, smoothing_width)
+        if self.life is not None:
+            outputs, _ = self.over_life(values, smoothing_width)
+            begin = {name: v[0] for name, v in outputs.items()}
+            return begin | {f"{name}{EOL}": v[-1] for name, v in outputs.items() if name != "success"} | dict(
+                success=jnp.all(outputs["success"]))
+        return self._outputs(self.run(values, smoothing_width), window)
+
+    def over_life(self, values, smoothing_width=None):
+        """`(outputs, depths)` at each of the life's points (`life.points + 1`, from the as-built
+        design `values` to the end of life; `tolerax.design.life`): `outputs` the objective's
+        outputs (without the `_eol` twins), each of shape (points + 1,); `depths` `{joint:
+        (points + 1, n_contacts)}` the depth worn (m) at each point, in the stage's
+        `contact_names` order. One solve per point, in one `lax.scan` (compiled once)."""
+        life = self.life
+        if life is None:
+            raise ValueError("PointingObjective.over_life needs a life (PointingObjective(..., life=MissionLife(...))).")
+        scene = self.with_width(values, smoothing_width)
+        joints = worn_joints(scene, life)
+        if not joints:
+            raise ValueError("PointingObjective: the life wears nothing: no planetary joint of the scene has clearance contacts and "
+                             "a wear model (life=MissionLife(..., wear=...); ideal and lumped joints do not wear).")
+        window = None if self.jitter_cutoff is None else self.jitter_window()
+        saves = np.linspace(0.0, self.duration, int(self.n_save)) >= self.settle
+        step = life.operating_time / life.points
+
+        def point(depth, _):
+            worn = worn_scene(scene, depth)
+            res = self.simulate_scene(worn)
+            rates = window_wear_rates(worn, res, saves, life)
+            return {j: depth[j] + step * rates[j] for j in depth}, (self._outputs(res, window), depth)
+
+        start = {joint: jnp.zeros(len(names)) for joint, names in joints}
+        _, (outputs, depths) = jax.lax.scan(point, start, None, length=life.points + 1)
+        return outputs, depths
+
+    def _outputs(self, res, window) -> dict[str, Array]:
+        """The outputs of one run `res` (`window`: the jitter's saves, or `None`)."""
         metrics = pointing_metrics(res, res.ts >= self.settle, self.peak_order)
         out = dict(
             pointing_rms=metrics["pointing_rms"],

@@ -1,0 +1,149 @@
+"""Pointing over a mission's life: the journal clearances grown by Archard wear from the simulated
+contacts (`tolerax.physics.wear`), the dynamics re-simulated at a few life points as they grow.
+
+A `MissionLife` says how long the mechanism runs its duty (`operating_time`, s: the time spent
+in the regime the pointing objective simulates, e.g. scanning), how its contacts wear
+(`ArchardWear`, per joint or for all) and at how many life points the growth is integrated.
+Given to `PointingObjective(life=...)`, every output gains an end-of-life twin (`pointing_rms_eol`,
+...) that requirements, designs and Monte Carlo runs read like any other output.
+
+**The growth.** Over the objective's window $[t_s, T]$ each clearance contact wears at the mean
+rate $\\bar r = h_{window}/(T - t_s)$ (m per operating second; `wear_over_run` over the window),
+and the mission integrates $dc/d\\tau = \\bar r(c)$ over the operating time $\\tau$ by explicit
+Euler steps at `points` life points, each re-simulating the scene with the clearances grown so
+far (the contact forces change as the clearances grow): $c_{k+1} = c_k + \\bar r(c_k)\\,\\Delta\\tau$,
+$\\Delta\\tau$ = `operating_time` / `points`; the end of life is simulated once more at $c_K$.
+`benchmarks/life_convergence.py` measures the end-of-life error against the number of points.
+
+**What wears.** The journal bearings of planetary joints (sun, carrier, each planet's pin, each
+contact its own growth: the pins of one stage grow apart). Not (yet) the tooth flanks: the
+backlash stays as built. Ideal and lumped joints do not wear (they have no contact forces of
+their own). Everything is traceable: gradients of end-of-life outputs with respect to the
+as-built design pass through the growth (`tests/test_life.py` checks them against central
+differences).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array
+
+from .. import _validate as V
+from ..physics import wear as _wear
+
+YEAR = 365.25 * 86400.0
+"""One year (s)."""
+
+
+class MissionLife(eqx.Module):
+    """A mission's life for `PointingObjective(life=...)`.
+
+    - `operating_time` (s): the time the mechanism spends in the simulated regime over the
+      whole life ($\\ge 0$). `MissionLife.from_years(years, duty)` and
+      `MissionLife.from_cycles(cycles, period)` build it from a mission's terms.
+    - `wear`: an `ArchardWear` for every planetary joint, or a dict joint name ->
+      `ArchardWear` (joints missing from it do not wear); e.g.
+      `ArchardWear.from_lubricant("MoS2 sputtered film, vacuum")`.
+    - `points`: Euler steps of the growth over the life, each one more simulation (default 2;
+      end-of-life outputs cost `points + 1` simulations of the window).
+    """
+
+    operating_time: Array
+    wear: _wear.ArchardWear | dict
+    points: int = eqx.field(static=True, default=2)
+
+    def __init__(self, operating_time, wear, points: int = 2):
+        self.operating_time = V.real("MissionLife", "operating_time", operating_time, "s")
+        if isinstance(wear, dict):
+            bad = {k: type(v).__name__ for k, v in wear.items() if not isinstance(v, _wear.ArchardWear)}
+            if bad:
+                raise TypeError(f"MissionLife: wear must map joint names to ArchardWear, got {bad}.")
+        elif not isinstance(wear, _wear.ArchardWear):
+            raise TypeError(f"MissionLife: wear must be an ArchardWear (e.g. ArchardWear.from_lubricant(...)) or a dict of them, "
+                            f"got {type(wear).__name__}.")
+        self.wear = wear
+        if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 1:
+            raise ValueError(f"MissionLife: points must be an integer >= 1 (Euler steps over the life), got {points!r}.")
+        self.points = int(points)
+
+    def __check_init__(self):
+        V.check(self, operating_time=V.NONNEGATIVE("s"))
+
+    @classmethod
+    def from_years(cls, years, duty=1.0, wear=None, points: int = 2) -> "MissionLife":
+        """`years` in orbit (365.25 days) spending the fraction `duty` (0-1) of the time in the
+        simulated regime."""
+        if not (0.0 <= float(duty) <= 1.0):
+            raise ValueError(f"MissionLife.from_years: duty is the fraction of time in the simulated regime, 0-1; got {duty!r}.")
+        return cls(float(years) * YEAR * float(duty), wear, points)
+
+    @classmethod
+    def from_cycles(cls, cycles, period, wear=None, points: int = 2) -> "MissionLife":
+        """`cycles` duty cycles (scans) of `period` s each."""
+        if not float(period) > 0:
+            raise ValueError(f"MissionLife.from_cycles: period must be > 0 (s), got {period!r}.")
+        return cls(float(cycles) * float(period), wear, points)
+
+    def model(self, joint: str):
+        """The `ArchardWear` of `joint` (`None`: it does not wear)."""
+        return self.wear.get(joint) if isinstance(self.wear, dict) else self.wear
+
+
+def worn_joints(scene, life: MissionLife) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    """`(joint, contact names)` for each joint of `scene` that wears under `life`: a planetary
+    joint (full or mass-scaled) with clearance contacts and a wear model."""
+    from ..mechanism.stage_joints import MassScaledPlanetaryJoint, PlanetaryJoint
+
+    out = []
+    for joint, stage_of, _ in scene.named_stages():
+        holder = getattr(scene, joint, None) if joint else None
+        if not isinstance(holder, (PlanetaryJoint, MassScaledPlanetaryJoint)) or life.model(joint) is None:
+            continue
+        names = stage_of(scene).contact_names
+        if names:
+            out.append((joint, names))
+    return tuple(out)
+
+
+def worn_scene(scene, depth: dict):
+    """`scene` with each clearance grown by the depth worn: `depth` maps a joint name to its
+    depths (m, one per contact in the stage's `contact_names` order). A planet-pin clearance
+    becomes one value per planet (each pin wears on its own). Traceable."""
+    for joint, stage_of, _ in scene.named_stages():
+        if joint not in depth:
+            continue
+        d, k = depth[joint], 0
+        for name, bearing, count in _wear._contact_parts(stage_of(scene)):
+            n = count or 1
+            grown = jnp.broadcast_to(bearing.clearance, (n,)) + d[k : k + n] if count else bearing.clearance + d[k]
+            k += n
+            scene = eqx.tree_at(lambda s, st=stage_of, nm=name: getattr(st(s), f"{nm}_support").bearing.clearance, scene, grown)
+    return scene
+
+
+def window_wear_rates(scene, result, window, life: MissionLife) -> dict:
+    """The mean wear rate (m per operating second) of each worn contact over the saves `window`
+    (NumPy bool per save, contiguous): `{joint: rates (n_contacts,)}`."""
+    window = np.asarray(window, dtype=bool)
+    first, last = int(np.argmax(window)), int(window.size - 1 - np.argmax(window[::-1]))
+    if last <= first or not np.all(window[first : last + 1]):
+        raise ValueError("window_wear_rates: the window must be one run of at least 2 saves.")
+    saves = _Saves(result, slice(first, last + 1))
+    depths = _wear.wear_over_run(scene, saves, {j: life.model(j) for j, _ in worn_joints(scene, life)})
+    length = saves.ts[-1] - saves.ts[0]
+    return {joint: jnp.stack([depths[joint][c] for c in names]) / length for joint, names in worn_joints(scene, life)}
+
+
+class _Saves:
+    """The saves `cut` of a result (its times, states and contact forces), as `wear_over_run`
+    reads them."""
+
+    def __init__(self, result, cut: slice):
+        self._result, self._cut = result, cut
+        self.ts = result.ts[cut]
+        self.states = tuple(s[cut] for s in result.states)
+
+    def __getattr__(self, name):
+        value = getattr(self._result, name)
+        return value[self._cut] if name.endswith("_contact") else value
