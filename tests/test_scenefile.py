@@ -92,6 +92,7 @@ def test_table2_and_design_scenes_are_the_builder_calls():
 def test_every_key_is_documented():
     doc = (pathlib.Path(__file__).parents[1] / "docs" / "scene_files.md").read_text()
     keys = set(schema.TOP_KEYS) | set(schema.RUN_KEYS) | set(schema.OUTPUT_KEYS) | set(schema.TOLERANCE_KEYS) | set(schema.SERIES) | set(schema.PLOTS)
+    keys |= set(schema.LIFE_KEYS)
     for builder in schema.BUILDERS.values():
         keys |= set(inspect.signature(builder).parameters)
     keys |= set(inspect.signature(tx.default_stage).parameters)
@@ -386,3 +387,60 @@ def test_a_tabulated_motion_profile_is_tracked():
         tx.parse_scene(text.replace(f"profile_times = {times}", "profile_times = [0.0, 0.2, 0.1, 0.4]"))
     with pytest.raises(tx.SceneFileError, match="profile_angles"):
         tx.parse_scene(text.replace(f"profile_angles = {angles}", 'profile_angles = ["a", 0.0, 0.0, 0.0]'))
+
+
+LIFE_SCENE = """
+title = "the planetary scan over a life"
+[scene]
+kind = "scan"
+mode = "azimuth"
+fidelity = ["planetary", "ideal"]
+[run]
+duration = 0.02
+start = "rest"
+n_save = 41
+[life]
+years = 4
+duty = 0.25
+lubricant = "PFPE grease (Braycote-type), vacuum"
+estimate = "high"
+"""
+
+
+def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys):
+    """`[life]`: the MissionLife it describes (one year of operation: 4 years at a quarter,
+    the lubricant's high estimate, 2 points by default), carried into `objective()` (its `_eol`
+    outputs); refused keys and values name the line; `tolerax run` writes `life.md` with the
+    clearances' growth at each life point (values from `over_life` itself)."""
+    from tolerax.design.life import YEAR
+    from tolerax.physics.wear import LUBRICANTS
+
+    sf = tx.parse_scene(LIFE_SCENE)
+    life = sf.life
+    assert float(life.operating_time) == pytest.approx(YEAR, rel=1e-15) and life.points == 2
+    assert float(life.wear.rate) == LUBRICANTS["PFPE grease (Braycote-type), vacuum"].high
+    assert "pointing_rms_eol" in sf.objective().outputs and tx.load_scene("scan-azimuth").life is None
+    for old, new, message in [
+        ("duty = 0.25", "duty = 1.5", "fraction of the life"),
+        ("years = 4", "years = -4.0", "non-negative number of years"),
+        ("estimate = \"high\"", "estimate = \"worst\"", "estimate='worst' is unknown"),
+        ("lubricant = \"PFPE grease (Braycote-type), vacuum\"", "lubricant = \"graphite\"", "unknown lubricant 'graphite'"),
+        ("duty = 0.25", "duty = 0.25\nhours = 3.0", "unknown key 'hours'"),
+        ("fidelity = [\"planetary\", \"ideal\"]", "fidelity = [\"lumped\", \"ideal\"]", "nothing wears in this scene"),
+    ]:
+        assert old in LIFE_SCENE
+        with pytest.raises(tx.SceneFileError, match=re.escape(message)) as err:
+            tx.parse_scene(LIFE_SCENE.replace(old, new))
+        assert err.value.table == ("scene" if "lumped" in new else "life") or err.value.table == "life"
+    path = tmp_path / "life.toml"
+    path.write_text(LIFE_SCENE.replace("start = \"rest\"", "start = \"rest\"\nsettle = 0.0"))
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "out")]) == 0
+    printed = capsys.readouterr().out
+    text = (tmp_path / "out" / "life.md").read_text()
+    assert "## Over the mission's life" in text and text in printed
+    rows = [line for line in text.splitlines() if line.startswith("| ") and line[2].isdigit()]
+    assert len(rows) == 3 and rows[0].split(" | ")[1] == "0" and rows[2].split(" | ")[1] == "4"
+    outputs, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(tx.load_scene(path).objective(), tx.design_of(sf.build()))
+    last = rows[2].strip("| ").split(" | ")
+    assert float(last[2]) == pytest.approx(float(outputs["pointing_rms"][2]), abs=0.051)
+    np.testing.assert_allclose([float(v) for v in last[4:]], np.asarray(depths["azimuth"][2]) * 1e6, rtol=5e-3, atol=1e-12)

@@ -492,4 +492,49 @@ def run_command(parser, args) -> int:
     if not result.success:
         print("tolerax run: " + "\n".join(result.failures()), file=sys.stderr)
         return 3
+    if scene_file.life is not None:
+        life = scene_file.life
+        print(f"tolerax run: [life] {life.points + 1} more runs of the window (the clearances worn over the life) ...", flush=True)
+        text = life_summary(scene_file)
+        (out / "life.md").write_text(text)
+        print(text)
     return 0
+
+
+def life_summary(scene_file) -> str:
+    """Markdown: the scene file's `[life]`: at each life point, the pointing outputs and each
+    clearance contact's growth by wear (`PointingObjective(life=...).over_life`)."""
+    import equinox as eqx
+    import numpy as np
+
+    from ..design.features import design_of
+    from ..design.life import YEAR, worn_joints
+
+    pointing = scene_file.objective()
+    life, table = pointing.life, scene_file.data["life"]
+    outputs, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(pointing, design_of(pointing.scene))
+    joints = worn_joints(pointing.scene, life)
+    years = float(life.operating_time) / YEAR / float(table.get("duty", 1.0) or 1.0)
+    head = ["life point", "years", "RMS pointing error (arcsec)", "peak (arcsec)"]
+    head += [f"{joint}.{contact} growth (um)" for joint, names in joints for contact in names]
+    rows = []
+    for k in range(life.points + 1):
+        growth = [f"{float(depths[joint][k, i]) * 1e6:.3g}" for joint, names in joints for i in range(len(names))]
+        rows.append([str(k), f"{years * k / life.points:.3g}", f"{float(outputs['pointing_rms'][k]):.1f}",
+                     f"{float(outputs['pointing_peak'][k]):.1f}", *growth])
+    ok = bool(np.all(np.asarray(outputs["success"])))
+    lubricant = table.get("lubricant", "MoS2 sputtered film, vacuum")
+    lines = [
+        "## Over the mission's life",
+        "",
+        f"{years:g} years, {float(table.get('duty', 1.0)):.0%} of the time in this run's regime, {lubricant} "
+        f"({table.get('estimate', 'median')} wear rate): the journal clearances grown by Archard wear from the simulated contact "
+        f"forces over the window, re-simulated at {life.points} life points (tolerax.design.life; the backlash is not worn). "
+        + ("" if ok else "**Some runs failed: their rows are meaningless.**"),
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+        *("| " + " | ".join(r) + " |" for r in rows),
+        "",
+    ]
+    return "\n".join(lines)

@@ -28,6 +28,7 @@ from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
 from . import schema as S
 from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError
+from .schema import life as _life
 
 # ---------------------------------------------------------------------------------------------
 # The description
@@ -104,13 +105,20 @@ class SceneFile:
 
     def objective(self, **kwargs):
         """A `PointingObjective` on this scene over the window `[settle, duration]` (s), with the
-        `[run]` settings (keyword arguments override them)."""
+        `[run]` settings and the `[life]` (its outputs then have end-of-life twins, `_eol`);
+        keyword arguments override them."""
         from ..design.objectives import PointingObjective
 
         run = self.run
         opts = dict(duration=run["duration"], settle=run["settle"], start=run["start"], n_save=run["n_save"],
-                    rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"], pcoeff=run["pcoeff"], icoeff=run["icoeff"])
+                    rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"], pcoeff=run["pcoeff"], icoeff=run["icoeff"],
+                    life=self.life)
         return PointingObjective(self.build(), **{**opts, **kwargs})
+
+    @property
+    def life(self):
+        """The `MissionLife` of `[life]`, or `None` without one."""
+        return None if "life" not in self.data else _life(None, self.data["life"], self.build())
 
     def tolerances(self, scene=None):
         """The `Tolerances` of `[tolerances]` around the design of `scene` (default `build()`):

@@ -76,7 +76,11 @@ OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error"
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6))}
-TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict}
+TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict,
+            "life": dict}
+# [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
+LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
+             "estimate": (str, "median"), "points": (int, 2)}
 
 
 class SceneFileError(ValueError):
@@ -467,4 +471,40 @@ def validate(data: dict, text: str, source: str):
     _check_outputs(chk, data.get("outputs", {}))
     model = _apply_design(chk, data.get("design", {}), build(chk, data["scene"]))
     _check_tolerances(chk, data.get("tolerances", {}), model)
+    if "life" in data:
+        life(chk, data["life"], model)
     return model
+
+
+def life(chk: Checker | None, table_data: dict, model):
+    """The `MissionLife` of a `[life]` table (`years` in orbit, `duty` the fraction of them in the
+    simulated regime, `lubricant` a `tolerax.physics.wear.LUBRICANTS` name at `estimate`, `points`
+    life points); with a checker, its errors name the line."""
+    from ..design.life import MissionLife, worn_joints
+    from ..physics import wear as _wear
+
+    table = ("life",)
+    if chk is not None:
+        chk.keys(table_data, table, list(LIFE_KEYS), required=("years",))
+        for key in table_data:
+            chk.typed(table_data, table, key, LIFE_KEYS[key][0])
+        value = {key: table_data.get(key, default) for key, (_, default) in LIFE_KEYS.items()}
+        if not (math.isfinite(value["years"]) and value["years"] >= 0):
+            raise chk.error(f"must be a non-negative number of years, got {value['years']!r}.", table, "years")
+        if not 0.0 <= value["duty"] <= 1.0:
+            raise chk.error(f"is the fraction of the life spent in the simulated regime, 0-1; got {value['duty']!r}.", table, "duty")
+        if value["lubricant"] not in _wear.LUBRICANTS:
+            raise chk.error(f"unknown lubricant {value['lubricant']!r}{_suggest(value['lubricant'], _wear.LUBRICANTS)}; known: "
+                            f"{', '.join(sorted(_wear.LUBRICANTS))}.", table, "lubricant")
+        if value["estimate"] not in _wear.ESTIMATES:
+            raise chk.error(f"estimate={value['estimate']!r} is unknown; use one of {_wear.ESTIMATES}.", table, "estimate")
+        if value["points"] < 1:
+            raise chk.error(f"must be at least 1 (Euler steps over the life), got {value['points']!r}.", table, "points")
+    else:
+        value = {key: table_data.get(key, default) for key, (_, default) in LIFE_KEYS.items()}
+    result = MissionLife.from_years(value["years"], value["duty"], _wear.ArchardWear.from_lubricant(value["lubricant"], value["estimate"]),
+                                    int(value["points"]))
+    if chk is not None and not worn_joints(model, result):
+        raise chk.error("nothing wears in this scene: [life] needs a joint at planetary fidelity with clearance contacts "
+                        "(ideal and lumped joints do not wear).", table, None)
+    return result
