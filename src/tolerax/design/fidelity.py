@@ -55,7 +55,8 @@ def read_at(requirement) -> str:
     vibration output (`VIBRATION_OUTPUTS`), else `"any"`."""
     if getattr(requirement, "fidelity", None) is not None:
         return requirement.fidelity
-    return "planetary" if requirement.output in VIBRATION_OUTPUTS else "any"
+    # An end-of-life twin (`_eol`, `PointingObjective(life=...)`) is read where its output is.
+    return "planetary" if requirement.output.removesuffix("_eol") in VIBRATION_OUTPUTS else "any"
 
 
 def proxies(scene, fidelity: str) -> dict[str, str]:
