@@ -508,13 +508,13 @@ def life_summary(scene_file) -> str:
     import numpy as np
 
     from ..design.features import design_of
-    from ..design.life import YEAR, worn_joints
+    from ..design.life import worn_joints
 
     pointing = scene_file.objective()
     life, table = pointing.life, scene_file.data["life"]
     outputs, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(pointing, design_of(pointing.scene))
     joints = worn_joints(pointing.scene, life)
-    years = float(life.operating_time) / YEAR / float(table.get("duty", 1.0) or 1.0)
+    years = float(table["years"])
     head = ["life point", "years", "RMS pointing error (arcsec)", "peak (arcsec)"]
     head += [f"{joint}.{contact} growth (um)" for joint, names in joints for contact in names]
     rows = []

@@ -20,7 +20,8 @@ contact its own growth: the pins of one stage grow apart). Not (yet) the tooth f
 backlash stays as built. Ideal and lumped joints do not wear (they have no contact forces of
 their own). Everything is traceable: gradients of end-of-life outputs with respect to the
 as-built design pass through the growth (`tests/test_life.py` checks them against central
-differences).
+differences in a start-up; over a chaotic rattle they are as noisy as any output's, and the
+design fits such outputs by secants).
 """
 
 import equinox as eqx

@@ -170,7 +170,7 @@ def propose_design(
       tolerance along the surface's slopes); then the checks. A surface over
       the whole bounds finds where the requirement can be met but reads the quantile where the
       design lands with the bounds' average misfit; the last surface is fitted over that
-      design's own units (benchmarks/results/design_stability_planetary_log_surface_rounds.md).
+      design's own units (benchmarks/results/design_stability_planetary_log_surface_rounds_checked.md).
       1: the one surface over `surface_box`. The report's `notes` list the boxes.
     - `allow_proxy`: design requirements whose output the scene's joints do not read as the
       full stage does (a jitter requirement on a lumped or mass-scaled joint:
