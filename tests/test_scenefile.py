@@ -432,6 +432,12 @@ def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys)
         with pytest.raises(tx.SceneFileError, match=re.escape(message)) as err:
             tx.parse_scene(LIFE_SCENE.replace(old, new))
         assert err.value.table == ("scene" if "lumped" in new else "life") or err.value.table == "life"
+    # An end-of-life requirement needs a [life]: refused before any work.
+    lifeless = tmp_path / "lifeless.toml"
+    lifeless.write_text(LIFE_SCENE.split("[life]")[0])
+    with pytest.raises(SystemExit) as info:
+        cli.main(["design", str(lifeless), "--requirement", "500", "--require", "pointing_rms_eol=500", "--out", str(tmp_path / "d")])
+    assert info.value.code == 2 and "needs a [life] table" in capsys.readouterr().err
     path = tmp_path / "life.toml"
     path.write_text(LIFE_SCENE.replace("start = \"rest\"", "start = \"rest\"\nsettle = 0.0"))
     assert cli.main(["run", str(path), "--out", str(tmp_path / "out")]) == 0

@@ -90,11 +90,15 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     print(f"tolerax {command}: {n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
           f"window from {pointing.settle} s; features (um) {bands} ({tolerances.distribution}); "
           f"checkpoints in {out / 'chunks'} (rerun to resume, or with a larger --n to extend the run)." + ("" if requirement is not None else
-          " No requirement: give --requirement (arcsec, RMS pointing) for a yield."))
+          " No requirement: give --requirement (arcsec, RMS pointing) for a yield.")
+          + ("" if pointing.life is None else f" [life]: each unit also run at {pointing.life.points} life points (its outputs at "
+             "the end of life: *_eol)."))
     try:
         res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",
                              units=UNITS, requirement=None if requirement is None else {
                                  "pointing_rms": requirement, **({"pointing_jitter": jitter_requirement} if jitter_requirement else {}),
+                                 # a [life]: the RMS requirement at the end of life too (one budget over the life)
+                                 **({"pointing_rms_eol": requirement} if pointing.life is not None else {}),
                                  **(more_requirements or {})})
     except ValueError as err:  # e.g. checkpoints of other settings in the output folder
         print(f"tolerax {command}: {err}", file=sys.stderr)
@@ -264,8 +268,16 @@ def design_command(parser, args) -> int:
             args.verify_fidelity = "planetary"  # the jitter is read on the full stage (tolerax.design.fidelity)
             print(f"tolerax design: --verify simulates the units at planetary fidelity: {scene_file.name} has lumped or "
                   "planetary-scaled joints, which do not read the jitter as the full stage does.")
-    pointing = scene_file.objective(jitter_cutoff=cutoff)
     more = _more_requirements(parser, args)
+    # A [life] costs its points + 1 runs per unit: carried only where a requirement reads the end of life.
+    eol = any(r.output.endswith("_eol") for r in more)
+    pointing = scene_file.objective(jitter_cutoff=cutoff, **({} if eol else {"life": None}))
+    if scene_file.life is not None and not eol:
+        print("tolerax design: the scene has a [life]; this design is for the beginning of life only (add --require "
+              "pointing_rms_eol=LIMIT to meet a limit at the end of life too).")
+    if eol and scene_file.life is None:
+        parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
+                     "(docs/scene_files.md)")
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
@@ -398,7 +410,7 @@ def tradeoff_command(parser, args) -> int:
         return 2
     out, scene_file, options = setup
     requirements = sorted(set(args.requirements))
-    pointing = scene_file.objective()
+    pointing = scene_file.objective(life=None)  # the requirements are the beginning of life's
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
     out.mkdir(parents=True, exist_ok=True)
