@@ -443,20 +443,3 @@ def test_surface_rounds_refit_over_the_design_zones(scan_pointing, monkeypatch):
     hi = float(box.center[0] + box.half[0])
     assert hi <= kink and float(box.sigma[0]) < 1e-9  # the last surface: a zone below the kink, fitted exactly
     assert abs(true_yield(result.x) - 0.9) <= 0.005 and abs(true_yield(first.x) - 0.9) > 0.02
-
-
-def test_a_surface_slope_within_its_noise_does_not_move_a_zone(scan_pointing):
-    """`Surface.resolved_slopes`: a slope within twice its standard error of zero is taken as
-    zero in the value, the slopes and the quantile (a trend the surface's units do not resolve:
-    a zone that follows it follows noise); a resolved one is kept as fitted."""
-    sf = rel.Surface(center=jnp.array([50e-6, 50e-6]), half=jnp.array([45e-6, 45e-6]), value=jnp.array([0.0]),
-                     slopes=jnp.array([[2e4, 3e3]]), value_se=jnp.array([0.01]), slope_se=jnp.array([[1e3, 2e3]]),
-                     sigma=jnp.array([0.3]))
-    np.testing.assert_array_equal(sf.resolved_slopes, [[2e4, 0.0]])
-    objective = rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, secant_units=6, scatter=True, surface=sf)
-    x = tx.Design(jnp.array([30e-6, 80e-6]), jnp.array([5e-6, 5e-6]))
-    f, s, sigma = objective.model(x, None)
-    assert float(f) == pytest.approx(2e4 * (30e-6 - 50e-6), rel=1e-12) and float(sigma) == 0.3
-    np.testing.assert_array_equal(s, [2e4, 0.0])
-    grad = jax.grad(lambda m: objective(tx.Design(m, x.band), rel.yield_draws(3, 1024), None))(x.nominal)
-    assert float(grad[1]) == 0.0 and float(grad[0]) > 0.0

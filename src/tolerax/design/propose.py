@@ -395,7 +395,7 @@ def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, wi
         # Settled: moving the box's edges to the zones would change each output by no more than
         # its requirement's tolerance along the surface's slopes (a feature the output does not
         # depend on may drift; its box does not matter).
-        moved = np.abs(np.asarray(inner.surface.resolved_slopes)) @ np.maximum(np.abs(lo - last_lo), np.abs(hi - last_hi))
+        moved = np.abs(np.asarray(inner.surface.slopes)) @ np.maximum(np.abs(lo - last_lo), np.abs(hi - last_hi))
         if np.all(moved <= tol * np.where(inner.log, 1.0, requirements)):
             settled = True
             break

@@ -175,12 +175,6 @@ class Surface(eqx.Module):
     slope_se: Array
     sigma: Array
 
-    @property
-    def resolved_slopes(self) -> Array:
-        """The slopes, those within twice their standard error of zero set to zero (a trend
-        the surface's units do not resolve)."""
-        return jnp.where(jnp.abs(self.slopes) > 2.0 * self.slope_se, self.slopes, 0.0)
-
 
 class LinearisedYield(eqx.Module):
     """`objective(x, draws, width)`: the `q`-quantile (arcsec) of `output` over units made to
@@ -249,10 +243,6 @@ class LinearisedYield(eqx.Module):
     simulation per evaluation. Where an output's trend is resolved only across the whole bounds
     (the jitter: `jitter_reach.md`), a local fit follows noise and the global one does not; what
     the line misses of the response's curvature over the box is in its scatter (conservative).
-    A slope within twice its standard error of zero is taken as zero: a trend the surface's
-    units do not resolve does not move a zone (on the jitter's surfaces over a design's zones
-    the sun clearance's slope is such noise, and the zone followed it from one surface to the
-    next: design_stability_planetary_log_surface_rounds_checked.md).
     Checked by the Monte Carlo verification like any linearisation."""
 
     pointing: PointingObjective
@@ -310,9 +300,7 @@ class LinearisedYield(eqx.Module):
         middle = x.nominal
         if self.surface is not None:
             sf = self.surface
-            # A slope within twice its standard error of zero is a trend the surface's units do
-            # not resolve: taken as zero, it does not move a zone (its spread stays in the scatter).
-            slopes = jax.lax.stop_gradient(sf.resolved_slopes)
+            slopes = jax.lax.stop_gradient(sf.slopes)
             value = sf.value + slopes @ (middle - sf.center)
             if not isinstance(self.output, tuple):
                 value, slopes, sigma = value[0], slopes[0], sf.sigma[0]
@@ -389,7 +377,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     own fit, no simulation (the value's standard error is the surface's at its centre)."""
     if objective.surface is not None:
         sf = objective.surface
-        slopes = np.asarray(sf.resolved_slopes)
+        slopes = np.asarray(sf.slopes)
         return (np.asarray(sf.value) + slopes @ (np.asarray(x.nominal) - np.asarray(sf.center)), slopes, np.asarray(sf.value_se),
                 np.asarray(sf.slope_se), np.asarray(sf.sigma))
     if objective.secant_units is None:
