@@ -129,21 +129,8 @@ def window_wear_rates(scene, result, window, life: MissionLife) -> dict:
     first, last = int(np.argmax(window)), int(window.size - 1 - np.argmax(window[::-1]))
     if last <= first or not np.all(window[first : last + 1]):
         raise ValueError("window_wear_rates: the window must be one run of at least 2 saves.")
-    saves = _Saves(result, slice(first, last + 1))
-    depths = _wear.wear_over_run(scene, saves, {j: life.model(j) for j, _ in worn_joints(scene, life)})
-    length = saves.ts[-1] - saves.ts[0]
-    return {joint: jnp.stack([depths[joint][c] for c in names]) / length for joint, names in worn_joints(scene, life)}
-
-
-class _Saves:
-    """The saves `cut` of a result (its times, states and contact forces), as `wear_over_run`
-    reads them."""
-
-    def __init__(self, result, cut: slice):
-        self._result, self._cut = result, cut
-        self.ts = result.ts[cut]
-        self.states = tuple(s[cut] for s in result.states)
-
-    def __getattr__(self, name):
-        value = getattr(self._result, name)
-        return value[self._cut] if name.endswith("_contact") else value
+    saves = slice(first, last + 1)
+    joints = worn_joints(scene, life)
+    depths = _wear.wear_over_run(scene, result, {j: life.model(j) for j, _ in joints}, saves)
+    length = result.ts[last] - result.ts[first]
+    return {joint: jnp.stack([depths[joint][c] for c in names]) / length for joint, names in joints}

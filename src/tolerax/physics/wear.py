@@ -259,7 +259,7 @@ def wear_depth_rates(stage: PlanetaryStage, q: Array, u: Array, forces: Array, m
 # Over a run
 
 
-def wear_over_run(mechanism, result, models) -> dict[str, dict[str, Array]]:
+def wear_over_run(mechanism, result, models, saves: slice = slice(None)) -> dict[str, dict[str, Array]]:
     """Depth worn (m) at each clearance contact of each planetary joint over a run.
 
     For each joint with a `.stage` (azimuth, pitch) and clearance contacts, the depth rate
@@ -272,6 +272,8 @@ def wear_over_run(mechanism, result, models) -> dict[str, dict[str, Array]]:
       or a batch: leading axes are kept).
     - `models`: one `ArchardWear` for every joint, or a dict joint name -> `ArchardWear` (a joint
       missing from it is skipped).
+    - `saves` (optional): the saves to integrate over (a slice of the save axis; default all),
+      e.g. a pointing window's (`tolerax.design.life.window_wear_rates`).
 
     Returns `{joint name: {contact name: depth (m)}}`, joints without clearance contacts left out.
     """
@@ -280,13 +282,13 @@ def wear_over_run(mechanism, result, models) -> dict[str, dict[str, Array]]:
         PlanetaryJoint,
     )
 
-    ts = jnp.asarray(result.ts)
+    ts = jnp.asarray(result.ts)[..., saves]
     if V.concrete(ts) and not bool(np.all(np.isfinite(np.asarray(ts)))):
         raise ValueError("result.ts has non-finite save times (a failed run?): the wear needs a complete run; "
                          "check result.success first.")
     if ts.shape[-1] < 2:
         raise ValueError(f"wear_over_run needs at least 2 saves to integrate over, got {ts.shape[-1]}.")
-    q_all, u_all = result.states[0], result.states[1]
+    q_all, u_all = result.states[0][..., saves, :], result.states[1][..., saves, :]
     out = {}
     for (name, _), (joint, sq, su, _) in zip(mechanism.named_joints(), mechanism.joints()):
         if not isinstance(joint, (PlanetaryJoint, MassScaledPlanetaryJoint)):
@@ -303,7 +305,7 @@ def wear_over_run(mechanism, result, models) -> dict[str, dict[str, Array]]:
         names = getattr(result, f"{name}_contact_names")
         if tuple(names) != stage.contact_names:
             raise ValueError(f"result.{name}_contact_names {names} differ from the stage's {stage.contact_names}.")
-        forces = jnp.asarray(getattr(result, f"{name}_contact"))
+        forces = jnp.asarray(getattr(result, f"{name}_contact"))[..., saves, :]
         rates = wear_depth_rates(stage, q_all[..., sq], u_all[..., su], forces, model)
         dt = jnp.diff(ts, axis=-1)[..., None]
         depth = jnp.sum(0.5 * dt * (rates[..., 1:, :] + rates[..., :-1, :]), axis=-2)  # trapezoid rule
