@@ -301,6 +301,40 @@ def test_result_is_the_cheapest_iterate_that_met_the_requirement(monkeypatch, co
 # -- sequential linearisation (`tolerax.design.sequential`) ------------------------------------
 
 
+def test_sequential_holds_zones_under_zone_upper():
+    """`sequential_design(zone_upper=...)`: each zone's upper edge l + 2b at most U (the box a
+    response surface was fitted over). On a linear stack-up whose first feature's response
+    falls as its zone moves up (a lower limit free to move would ride to its bound, 40 um), the
+    design with U = 30 um keeps l + 2b <= U for every feature and is the optimum of the same
+    convex problem solved independently (SciPy's trust-constr on (l, b) with the linear
+    constraints written out), and the run converges."""
+    from tolerax.design.sequential import sequential_design
+
+    w, v = np.array([-1.0, 3.0, 2.0]), np.array([2.5, 0.0, 1.5])  # f = w.(l + b) + v.b (um as arcsec)
+    requirement, l_min, top = 80.0, 5 * UM, np.full(3, 30 * UM)
+
+    def stack(x, draws, width):
+        return (jnp.dot(w, x.nominal + x.band) + jnp.dot(v, x.band)) / UM
+
+    lower, upper = _box(l_min, 40 * UM, 1 * UM, 50 * UM)
+    x0 = Design(jnp.full(3, 5 * UM), jnp.full(3, 5 * UM))
+    result = sequential_design(stack, FEATURES, requirement=requirement, lower=lower, upper=upper, draws=None, x0=x0,
+                               cost_model=RECIPROCAL, zone_upper=top, max_iterations=30)
+    l, b = np.asarray(result.x.nominal), np.asarray(result.x.band)
+    assert np.all(l + 2 * b <= top * (1 + 1e-6)) and bool(result.converged)
+    # The same problem in um, solved by another method from another start.
+    cons = [scipy.optimize.LinearConstraint(np.concatenate([w, w + v])[None], -np.inf, requirement),
+            scipy.optimize.LinearConstraint(np.concatenate([np.eye(3), 2 * np.eye(3)], axis=1), -np.inf, top / UM)]
+    ref = scipy.optimize.minimize(  # cost sum a_i / b_i in 1/um, with its exact derivatives
+        lambda y: float(np.sum(A / y[3:])), np.concatenate([np.full(3, 10.0), np.full(3, 2.0)]), method="trust-constr",
+        jac=lambda y: np.concatenate([np.zeros(3), -A / y[3:] ** 2]),
+        hess=lambda y: np.diag(np.concatenate([np.zeros(3), 2 * A / y[3:] ** 3])),
+        constraints=cons, bounds=[(5, 40)] * 3 + [(1, 50)] * 3, options=dict(gtol=1e-12, xtol=1e-12, maxiter=5000))
+    np.testing.assert_allclose(float(result.cost) * UM, ref.fun, rtol=1e-4)
+    np.testing.assert_allclose(np.concatenate([l, b]) / UM, ref.x, atol=2e-2)
+    assert l[0] + 2 * b[0] >= top[0] * (1 - 1e-6)  # the first zone sits at the top of its box, not at 40 um
+
+
 def test_sequential_lands_on_a_linear_stack_up_in_one_step():
     # A linear stack-up (the lost-motion regime): f = sum w_i (l_i + b_i) + sum v_i b_i. Lower
     # limits cost nothing, so they sit at their minimum; the bands solve a_i/b_i^2 = lambda d_i,

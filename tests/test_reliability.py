@@ -412,16 +412,17 @@ def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
 
 def test_surface_rounds_refit_over_the_design_zones(scan_pointing, monkeypatch):
     """`propose_design(surface_rounds=...)` (`_surface_rounds`): on a response log-linear in one
-    feature with a kink, log y = a + s (v - m0) + s2 max(v - 50 um, 0) (the simulation
+    feature with a kink, log y = a + s (v - m0) + s2 max(v - 70 um, 0) (the simulation
     replaced), a line over the whole bounds [5, 100] um reads the 90 % quantile of the zone it
     designs with the bounds' average slope and scatter: the design's true yield (the response
     over its zone, uniform units) is off the 90 % it was made for. Each later surface is fitted
-    over the last design's zones (the second box is the first design's [l, l + 2b]); once a zone
-    lies below the kink its line is exact and the design's true yield is 90 % to the quantile
-    draws' accuracy; the note lists the boxes and says they settled."""
+    over a box about the last design's zone (its middle +- 1.5 half-widths, moved up to start at
+    0) and the design held inside it; once a box lies below the kink its line is exact and the
+    design's true yield is 90 % to the quantile draws' accuracy; the note lists the boxes and
+    says they settled."""
     from tolerax.design import propose as P
 
-    a, s, s2, m0, kink = np.log(0.05), 2.0e4, 2.0e5, 5e-6, 50e-6
+    a, s, s2, m0, kink = np.log(0.05), 2.0e4, 2.0e5, 5e-6, 70e-6
     requirement, tol = np.array([0.05 * np.exp(s * 36e-6)]), np.array([0.01])  # met at 90 % by the zone [5, 45] um
 
     def fake(values, pointing, output, width):
@@ -436,10 +437,14 @@ def test_surface_rounds_refit_over_the_design_zones(scan_pointing, monkeypatch):
         return float(np.mean(np.exp(a + s * (v - m0) + s2 * np.maximum(v - kink, 0.0)) <= requirement[0]))
 
     first = P._sequential_continuation(problem, float(requirement[0]), (1e-7,), 20, False, tol=tuple(tol))
-    refit, result, notes = P._surface_rounds(problem, first, 6, None, None, requirement, tol, (1e-7,), 20, False, None)
-    assert len(notes) == 1 and notes[0].startswith("Designed on ") and notes[0].endswith("the zones settled.")
-    assert f"[5-100, 5-100, 5-100, 5-100] um; [{float(first.x.nominal[0]) * 1e6:.3g}-" in notes[0]
+    refit, trusted, result, notes = P._surface_rounds(problem, first, 6, None, None, requirement, tol, (1e-7,), 20, False, None)
+    assert len(notes) == 1 and notes[0].startswith("Designed on ") and notes[0].endswith("the boxes settled.")
+    middle, half = float(first.x.nominal[0] + first.x.band[0]), 1.5 * float(first.x.band[0])
+    assert f"[5-100, 5-100, 5-100, 5-100] um; [{max(middle - half, 0) * 1e6:.3g}-" in notes[0]
     box = refit.objective.objective.surface
-    hi = float(box.center[0] + box.half[0])
-    assert hi <= kink and float(box.sigma[0]) < 1e-9  # the last surface: a zone below the kink, fitted exactly
+    lo, hi = float(box.center[0] - box.half[0]), float(box.center[0] + box.half[0])
+    assert hi <= kink and float(box.sigma[0]) < 1e-9  # the last surface: a box below the kink, fitted exactly
+    # the design stays in the box its surface was fitted over
+    assert float(trusted.zone_upper[0]) == hi and float(result.x.nominal[0]) >= lo
+    assert float(result.x.nominal[0] + 2 * result.x.band[0]) <= hi * (1 + 1e-6)
     assert abs(true_yield(result.x) - 0.9) <= 0.005 and abs(true_yield(first.x) - 0.9) > 0.02

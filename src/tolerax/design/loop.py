@@ -44,6 +44,10 @@ class ConstrainedDesign:
     - `draws`: passed to the objective unchanged; `width`: the smoothing width (m) passed to it.
     - `gradient_noise(x, width) -> (m, 2n)` (optional): standard errors of the constraints'
       gradients where they are estimates (secant fits), for the convergence test.
+    - `zone_upper` (n,) (optional, m): each zone's upper edge $l + 2b$ at most this: with the
+      box's lower limits, the zones held inside a box where the constraints' model holds (a
+      response surface's, `propose_design(surface_rounds=...)`); a coupled bound a box on
+      $(l, b)$ cannot express.
     """
 
     objective: Callable
@@ -56,6 +60,7 @@ class ConstrainedDesign:
     draws: Any = None
     width: Any = None
     gradient_noise: Callable | None = None
+    zone_upper: Any = None
 
     def __post_init__(self):
         requirements = np.atleast_1d(np.asarray(self.requirements, dtype=float))

@@ -121,7 +121,9 @@ class DesignProblem:
     """The tolerance-design problem `propose_design` solves, for other optimisers to solve too
     (benchmarks/design_comparison.py): minimise `cost_model.total(x.band, features.size_mm)`
     subject to `objective(x, draws, width) <= requirement` over `lower <= x <= upper`, with
-    `x = Design(lower limit, band)` (m; `FromLowerLimit`), starting from `x0`."""
+    `x = Design(lower limit, band)` (m; `FromLowerLimit`), starting from `x0`; where
+    `zone_upper` (n,) (m) is given, each zone's upper edge `l + 2 b` at most that too (the box
+    a response surface was fitted over: `propose_design(surface_rounds=...)`)."""
 
     objective: FromLowerLimit
     features: Features
@@ -130,6 +132,7 @@ class DesignProblem:
     upper: Design
     x0: Design
     cost_model: AbstractCostModel
+    zone_upper: np.ndarray | None = None
 
     @property
     def gradient_noise(self):

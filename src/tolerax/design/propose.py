@@ -50,6 +50,7 @@ def _sequential_continuation(problem: DesignProblem, requirement, widths, max_it
             draws=problem.draws, x0=x, cost_model=problem.cost_model, width=width, max_iterations=max_iterations,
             trust_region=trust if k == 0 else 0.1, progress=progress, tol=tol, gradient_noise=problem.gradient_noise,
             callback=None if callback is None else (lambda i, *rest, done=done: callback(done + i, *rest)),
+            zone_upper=problem.zone_upper,
         )
         results.append(result)
         x = result.x
@@ -164,10 +165,11 @@ def propose_design(
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
     - `surface_rounds` (with `surface_box`): at most this many response surfaces, each after the
-      first fitted over the zones the last one's design gave (widened to `secant_reach` about
-      their middles where set) and the design solved again on it from there, until the zones
-      settle (moving the box to them would move each output by at most its requirement's
-      tolerance along the surface's slopes); then the checks. A surface over
+      first fitted over a box about the zones the last one's design gave (each middle +- 1.5
+      half-widths, or +- `secant_reach` where wider) and the design solved again on it from
+      there, held inside that box (a line is trusted where it was fitted), until the boxes
+      settle (moving them would move each output by at most its requirement's tolerance along
+      the surface's slopes); then the checks, whose re-solves stay in the last box. A surface over
       the whole bounds finds where the requirement can be met but reads the quantile where the
       design lands with the bounds' average misfit; the last surface is fitted over that
       design's own units (benchmarks/results/design_stability_planetary_log_surface_rounds_checked.md).
@@ -373,43 +375,55 @@ def _as_requirement(requirements):
     return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
 
 
+ZONE_ROOM = 1.5  # a surface round's box: the last design's zone middle +- this many half-widths (or secant_reach)
+
+
 def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, widths, max_outer, progress, callback):
-    """`propose_design(surface_rounds=...)`: the response surface fitted again over the zones
-    `result`'s design gave (each zone $[l, l + 2b]$, widened to `reach` (m) about its middle where
-    given) and the design solved again on it from there, until the zones settle (moving the
-    box's edges to them would change each output by at most its requirement's tolerance `tol`
-    along the surface's slopes) or `rounds` surfaces were fitted. Returns `(problem,
-    result, notes)`: the problem on the last surface, the design (its history continuing
+    """`propose_design(surface_rounds=...)`: the response surface fitted again over a box about
+    the zones `result`'s design gave (each zone's middle +- `ZONE_ROOM` half-widths, or +-
+    `reach` (m) where that is wider; moved up where it would reach below zero) and the design
+    solved again on it from there, its zones held inside that box (lower limits at least the
+    box's lower edge, `DesignProblem.zone_upper` its upper edge): a line is trusted only where
+    it was fitted, and a feature whose fitted slope is noise would otherwise carry its zone
+    (free to move: it costs nothing) far outside the box, where the quantile is read off an
+    extrapolation (benchmarks/results/design_stability_planetary_log_surface_rounds_checked.md).
+    Until the boxes settle (moving the box's edges would change each output by at most its
+    requirement's tolerance `tol` along the surface's slopes) or `rounds` surfaces were
+    fitted. Returns `(problem, trusted, result, notes)`: the problem on the last surface, the
+    same held to its box (for re-solves from the design), the design (its history continuing
     `result`'s) and a note listing the boxes."""
     surface = problem.objective.objective.surface
     boxes = [(np.asarray(surface.center - surface.half), np.asarray(surface.center + surface.half))]
-    settled = False
+    settled, trusted = False, problem
     for _ in range(rounds - 1):
-        lo = np.asarray(result.x.nominal, dtype=float)
-        hi = lo + 2.0 * np.asarray(result.x.band, dtype=float)
-        if reach is not None:
-            middle, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), float(reach))
-            lo, hi = np.maximum(middle - half, 0.0), middle + half
+        band = np.asarray(result.x.band, dtype=float)
+        middle = np.asarray(result.x.nominal, dtype=float) + band
+        half = np.maximum(ZONE_ROOM * band, 0.0 if reach is None else float(reach))
+        lo = np.maximum(middle - half, 0.0)
+        hi = lo + 2.0 * half
         last_lo, last_hi = boxes[-1]
         inner = problem.objective.objective
-        # Settled: moving the box's edges to the zones would change each output by no more than
-        # its requirement's tolerance along the surface's slopes (a feature the output does not
+        # Settled: moving the box's edges would change each output by no more than its
+        # requirement's tolerance along the surface's slopes (a feature the output does not
         # depend on may drift; its box does not matter).
         moved = np.abs(np.asarray(inner.surface.slopes)) @ np.maximum(np.abs(lo - last_lo), np.abs(hi - last_hi))
         if np.all(moved <= tol * np.where(inner.log, 1.0, requirements)):
             settled = True
             break
         problem = problem.refit_surface(lo, hi, width)
+        trusted = dataclasses.replace(problem, lower=Design(np.maximum(np.asarray(problem.lower.nominal), lo), problem.lower.band),
+                                      zone_upper=hi)
         boxes.append((lo, hi))
-        again = _sequential_continuation(problem, _as_requirement(requirements), widths[-1:], max_outer, progress, callback,
+        again = _sequential_continuation(trusted, _as_requirement(requirements), widths[-1:], max_outer, progress, callback,
                                          x0=result.x, trust=0.5, tol=tuple(tol))
         result = _chain([result, again])
     if len(boxes) == 1:
-        return problem, result, ()
+        return problem, trusted, result, ()
     text = "; ".join(f"[{', '.join(f'{a * 1e6:.3g}-{b * 1e6:.3g}' for a, b in zip(lo, hi))}] um" for lo, hi in boxes)
-    return problem, result, (
-        f"Designed on {len(boxes)} response surfaces, each after the first fitted over the last design's zones ({text}); "
-        + ("the zones settled." if settled else f"the zones had not settled after {rounds} (surface_rounds)."),)
+    return problem, trusted, result, (
+        f"Designed on {len(boxes)} response surfaces, each after the first fitted over a box about the last design's zones "
+        f"and the design held inside it ({text}); "
+        + ("the boxes settled." if settled else f"the boxes had not settled after {rounds} (surface_rounds)."),)
 
 
 def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, callback, check_units, max_checks, key, x0=None,
@@ -418,16 +432,18 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
     `checked` one `(result, checks (one per requirement), requirements solved for)` per check,
     the last the returned design's. With `rounds` (`(surface_rounds, surface_width,
     secant_reach)`), first the response surface's rounds (`_surface_rounds`: `problem` is then
-    the one on the last surface, `notes` say what was done). Where a check finds the linear
+    the one on the last surface, `notes` say what was done; re-solves keep the design in that
+    surface's box). Where a check finds the linear
     model off by more than its noise (and by less than `MODEL_OFF` of the requirement), the
     requirements are shifted by that (SORA) and the design solved again from where it was. A
     design that misses what it was solved for is not checked."""
     m = requirements.shape[0]
     result = _sequential_continuation(problem, _as_requirement(requirements), widths, max_outer, progress, callback, x0=x0,
                                       trust=trust, tol=tuple(tol))
-    notes = ()
+    notes, trusted = (), problem
     if rounds is not None:
-        problem, result, notes = _surface_rounds(problem, result, *rounds, requirements, tol, widths, max_outer, progress, callback)
+        problem, trusted, result, notes = _surface_rounds(problem, result, *rounds, requirements, tol, widths, max_outer, progress,
+                                                          callback)
     target, checked = requirements.copy(), []
     for _ in range(max_checks if check_units else 0):
         if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
@@ -446,7 +462,7 @@ def _solve_and_check(problem, requirements, tol, widths, max_outer, progress, ca
         if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == max_checks:
             break
         target = np.where(moved, corrected, target)
-        again = _sequential_continuation(problem, _as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
+        again = _sequential_continuation(trusted, _as_requirement(target), widths[-1:], max_outer, progress, callback, x0=result.x,
                                          trust=0.1, tol=tuple(tol))
         result = _chain([result, again])  # its history (gradients) continues the one before
     # The proposal: the cheapest checked design whose simulated quantile met the requirement

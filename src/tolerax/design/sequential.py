@@ -94,7 +94,16 @@ class _Flat:
         self.hi = np.concatenate([np.asarray(problem.upper.nominal), np.asarray(problem.upper.band)])
         self.span = np.where(self.hi > self.lo, self.hi - self.lo, 1.0)
         self.width = None if problem.width is None else jnp.asarray(problem.width, dtype=float)
+        self.zone = None if problem.zone_upper is None else np.asarray(problem.zone_upper, dtype=float)
         self._noise = {}
+
+    def held(self, z) -> np.ndarray:
+        """The box's upper corner with, where a zone's upper edge is on `zone_upper`, its lower
+        limit's and band's entries at `z` (held there, as by a bound: for the optimality tests)."""
+        if self.zone is None:
+            return self.hi
+        on = z[: self.n] + 2.0 * z[self.n :] >= self.zone - 1e-7 * self.span[self.n :]
+        return np.where(np.concatenate([on, on]), np.minimum(self.hi, z), self.hi)
 
     def design(self, z) -> Design:
         return Design(z[: self.n], z[self.n :])
@@ -128,14 +137,14 @@ class _Flat:
         multipliers (m,), predicted f (m,))`; a multiplier is inf where even the tightest design
         there misses its linearised constraint."""
         n, p = self.n, self.problem
-        if self.m == 1:
+        if self.m == 1 and self.zone is None:
             boxes = (jnp.asarray(box_lo[:n]), jnp.asarray(box_hi[:n])), (jnp.asarray(box_lo[n:]), jnp.asarray(box_hi[n:]))
             l, b, lam, f_pred = _subproblem(p.cost_model, p.features.size_mm, jnp.asarray(f[0]), jnp.asarray(grad[0, :n]),
                                             jnp.asarray(grad[0, n:]), jnp.asarray(z[:n]), jnp.asarray(z[n:]), *boxes,
                                             jnp.asarray(p.requirements[0]))  # arrays: no retrace when values change
         else:
             l, b, lam, f_pred = _subproblem_many(p.cost_model, p.features.size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:],
-                                                 (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]), p.requirements)
+                                                 (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]), p.requirements, self.zone)
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), self.lo, self.hi)
         return trial, np.atleast_1d(np.asarray(lam, dtype=float)), np.atleast_1d(np.asarray(f_pred, dtype=float))
 
@@ -294,7 +303,7 @@ class SequentialSolver(AbstractDesignSolver):
         stationary = spread <= self.cost_tol * kept[-1] or spread <= tolerance_worth(opt.multipliers, tol, R)
         if opt.accepted and met and (active or widest):
             dc = _cost_gradient(problem.cost_model, problem.features.size_mm, z[n:])
-            args = (dc, z, state.grad, f, R, tol, flat.lo, flat.hi, n)
+            args = (dc, z, state.grad, f, R, tol, flat.lo, flat.held(z), n)
             state.converged = bool(
                 (opt.moved <= self.step_tol and not opt.limited)
                 or _optimality(*args) <= self.optimality_tol
@@ -362,6 +371,7 @@ def sequential_design(
     progress: bool = False,
     callback: Callable[[int, Design, float, float], None] | None = None,
     gradient_noise: Callable | None = None,
+    zone_upper=None,
 ) -> OptimisationResult:
     """Cheapest bands meeting `requirement` by sequential linearisation (see the module
     docstring): `solve_design(ConstrainedDesign(...), SequentialSolver(...), x0)`. The design's
@@ -388,6 +398,8 @@ def sequential_design(
       constraints' gradients at `x` (arcsec/m; lower limits then bands) where they are
       estimates (`DesignProblem.gradient_noise`); called (one batch of simulations) only when
       the cost has become stationary and the plain tests failed, and once at the returned design.
+    - `zone_upper` (n,) (optional, m): each zone's upper edge $l + 2b$ at most this
+      (`ConstrainedDesign.zone_upper`; the subproblem is then solved by SLSQP).
 
     **Returns:** an `OptimisationResult` whose design is the cheapest iterate on the requirement
     (objective $\\le R(1 + $`tol`$/10)$), else the last one (its `history.penalty` is NaN and
@@ -396,7 +408,8 @@ def sequential_design(
     columns hold one value per constraint and `sensitivity` one row each.
     """
     try:
-        problem = ConstrainedDesign(objective, features, requirement, tol, lower, upper, cost_model, draws, width, gradient_noise)
+        problem = ConstrainedDesign(objective, features, requirement, tol, lower, upper, cost_model, draws, width, gradient_noise,
+                                    zone_upper)
     except ValueError as err:
         raise ValueError(str(err).replace("ConstrainedDesign", "sequential_design")) from None
     solver = SequentialSolver(trust_region, step_tol, optimality_tol, cost_tol, band_tol)

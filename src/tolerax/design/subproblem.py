@@ -81,14 +81,16 @@ def _subproblem(cost_of, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement
     return l, b, lam, linear(b)
 
 
-def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement):
+def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement, zone_upper=None):
     """`_subproblem` with m linearised constraints (`f_k`, `requirement`: shape (m,); `a`,
     `d`: (m, n); boxes as pairs of NumPy arrays): `(l, b, multipliers (m,), predicted f (m,))`.
     The subproblem is small (the simulations are outside it), convex (a separable convex cost,
     linear constraints, a box) and solved by SciPy's SLSQP on the cost's exact gradient (a
     nested bisection over two multipliers was tried: exact but minutes per call on a CPU).
     The multipliers are the non-negative least-squares fit of the bands' stationarity,
-    $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`)."""
+    $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`).
+    `zone_upper` (n,) (optional, m): each zone's upper edge $l + 2b$ at most this (linear
+    constraints beside the box; the bands held by one count as bound in the multipliers' fit)."""
     n = a.shape[1]
     scale = np.where(b_box[1] > b_box[0], b_box[1] - b_box[0], 1.0)
     l_span = np.where(l_box[1] > l_box[0], l_box[1] - l_box[0], 1.0)
@@ -109,17 +111,23 @@ def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, req
 
     jac = -np.concatenate([a * l_span, d * scale], axis=1) / requirement[:, None]
     y0 = np.clip(np.concatenate([(l_k - l_box[0]) / l_span, (b_k - b_box[0]) / scale]), 0.0, 1.0)
-    result = scipy.optimize.minimize(
-        cost, y0, jac=cost_grad, method="SLSQP", bounds=[(0.0, 1.0)] * (2 * n),
-        constraints=[{"type": "ineq", "fun": lambda y: (requirement - linear(y)) / requirement, "jac": lambda y: jac}],
-        options=dict(ftol=1e-12, maxiter=500),
-    )
+    constraints = [{"type": "ineq", "fun": lambda y: (requirement - linear(y)) / requirement, "jac": lambda y: jac}]
+    if zone_upper is not None:
+        top = np.asarray(zone_upper, dtype=float)
+        edge = np.maximum(top, 1e-12)  # each row relative to its edge
+        zone_jac = -np.concatenate([np.diag(l_span), 2.0 * np.diag(scale)], axis=1) / edge[:, None]
+        constraints.append({"type": "ineq", "fun": lambda y: (top - unpack(y)[0] - 2.0 * unpack(y)[1]) / edge,
+                            "jac": lambda y: zone_jac})
+    result = scipy.optimize.minimize(cost, y0, jac=cost_grad, method="SLSQP", bounds=[(0.0, 1.0)] * (2 * n),
+                                     constraints=constraints, options=dict(ftol=1e-12, maxiter=500))
     # SLSQP leaves a variable on its bound only to its own tolerance: snap it there, so that the
     # design and its optimality residual see which bounds hold.
     y = np.clip(result.x, 0.0, 1.0)
     y = np.where(y < 1e-7, 0.0, np.where(y > 1.0 - 1e-7, 1.0, y))
     l, b = unpack(y)
     free = (b > b_box[0] + 1e-9 * scale) & (b < b_box[1] - 1e-9 * scale)
+    if zone_upper is not None:
+        free &= l + 2.0 * b < np.asarray(zone_upper, dtype=float) - 1e-7 * scale
     multipliers = np.zeros(a.shape[0])
     if np.any(free):
         multipliers = scipy.optimize.nnls(d[:, free].T, -_cost_gradient(cost_model, size_mm, b)[free])[0]
