@@ -38,11 +38,11 @@ def main():
     scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
     period = float(scene.azimuth.drive.period)
     settle, duration = 0.3, 0.3 + period
-    names = scene.azimuth.stage.contact_names
     values = tx.design_of(scene)
     results = {}
     for k in sorted(args.points):
         life = MissionLife.from_years(args.years, args.duty, W.ArchardWear.from_lubricant(args.lubricant), points=k)
+        names = W.wear_names(scene.azimuth.stage, life.model("azimuth"))  # the contacts, then each planet's meshes (flanks)
         pointing = tx.PointingObjective(scene, duration=duration, settle=settle, start="steady",
                                         n_save=int(round(args.save_rate * duration)) + 1, jitter_cutoff=20.0, life=life)
         wall, (outputs, depths) = harness.wall(eqx.filter_jit(lambda p, v: p.over_life(v)), pointing, values)

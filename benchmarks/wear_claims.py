@@ -57,9 +57,10 @@ def main():
         saves = np.asarray(res.ts) >= float(run["settle"])
         rates = np.asarray(window_wear_rates(scene, res, saves, life)[joint])  # m per operating second
         forces = np.asarray(getattr(res, f"{joint}_contact"))[saves]
-        contact_names = contact_names or getattr(scene, joint).stage.contact_names
-        if getattr(scene, joint).stage.contact_names != contact_names:
-            raise ValueError(f"{sf.name}: contacts {getattr(scene, joint).stage.contact_names} differ from {contact_names}.")
+        worn_names = W.wear_names(getattr(scene, joint).stage, life.model(joint))  # the contacts, then the meshes (flanks)
+        contact_names = contact_names or worn_names
+        if worn_names != contact_names:
+            raise ValueError(f"{sf.name}: worn contacts {worn_names} differ from {contact_names}.")
         omega = abs(float(data["scene"]["rate"]))  # rad/s of the output
         totals[joint, case, speed] = rates
         rows.append((joint, case, f"{np.degrees(omega):.3g}", *(f"{r * NM_PER_HOUR:.3g}" for r in rates),

@@ -42,7 +42,7 @@ def main():
     period = float(scene.azimuth.drive.period)
     cycles = args.duration / period
     model = W.ArchardWear.from_lubricant(args.lubricant)
-    names = scene.azimuth.stage.contact_names
+    names = W.wear_names(scene.azimuth.stage, model)  # the contacts, then each planet's meshes (flanks)
     rates, rtols = sorted(args.rates), sorted(args.rtols, reverse=True)
     depth, walls, contacts = {}, {}, {}
     for rtol in rtols:
@@ -86,7 +86,7 @@ def main():
                             ["rtol", "saves/s", *names], rel_rows),
             harness.Section("Quadrature error alone: relative change against the finest save rate at the same rtol, "
                             "and the fraction of saves at which each contact carries force",
-                            ["rtol", "saves/s", *names, f"saves in contact ({', '.join(names)})"], rate_rows),
+                            ["rtol", "saves/s", *names, f"saves in contact ({', '.join(scene.azimuth.stage.contact_names)})"], rate_rows),
         ],
     )
 

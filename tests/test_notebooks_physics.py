@@ -1,5 +1,5 @@
-"""The physics notebooks (the joint on its bench, speed and error) execute end to end at their
-small size and print numbers that make sense."""
+"""The physics notebooks (the joint on its bench, speed and error, a mechanism of one's own, the
+mission's life) execute end to end at their small size and print numbers that make sense."""
 
 from _notebooks import execute as _execute, number as _number
 
@@ -46,6 +46,18 @@ def test_own_mechanism_notebook_executes(monkeypatch, tmp_path):
     assert "azimuth.carrier_clearance (given) | 60.0 | 8.0 |" in outputs  # the bought-in bearing kept its zone
     assert (tmp_path / "proposal.toml").exists() and "verified yield" in outputs
     assert outputs.count("requirement ") >= 2 and "6 of 6 samples used" in outputs
+
+
+def test_mission_life_notebook_executes(monkeypatch):
+    """Pointing over the mission's life (small size: one life point of a short window): the
+    journals and the flanks grew, the end-of-life RMS is read, every lubricant ran, and the
+    committed design_life result is quoted."""
+    outputs = "".join(_execute(monkeypatch, "mission_life.ipynb", "TOLERAX_LIFE_SIZE"))
+    assert "small {" in outputs
+    assert _number(r"largest growth ([\d.e+-]+) um \(", outputs) > 0.0
+    assert _number(r"end of life: RMS pointing error ([\d.]+) arcsec", outputs) > 0.0
+    assert outputs.count("end-of-life RMS") == 3 and "(a run failed)" not in outputs  # one row per lubricant
+    assert "beginning and end of life" in outputs
 
 
 def test_every_notebook_is_stored_with_its_outputs():

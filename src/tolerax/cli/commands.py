@@ -515,7 +515,7 @@ def run_command(parser, args) -> int:
 
 def life_summary(scene_file) -> str:
     """Markdown: the scene file's `[life]`: at each life point, the pointing outputs and each
-    clearance contact's growth by wear (`PointingObjective(life=...).over_life`)."""
+    clearance's (and mesh backlash's) growth by wear (`PointingObjective(life=...).over_life`)."""
     import equinox as eqx
     import numpy as np
 
@@ -541,7 +541,8 @@ def life_summary(scene_file) -> str:
         "",
         f"{years:g} years, {float(table.get('duty', 1.0)):.0%} of the time in this run's regime, {lubricant} "
         f"({table.get('estimate', 'median')} wear rate): the journal clearances grown by Archard wear from the simulated contact "
-        f"forces over the window, re-simulated at {life.points} life points (tolerax.design.life; the backlash is not worn). "
+        f"forces over the window, and each mesh's backlash by its flanks' wear, re-simulated at {life.points} life points "
+        "(tolerax.design.life). "
         + ("" if ok else "**Some runs failed: their rows are meaningless.**"),
         "",
         "| " + " | ".join(head) + " |",

@@ -16,9 +16,10 @@ $\\Delta\\tau$ = `operating_time` / `points`; the end of life is simulated once 
 `benchmarks/life_convergence.py` measures the end-of-life error against the number of points.
 
 **What wears.** The journal bearings of planetary joints (sun, carrier, each planet's pin, each
-contact its own growth: the pins of one stage grow apart). Not (yet) the tooth flanks: the
-backlash stays as built. Ideal and lumped joints do not wear (they have no contact forces of
-their own). Everything is traceable: gradients of end-of-life outputs with respect to the
+contact its own growth: the pins of one stage grow apart) and, with `ArchardWear(flanks=True)`
+(the default) on meshes with backlash, the tooth flanks: each planet's sun-mesh and ring-mesh
+backlash opens by the teeth thinned on both of its gears (`tolerax.physics.wear`'s module
+docstring). Ideal and lumped joints do not wear (they have no contact forces of their own). Everything is traceable: gradients of end-of-life outputs with respect to the
 as-built design pass through the growth (`tests/test_life.py` checks them against central
 differences in a start-up; over a chaotic rattle they are as noisy as any output's, and the
 design fits such outputs by secants).
@@ -91,8 +92,9 @@ class MissionLife(eqx.Module):
 
 
 def worn_joints(scene, life: MissionLife) -> tuple[tuple[str, tuple[str, ...]], ...]:
-    """`(joint, contact names)` for each joint of `scene` that wears under `life`: a planetary
-    joint (full or mass-scaled) with clearance contacts and a wear model."""
+    """`(joint, names)` for each joint of `scene` that wears under `life`: a planetary joint
+    (full or mass-scaled) with clearance contacts and a wear model; `names` what wears
+    (`tolerax.physics.wear.wear_names`: the contacts, then each planet's meshes)."""
     from ..mechanism.stage_joints import MassScaledPlanetaryJoint, PlanetaryJoint
 
     out = []
@@ -100,25 +102,36 @@ def worn_joints(scene, life: MissionLife) -> tuple[tuple[str, tuple[str, ...]], 
         holder = getattr(scene, joint, None) if joint else None
         if not isinstance(holder, (PlanetaryJoint, MassScaledPlanetaryJoint)) or life.model(joint) is None:
             continue
-        names = stage_of(scene).contact_names
-        if names:
-            out.append((joint, names))
+        stage = stage_of(scene)
+        if stage.contact_names:
+            out.append((joint, _wear.wear_names(stage, life.model(joint))))
     return tuple(out)
 
 
 def worn_scene(scene, depth: dict):
-    """`scene` with each clearance grown by the depth worn: `depth` maps a joint name to its
-    depths (m, one per contact in the stage's `contact_names` order). A planet-pin clearance
-    becomes one value per planet (each pin wears on its own). Traceable."""
+    """`scene` with each clearance grown by the depth worn and, where given, each mesh's
+    backlash by its flanks' wear: `depth` maps a joint name to its growths (m) in `wear_names`
+    order (the stage's `contact_names`, then `sun_mesh0..N-1`, `ring_mesh0..N-1` where the
+    flanks wear). A planet-pin clearance and a mesh's backlash become one value per planet (each
+    wears on its own). Traceable."""
     for joint, stage_of, _ in scene.named_stages():
         if joint not in depth:
             continue
         d, k = depth[joint], 0
-        for name, bearing, count in _wear._contact_parts(stage_of(scene)):
+        stage = stage_of(scene)
+        for name, bearing, count in _wear._contact_parts(stage):
             n = count or 1
             grown = jnp.broadcast_to(bearing.clearance, (n,)) + d[k : k + n] if count else bearing.clearance + d[k]
             k += n
             scene = eqx.tree_at(lambda s, st=stage_of, nm=name: getattr(st(s), f"{nm}_support").bearing.clearance, scene, grown)
+        n = stage.n_planets
+        if d.shape[0] == k + 2 * n:  # the flanks wear too
+            for m, mesh in enumerate(("sun_mesh", "ring_mesh")):
+                grown = jnp.broadcast_to(getattr(stage, mesh).backlash, (n,)) + d[k + m * n : k + (m + 1) * n]
+                scene = eqx.tree_at(lambda s, st=stage_of, ms=mesh: getattr(st(s), ms).backlash, scene, grown)
+        elif d.shape[0] != k:
+            raise ValueError(f"worn_scene: {joint} has {d.shape[0]} growths; its stage wears {k} contacts (and {2 * n} meshes with "
+                             "flank wear).")
     return scene
 
 

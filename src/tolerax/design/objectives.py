@@ -167,8 +167,8 @@ class PointingObjective(eqx.Module):
         """`(outputs, depths)` at each of the life's points (`life.points + 1`, from the as-built
         design `values` to the end of life; `tolerax.design.life`): `outputs` the objective's
         outputs (without the `_eol` twins), each of shape (points + 1,); `depths` `{joint:
-        (points + 1, n_contacts)}` the depth worn (m) at each point, in the stage's
-        `contact_names` order. One solve per point, in one `lax.scan` (compiled once)."""
+        (points + 1, n)}` the growth (m) at each point of each clearance and, where the flanks
+        wear, each mesh's backlash, in `tolerax.physics.wear.wear_names` order. One solve per point, in one `lax.scan` (compiled once)."""
         life = self.life
         if life is None:
             raise ValueError("PointingObjective.over_life needs a life (PointingObjective(..., life=MissionLife(...))).")

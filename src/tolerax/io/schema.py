@@ -80,7 +80,7 @@ TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "ru
             "life": dict}
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
-             "estimate": (str, "median"), "points": (int, 2)}
+             "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True)}
 
 
 class SceneFileError(ValueError):
@@ -502,8 +502,8 @@ def life(chk: Checker | None, table_data: dict, model):
             raise chk.error(f"must be at least 1 (Euler steps over the life), got {value['points']!r}.", table, "points")
     else:
         value = {key: table_data.get(key, default) for key, (_, default) in LIFE_KEYS.items()}
-    result = MissionLife.from_years(value["years"], value["duty"], _wear.ArchardWear.from_lubricant(value["lubricant"], value["estimate"]),
-                                    int(value["points"]))
+    wear = _wear.ArchardWear.from_lubricant(value["lubricant"], value["estimate"], flanks=bool(value["flanks"]))
+    result = MissionLife.from_years(value["years"], value["duty"], wear, int(value["points"]))
     if chk is not None and not worn_joints(model, result):
         raise chk.error("nothing wears in this scene: [life] needs a joint at planetary fidelity with clearance contacts "
                         "(ideal and lumped joints do not wear).", table, None)

@@ -1,5 +1,6 @@
-"""Archard wear of the journal-bearing clearances of a planetary stage (docs/model.md §4): how much
-each clearance grows over a simulated run. First step towards pointing over a mission's life.
+"""Archard wear of the journal-bearing clearances and tooth flanks of a planetary stage
+(docs/model.md §4): how much each clearance and each mesh's backlash grows over a simulated run;
+`tolerax.design.life` integrates it over a mission's life.
 
 **Which contacts, which relative rotation.** A stage's clearance contacts are, in
 `PlanetaryStage.contact_names` order (`physics/stage.py`, `supports()` then `contact_names`),
@@ -52,6 +53,28 @@ $$\\frac{dh}{dt} = k\\,p\\,v, \\qquad p = \\frac{F}{2RL}, \\qquad v = R\\,|\\ome
   the save rate), and a mission's clearance growth is the per-run depth times the number of
   runs, with the clearance updated between runs by the caller.
 
+**Tooth flanks** (`flank_backlash_rates`; `ArchardWear(flanks=True)`, the default, for stages
+whose meshes have backlash, `Mesh(kind="nonlinear")`). Two involute flanks in contact at a
+distance $s$ from the pitch point along the line of action slide at $|s|\\,|\\omega_a - \\omega_b|$
+($\\omega$ the gears' absolute rates: the ring's 0 when rigid; the difference is the same in any
+frame), for an external and an internal mesh alike. Over the path of contact $g = \\varepsilon_c
+p_b$ ($p_b = 2\\pi r_b/z$ the base pitch) with approach and recess equal, the mean $|s|$ is
+$g/4$; Archard's volume rate $k F \\bar v$ spread over one gear's $z$ teeth, each worn over the
+active profile ($g$, measured along the line of action, where the backlash is measured too)
+times the face width $b$, thins each tooth at
+
+$$\\dot t = \\frac{k\\,|F|\\,|\\omega_a - \\omega_b|\\,g/4}{z\\,b\\,g} = \\frac{k\\,|F|\\,|\\omega_a -
+\\omega_b|}{4\\,z\\,b}$$
+
+per mesh it works in: the sun's over its $N$ planet meshes, the ring's likewise, each planet's over
+its sun and ring meshes (opposite flanks of its teeth). A tooth thinned by $t$ on either flank
+opens its meshes' backlash by $t$, so the backlash of planet $n$'s sun mesh grows at $\\dot t_s +
+\\dot t_{p,n}$ and of its ring mesh at $\\dot t_r + \\dot t_{p,n}$ ($F$ the tooth force per
+planet and mesh, drive or back flank, from the saved states: `stage_forces`). Model choices: the
+flanks wear at the journals' rate $k$ (the MoS2 entries below are rolling-sliding disc tests,
+the gear-like case); no local Hertz pressure or profile change (the mesh stays involute, its
+stiffness and phase as built); `face_width` 10 mm (MODEL.md's default joint).
+
 **Wear-rate data** (`LUBRICANTS`: name -> `Lubricant(median, low, high, source)`, m³/(N m)).
 Published rates depend strongly on test rig, load and environment; each entry's `source` says
 which number is from which publication and which band is an unsourced order-of-magnitude spread.
@@ -61,6 +84,7 @@ import dataclasses
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
@@ -146,36 +170,58 @@ ESTIMATES = ("median", "low", "high")
 
 
 class ArchardWear(eqx.Module):
-    """Archard wear data of one stage's clearance contacts.
+    """Archard wear data of one stage's clearance contacts and tooth flanks.
 
     - `rate`: specific wear rate $k$ (m³/(N m)), a scalar (every contact) or one per contact in
       `stage.contact_names` order, $\\ge 0$.
     - `length`: bearing length $L$ (m) per contact or a scalar, $> 0$; `None` (default): each
       contact's `JournalBearing.length` (8 mm in `default_stage`).
+    - `flanks` (static, default `True`): the tooth flanks wear too, opening each planet's mesh
+      backlash (`flank_backlash_rates`; meshes with backlash only), at `flank_rate`.
+    - `flank_rate` (m³/(N m), optional): the flanks' $k$; default `rate` (a scalar `rate`).
+    - `face_width` (m): the gears' face width $b$ (default 10 mm, MODEL.md's default joint).
 
     Build from the table with `ArchardWear.from_lubricant(name, estimate="median")`.
     """
 
     rate: Array
     length: Array | None
+    flank_rate: Array | None
+    face_width: Array
+    flanks: bool = eqx.field(static=True, default=True)
 
-    def __init__(self, rate, length=None):
+    def __init__(self, rate, length=None, *, flanks: bool = True, flank_rate=None, face_width=10e-3):
         self.rate = V.real("ArchardWear", "rate", rate, "m^3/(N m)", shape=None)
         self.length = None if length is None else V.real("ArchardWear", "length", length, "m", shape=None)
+        self.flank_rate = None if flank_rate is None else V.real("ArchardWear", "flank_rate", flank_rate, "m^3/(N m)")
+        self.face_width = V.real("ArchardWear", "face_width", face_width, "m")
+        if not isinstance(flanks, bool):
+            raise TypeError(f"ArchardWear: flanks must be True or False (the tooth flanks wear), got {flanks!r}.")
+        self.flanks = flanks
 
     def __check_init__(self):
-        V.check(self, rate=V.NONNEGATIVE("m^3/(N m)"), length=V.Rule("m", low=0.0, low_open=True, optional=True))
+        V.check(self, rate=V.NONNEGATIVE("m^3/(N m)"), length=V.Rule("m", low=0.0, low_open=True, optional=True),
+                flank_rate=V.Rule("m^3/(N m)", low=0.0, optional=True), face_width=V.POSITIVE("m"))
+        if self.flanks and self.flank_rate is None and jnp.ndim(self.rate) != 0:
+            raise ValueError("ArchardWear: with one rate per contact, give the flanks' own flank_rate (a scalar), "
+                             "or flanks=False.")
         for name in ("rate", "length"):
             value = getattr(self, name)
             if value is not None and jnp.ndim(value) > 1:
                 raise ValueError(f"ArchardWear.{name} must be a scalar or one value per contact (1-D), got shape {jnp.shape(value)}.")
 
     @classmethod
-    def from_lubricant(cls, name: str, estimate: str = "median", length=None) -> "ArchardWear":
-        """The rate of `LUBRICANTS[name]` at `estimate` (`"median"`, `"low"` or `"high"`) for every contact."""
+    def from_lubricant(cls, name: str, estimate: str = "median", length=None, **options) -> "ArchardWear":
+        """The rate of `LUBRICANTS[name]` at `estimate` (`"median"`, `"low"` or `"high"`) for every
+        contact and flank; `options`: `flanks`, `face_width`."""
         if estimate not in ESTIMATES:
             raise ValueError(f"estimate={estimate!r} is unknown; use one of {ESTIMATES}.")
-        return cls(getattr(lubricant(name), estimate), length)
+        return cls(getattr(lubricant(name), estimate), length, **options)
+
+    @property
+    def flank_k(self) -> Array:
+        """The flanks' specific wear rate (m³/(N m))."""
+        return self.rate if self.flank_rate is None else self.flank_rate
 
 
 # ---------------------------------------------------------------------------------------------
@@ -255,17 +301,56 @@ def wear_depth_rates(stage: PlanetaryStage, q: Array, u: Array, forces: Array, m
     return rate * pressure * sliding_speeds(stage, q, u)
 
 
+def flank_names(stage: PlanetaryStage, model: "ArchardWear") -> tuple[str, ...]:
+    """The meshes whose backlash `model` wears on `stage`: `sun_mesh0..N-1`, `ring_mesh0..N-1`
+    (one per planet and mesh), or none (`flanks=False`, or meshes without backlash)."""
+    if not model.flanks or stage.sun_mesh.kind != "nonlinear" or stage.ring_mesh.kind != "nonlinear":
+        return ()
+    return tuple(f"{mesh}_mesh{n}" for mesh in ("sun", "ring") for n in range(stage.n_planets))
+
+
+def wear_names(stage: PlanetaryStage, model: "ArchardWear") -> tuple[str, ...]:
+    """What `model` wears on `stage`, in the order of `wear_over_run`'s entries and of the growth
+    arrays of `tolerax.design.life`: the clearance contacts (`contact_names`), then `flank_names`."""
+    return stage.contact_names + flank_names(stage, model)
+
+
+def flank_backlash_rates(stage: PlanetaryStage, q: Array, u: Array, v: Array, model: ArchardWear) -> Array:
+    """The rate (m/s) at which each planet's sun-mesh and ring-mesh backlash opens by flank wear
+    (the module docstring's $\\dot t_s + \\dot t_{p,n}$ and $\\dot t_r + \\dot t_{p,n}$), shape
+    `(..., 2N)`: the sun meshes, then the ring meshes (`flank_names`). `q`, `u`, `v`: the stage's
+    coordinates, speeds and impact-rate states (any leading batch shape); the tooth forces are
+    the stage's own (`stage_forces`)."""
+    from . import planetary as _planetary
+
+    lead = jnp.shape(q)[:-1]
+    flat = [jnp.reshape(x, (-1, jnp.shape(x)[-1])) for x in (q, u, v)]
+    forces = jax.vmap(lambda q_, u_, v_: _planetary.stage_forces(stage, q_, u_, v_))(*flat)
+    lay, n = stage.layout, stage.n_planets
+    speeds = flat[1]
+    w_s, w_p = speeds[:, lay.sun_theta], speeds[:, lay.planet_theta]
+    w_r = speeds[:, lay.ring_theta] if lay.ring_theta is not None else jnp.zeros_like(w_s)
+    k, b = model.flank_k, model.face_width
+    sun_mesh = k * jnp.abs(jnp.reshape(forces.sun_mesh, (-1, n))) * jnp.abs(w_s[:, None] - w_p) / 4.0  # k |F| |dw| / 4: per mesh
+    ring_mesh = k * jnp.abs(jnp.reshape(forces.ring_mesh, (-1, n))) * jnp.abs(w_r[:, None] - w_p) / 4.0
+    sun = jnp.sum(sun_mesh, axis=-1, keepdims=True) / (stage.sun_teeth * b)
+    ring = jnp.sum(ring_mesh, axis=-1, keepdims=True) / (stage.ring_teeth * b)
+    planet = (sun_mesh + ring_mesh) / (stage.planet_teeth * b)
+    return jnp.reshape(jnp.concatenate([sun + planet, ring + planet], axis=-1), (*lead, 2 * n))
+
+
 # ---------------------------------------------------------------------------------------------
 # Over a run
 
 
 def wear_over_run(mechanism, result, models, saves: slice = slice(None)) -> dict[str, dict[str, Array]]:
-    """Depth worn (m) at each clearance contact of each planetary joint over a run.
+    """Depth worn (m) at each clearance contact of each planetary joint over a run, and each
+    mesh's backlash growth by flank wear (`ArchardWear.flanks`).
 
     For each joint with a `.stage` (azimuth, pitch) and clearance contacts, the depth rate
     `wear_depth_rates` at every save of `result` (its `states` $(q, u, \\cdot)$, the joint's slices
     of them, and its contact forces `result.<joint>_contact`) integrated over `result.ts` by the
-    trapezoid rule. The saves must resolve the contact-force history (impacts last fractions of
+    trapezoid rule; likewise `flank_backlash_rates` (the tooth forces from the saved states). The saves must resolve the contact-force history (impacts last fractions of
     a millisecond): see `benchmarks/wear_convergence.py` for the error against the save rate.
 
     - `mechanism`: the `Mechanism` that was simulated; `result`: its `MechanismResult` (one run,
@@ -275,7 +360,9 @@ def wear_over_run(mechanism, result, models, saves: slice = slice(None)) -> dict
     - `saves` (optional): the saves to integrate over (a slice of the save axis; default all),
       e.g. a pointing window's (`tolerax.design.life.window_wear_rates`).
 
-    Returns `{joint name: {contact name: depth (m)}}`, joints without clearance contacts left out.
+    Returns `{joint name: {name: depth (m)}}` over `wear_names` (the contacts, then the meshes'
+    backlash growth `sun_mesh0`, ..., `ring_mesh0`, ...), joints without clearance contacts left
+    out.
     """
     from ..mechanism.stage_joints import (  # mechanism imports physics: import here
         MassScaledPlanetaryJoint,
@@ -290,7 +377,7 @@ def wear_over_run(mechanism, result, models, saves: slice = slice(None)) -> dict
         raise ValueError(f"wear_over_run needs at least 2 saves to integrate over, got {ts.shape[-1]}.")
     q_all, u_all = result.states[0][..., saves, :], result.states[1][..., saves, :]
     out = {}
-    for (name, _), (joint, sq, su, _) in zip(mechanism.named_joints(), mechanism.joints()):
+    for (name, _), (joint, sq, su, sv) in zip(mechanism.named_joints(), mechanism.joints()):
         if not isinstance(joint, (PlanetaryJoint, MassScaledPlanetaryJoint)):
             continue  # ideal or lumped: its coordinates are not the stage's
         stage = joint.stage
@@ -307,7 +394,10 @@ def wear_over_run(mechanism, result, models, saves: slice = slice(None)) -> dict
             raise ValueError(f"result.{name}_contact_names {names} differ from the stage's {stage.contact_names}.")
         forces = jnp.asarray(getattr(result, f"{name}_contact"))[..., saves, :]
         rates = wear_depth_rates(stage, q_all[..., sq], u_all[..., su], forces, model)
+        if flank_names(stage, model):
+            v_all = result.states[2][..., saves, :][..., sv]
+            rates = jnp.concatenate([rates, flank_backlash_rates(stage, q_all[..., sq], u_all[..., su], v_all, model)], axis=-1)
         dt = jnp.diff(ts, axis=-1)[..., None]
         depth = jnp.sum(0.5 * dt * (rates[..., 1:, :] + rates[..., :-1, :]), axis=-2)  # trapezoid rule
-        out[name] = {contact: depth[..., k] for k, contact in enumerate(stage.contact_names)}
+        out[name] = {label: depth[..., k] for k, label in enumerate(wear_names(stage, model))}
     return out
