@@ -138,6 +138,42 @@ def test_flank_wear_gradient(scan):
     np.testing.assert_array_less(np.abs(diffs - ad), 2e-3 * np.abs(diffs))
 
 
+def test_wear_rate_spread_per_unit(scan):
+    """`MissionLife(spread=(low, high))`: a unit's inputs carry the logarithm of a factor on every
+    wear rate after its design values; the end of life with factor 2 is the end of life of the
+    same life with the rates doubled. Monte Carlo draws the factor with the zones
+    (`spread_tolerances`, joined to them): inside [ln low, ln high], one more named input."""
+    from tolerax.design.life import WEAR_FACTOR, spread_of_lubricant
+
+    wear = ArchardWear.from_lubricant(MOS2)
+    spread = spread_of_lubricant(MOS2)
+    assert spread == pytest.approx((0.25, 2.5), rel=1e-12)  # 1e-6 and 1e-5 against the median 4e-6 mm^3/(N m)
+    life = MissionLife.from_years(0.5, wear=wear, points=1, spread=spread)
+    pointing = _objective(scan, life)
+    assert pointing.uncertain_inputs == (WEAR_FACTOR,)
+    doubled = _objective(scan, MissionLife.from_years(0.5, wear=ArchardWear(2 * float(wear.rate)), points=1))
+    values = jnp.full(5, 5e-6)
+    run = eqx.filter_jit(lambda p, v: p(v))
+    got, want, median = run(pointing, jnp.append(values, np.log(2.0))), run(doubled, values), run(pointing, values)
+    assert float(got["pointing_rms_eol"]) == pytest.approx(float(want["pointing_rms_eol"]), rel=1e-12)
+    assert float(got["pointing_rms_eol"]) != float(median["pointing_rms_eol"])  # without the factor: the median rate
+    assert float(got["pointing_rms"]) == float(median["pointing_rms"])  # as built: no wear yet
+    with pytest.raises(ValueError, match=r"a unit has 7 values; the scene has 5 design features .* or 6 \(with life.log_wear_factor\)"):
+        pointing(jnp.zeros(7))
+    zones = tx.Tolerances(tx.design_names(scan), values, jnp.full(5, 1e-6)).joined(life.spread_tolerances())
+    assert zones.names[-1] == WEAR_FACTOR and zones.lower is not None and float(zones.lower[-1]) == -np.inf
+    draws = np.asarray(tx.sample(zones, jax.random.key(0), 2000))
+    assert np.all(draws[:, -1] >= np.log(0.25) - 1e-12) and np.all(draws[:, -1] <= np.log(2.5) + 1e-12)
+    assert np.ptp(draws[:, -1]) > 0.9 * np.log(10.0)  # spread over the band (log-uniform)
+    assert np.all(draws[:, :5] >= 4e-6 - 1e-18)
+    with pytest.raises(ValueError, match=r"spread must be \(low, high\) with 0 < low <= high"):
+        MissionLife(1.0, wear, spread=(2.0, 1.0))
+    with pytest.raises(ValueError, match=r"this life has no spread"):
+        MissionLife(1.0, wear).spread_tolerances()
+    with pytest.raises(ValueError, match=r"one distribution"):
+        zones.joined(life.spread_tolerances("normal"))
+
+
 def test_life_refused_input(scan):
     wear = ArchardWear.from_lubricant(MOS2)
     with pytest.raises(ValueError, match="operating_time"):

@@ -420,6 +420,10 @@ def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys)
     assert float(life.operating_time) == pytest.approx(YEAR, rel=1e-15) and life.points == 2
     assert float(life.wear.rate) == LUBRICANTS["PFPE grease (Braycote-type), vacuum"].high
     assert "pointing_rms_eol" in sf.objective().outputs and tx.load_scene("scan-azimuth").life is None
+    assert life.spread is None and life.wear.flanks  # defaults: one wear rate for every unit, the flanks wear
+    pfpe = LUBRICANTS["PFPE grease (Braycote-type), vacuum"]
+    spread = tx.parse_scene(LIFE_SCENE + "spread = true\nflanks = false\n").life
+    assert spread.spread == pytest.approx((pfpe.low / pfpe.high, 1.0), rel=1e-12) and not spread.wear.flanks
     for old, new, message in [
         ("duty = 0.25", "duty = 1.5", "fraction of the life"),
         ("years = 4", "years = -4.0", "non-negative number of years"),

@@ -92,7 +92,10 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
           f"checkpoints in {out / 'chunks'} (rerun to resume, or with a larger --n to extend the run)." + ("" if requirement is not None else
           " No requirement: give --requirement (arcsec, RMS pointing) for a yield.")
           + ("" if pointing.life is None else f" [life]: each unit also run at {pointing.life.points} life points (its outputs at "
-             "the end of life: *_eol)."))
+             "the end of life: *_eol)" + (f"; its wear rate drawn over x{pointing.life.spread[0]:.3g} to x{pointing.life.spread[1]:.3g} "
+                                          "(spread)." if pointing.uncertain_inputs else ".")))
+    if pointing.uncertain_inputs:  # a [life] with spread: each unit's wear-rate factor is drawn with its zones
+        tolerances = tolerances.joined(pointing.life.spread_tolerances(tolerances.distribution))
     try:
         res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",
                              units=UNITS, requirement=None if requirement is None else {

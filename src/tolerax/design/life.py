@@ -19,7 +19,12 @@ $\\Delta\\tau$ = `operating_time` / `points`; the end of life is simulated once 
 contact its own growth: the pins of one stage grow apart) and, with `ArchardWear(flanks=True)`
 (the default) on meshes with backlash, the tooth flanks: each planet's sun-mesh and ring-mesh
 backlash opens by the teeth thinned on both of its gears (`tolerax.physics.wear`'s module
-docstring). Ideal and lumped joints do not wear (they have no contact forces of their own). Everything is traceable: gradients of end-of-life outputs with respect to the
+docstring). Ideal and lumped joints do not wear (they have no contact forces of their own). **The wear rate's spread.** Published rates for one lubricant span an order of magnitude
+(`tolerax.physics.wear.LUBRICANTS`); `MissionLife(spread=(low, high))` makes the rate an
+uncertain input of each unit: its logarithm, drawn over $[\\ln$ low$, \\ln$ high$]$, follows the
+unit's design values (`WEAR_FACTOR`, `spread_tolerances`), so Monte Carlo verifies the end of
+life over the band while a design, whose units carry only their design values, is made at the
+chosen estimate. Everything is traceable: gradients of end-of-life outputs with respect to the
 as-built design pass through the growth (`tests/test_life.py` checks them against central
 differences in a start-up; over a chaotic rattle they are as noisy as any output's, and the
 design fits such outputs by secants).
@@ -32,9 +37,14 @@ from jaxtyping import Array
 
 from .. import _validate as V
 from ..physics import wear as _wear
+from ..uncertainty.sampling import Tolerances
 
 YEAR = 365.25 * 86400.0
 """One year (s)."""
+
+WEAR_FACTOR = "life.log_wear_factor"
+"""The name of a unit's drawn wear-rate factor (its natural logarithm) in Monte Carlo inputs
+(`MissionLife(spread=...)`, `MissionLife.spread_tolerances`)."""
 
 
 class MissionLife(eqx.Module):
@@ -48,13 +58,20 @@ class MissionLife(eqx.Module):
       `ArchardWear.from_lubricant("MoS2 sputtered film, vacuum")`.
     - `points`: Euler steps of the growth over the life, each one more simulation (default 2;
       end-of-life outputs cost `points + 1` simulations of the window).
+    - `spread` (optional, `(low, high)`, factors on every wear rate, $0 <$ low $\\le$ high): the
+      wear rate is uncertain from unit to unit: each unit's rates are multiplied by
+      $e^x$, $x$ drawn with the unit's other inputs over $[\\ln$ low$, \\ln$ high$]$ (log-uniform
+      for uniform tolerances; `spread_tolerances`), read by `PointingObjective` as one more value
+      after the design's (`WEAR_FACTOR`). `spread_of_lubricant` gives a `LUBRICANTS` entry's band.
+      A design vector without it is at factor 1.
     """
 
     operating_time: Array
     wear: _wear.ArchardWear | dict
     points: int = eqx.field(static=True, default=2)
+    spread: tuple[float, float] | None = eqx.field(static=True, default=None)
 
-    def __init__(self, operating_time, wear, points: int = 2):
+    def __init__(self, operating_time, wear, points: int = 2, spread=None):
         self.operating_time = V.real("MissionLife", "operating_time", operating_time, "s")
         if isinstance(wear, dict):
             bad = {k: type(v).__name__ for k, v in wear.items() if not isinstance(v, _wear.ArchardWear)}
@@ -67,28 +84,58 @@ class MissionLife(eqx.Module):
         if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 1:
             raise ValueError(f"MissionLife: points must be an integer >= 1 (Euler steps over the life), got {points!r}.")
         self.points = int(points)
+        if spread is not None:
+            try:
+                low, high = (float(v) for v in spread)
+            except (TypeError, ValueError):
+                raise ValueError(f"MissionLife: spread must be (low, high), factors on the wear rates, got {spread!r}.") from None
+            if not (np.isfinite(low) and np.isfinite(high) and 0.0 < low <= high):
+                raise ValueError(f"MissionLife: spread must be (low, high) with 0 < low <= high (factors on the wear rates), "
+                                 f"got {spread!r}.")
+            spread = (low, high)
+        self.spread = spread
 
     def __check_init__(self):
         V.check(self, operating_time=V.NONNEGATIVE("s"))
 
     @classmethod
-    def from_years(cls, years, duty=1.0, wear=None, points: int = 2) -> "MissionLife":
+    def from_years(cls, years, duty=1.0, wear=None, points: int = 2, spread=None) -> "MissionLife":
         """`years` in orbit (365.25 days) spending the fraction `duty` (0-1) of the time in the
         simulated regime."""
         if not (0.0 <= float(duty) <= 1.0):
             raise ValueError(f"MissionLife.from_years: duty is the fraction of time in the simulated regime, 0-1; got {duty!r}.")
-        return cls(float(years) * YEAR * float(duty), wear, points)
+        return cls(float(years) * YEAR * float(duty), wear, points, spread)
 
     @classmethod
-    def from_cycles(cls, cycles, period, wear=None, points: int = 2) -> "MissionLife":
+    def from_cycles(cls, cycles, period, wear=None, points: int = 2, spread=None) -> "MissionLife":
         """`cycles` duty cycles (scans) of `period` s each."""
         if not float(period) > 0:
             raise ValueError(f"MissionLife.from_cycles: period must be > 0 (s), got {period!r}.")
-        return cls(float(cycles) * float(period), wear, points)
+        return cls(float(cycles) * float(period), wear, points, spread)
+
+    def spread_tolerances(self, distribution: str = "uniform") -> Tolerances:
+        """The unit-to-unit wear-rate factor as one more Monte Carlo input: `WEAR_FACTOR`, the
+        factor's logarithm over $[\\ln$ low$, \\ln$ high$]$ (`distribution` as the design's
+        zones: uniform, or normal truncated at the ends); join it to the design's zones with
+        `Tolerances.joined`."""
+        if self.spread is None:
+            raise ValueError("MissionLife.spread_tolerances: this life has no spread (MissionLife(..., spread=(low, high))).")
+        low, high = (float(np.log(v)) for v in self.spread)
+        return Tolerances((WEAR_FACTOR,), [0.5 * (low + high)], [0.5 * (high - low)], distribution, lower=None)
 
     def model(self, joint: str):
         """The `ArchardWear` of `joint` (`None`: it does not wear)."""
         return self.wear.get(joint) if isinstance(self.wear, dict) else self.wear
+
+
+def spread_of_lubricant(name: str, estimate: str = "median") -> tuple[float, float]:
+    """`MissionLife(spread=...)` for `LUBRICANTS[name]`'s band: the factors that take its rate at
+    `estimate` to its `low` and `high` rates."""
+    lub = _wear.lubricant(name)
+    if estimate not in _wear.ESTIMATES:
+        raise ValueError(f"estimate={estimate!r} is unknown; use one of {_wear.ESTIMATES}.")
+    rate = getattr(lub, estimate)
+    return lub.low / rate, lub.high / rate
 
 
 def worn_joints(scene, life: MissionLife) -> tuple[tuple[str, tuple[str, ...]], ...]:

@@ -14,8 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
-from .features import with_design
-from .life import MissionLife, window_wear_rates, worn_joints, worn_scene
+from .features import design_names, with_design
+from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
 
@@ -154,21 +154,44 @@ class PointingObjective(eqx.Module):
         check_jitter_sampling(self.duration / (int(self.n_save) - 1), int(np.sum(window)), self.jitter_cutoff)
         return window
 
+    @property
+    def uncertain_inputs(self) -> tuple[str, ...]:
+        """Inputs a unit may carry after its design values (Monte Carlo draws them): the wear-rate
+        factor of a life with a `spread` (`tolerax.design.life.WEAR_FACTOR`), else none."""
+        return (WEAR_FACTOR,) if self.life is not None and self.life.spread is not None else ()
+
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
         window = None if self.jitter_cutoff is None else self.jitter_window()  # check before the solve
+        values, scale = self._split(values)
         if self.life is not None:
-            outputs, _ = self.over_life(values, smoothing_width)
+            outputs, _ = self.over_life(values, smoothing_width, wear_scale=scale)
             begin = {name: v[0] for name, v in outputs.items()}
             return begin | {f"{name}{EOL}": v[-1] for name, v in outputs.items() if name != "success"} | dict(
                 success=jnp.all(outputs["success"]))
         return self._outputs(self.run(values, smoothing_width), window)
 
-    def over_life(self, values, smoothing_width=None):
+    def _split(self, values):
+        """`(design values, wear-rate factor)` of a unit's inputs: the design's, then where the
+        life has a `spread` optionally the factor's logarithm (`uncertain_inputs`); factor 1
+        without it."""
+        n = len(design_names(self.scene))
+        values = jnp.asarray(values)
+        if self.uncertain_inputs and values.shape[-1] == n + 1:
+            return values[:n], jnp.exp(values[n])
+        if values.shape[-1] != n:
+            extra = f" or {n + 1} (with {WEAR_FACTOR})" if self.uncertain_inputs else ""
+            raise ValueError(f"PointingObjective: a unit has {values.shape[-1]} values; the scene has {n} design features "
+                             f"({', '.join(design_names(self.scene))}){extra}.")
+        return values, 1.0
+
+    def over_life(self, values, smoothing_width=None, wear_scale=1.0):
         """`(outputs, depths)` at each of the life's points (`life.points + 1`, from the as-built
         design `values` to the end of life; `tolerax.design.life`): `outputs` the objective's
         outputs (without the `_eol` twins), each of shape (points + 1,); `depths` `{joint:
         (points + 1, n)}` the growth (m) at each point of each clearance and, where the flanks
-        wear, each mesh's backlash, in `tolerax.physics.wear.wear_names` order. One solve per point, in one `lax.scan` (compiled once)."""
+        wear, each mesh's backlash, in `tolerax.physics.wear.wear_names` order. One solve per
+        point, in one `lax.scan` (compiled once). `wear_scale`: a factor on every wear rate (a
+        unit's draw from `MissionLife.spread`; default 1)."""
         life = self.life
         if life is None:
             raise ValueError("PointingObjective.over_life needs a life (PointingObjective(..., life=MissionLife(...))).")
@@ -185,7 +208,7 @@ class PointingObjective(eqx.Module):
             worn = worn_scene(scene, depth)
             res = self.simulate_scene(worn)
             rates = window_wear_rates(worn, res, saves, life)
-            return {j: depth[j] + step * rates[j] for j in depth}, (self._outputs(res, window), depth)
+            return {j: depth[j] + step * wear_scale * rates[j] for j in depth}, (self._outputs(res, window), depth)
 
         start = {joint: jnp.zeros(len(names)) for joint, names in joints}
         _, (outputs, depths) = jax.lax.scan(point, start, None, length=life.points + 1)

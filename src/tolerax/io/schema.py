@@ -80,7 +80,8 @@ TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "ru
             "life": dict}
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
-             "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True)}
+             "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True),
+             "spread": (bool, False)}
 
 
 class SceneFileError(ValueError):
@@ -480,7 +481,7 @@ def life(chk: Checker | None, table_data: dict, model):
     """The `MissionLife` of a `[life]` table (`years` in orbit, `duty` the fraction of them in the
     simulated regime, `lubricant` a `tolerax.physics.wear.LUBRICANTS` name at `estimate`, `points`
     life points); with a checker, its errors name the line."""
-    from ..design.life import MissionLife, worn_joints
+    from ..design.life import MissionLife, spread_of_lubricant, worn_joints
     from ..physics import wear as _wear
 
     table = ("life",)
@@ -503,7 +504,8 @@ def life(chk: Checker | None, table_data: dict, model):
     else:
         value = {key: table_data.get(key, default) for key, (_, default) in LIFE_KEYS.items()}
     wear = _wear.ArchardWear.from_lubricant(value["lubricant"], value["estimate"], flanks=bool(value["flanks"]))
-    result = MissionLife.from_years(value["years"], value["duty"], wear, int(value["points"]))
+    spread = spread_of_lubricant(value["lubricant"], value["estimate"]) if value["spread"] else None
+    result = MissionLife.from_years(value["years"], value["duty"], wear, int(value["points"]), spread)
     if chk is not None and not worn_joints(model, result):
         raise chk.error("nothing wears in this scene: [life] needs a joint at planetary fidelity with clearance contacts "
                         "(ideal and lumped joints do not wear).", table, None)

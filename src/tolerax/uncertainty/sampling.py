@@ -151,6 +151,19 @@ class Tolerances(eqx.Module):
         lower = None if self.lower is None else self.lower[k]
         return Tolerances(names, self.nominal[k], self.band[k], self.distribution, lower)
 
+    def joined(self, other: "Tolerances") -> "Tolerances":
+        """These zones followed by `other`'s (one `Tolerances`; the same `distribution`; a
+        `lower` of `None` on either side is no floor, -inf, for its features)."""
+        if not isinstance(other, Tolerances):
+            raise TypeError(f"Tolerances.joined: other must be a Tolerances, got {type(other).__name__}.")
+        if other.distribution != self.distribution:
+            raise ValueError(f"Tolerances.joined: both must have one distribution, got {self.distribution!r} and "
+                             f"{other.distribution!r}.")
+        floor = lambda t: jnp.full((t.n_features,), -jnp.inf) if t.lower is None else t.lower  # noqa: E731
+        lower = None if self.lower is None and other.lower is None else jnp.concatenate([floor(self), floor(other)])
+        return Tolerances(self.names + other.names, jnp.concatenate([self.nominal, other.nominal]),
+                          jnp.concatenate([self.band, other.band]), self.distribution, lower)
+
     def bounds(self) -> np.ndarray:
         """The tolerance box as an array of `[low, high]` rows (m): nominal ± band, the low end
         clipped at `lower`."""
