@@ -19,15 +19,18 @@ $\\Delta\\tau$ = `operating_time` / `points`; the end of life is simulated once 
 contact its own growth: the pins of one stage grow apart) and, with `ArchardWear(flanks=True)`
 (the default) on meshes with backlash, the tooth flanks: each planet's sun-mesh and ring-mesh
 backlash opens by the teeth thinned on both of its gears (`tolerax.physics.wear`'s module
-docstring). Ideal and lumped joints do not wear (they have no contact forces of their own). **The wear rate's spread.** Published rates for one lubricant span an order of magnitude
+docstring). Ideal and lumped joints do not wear (they have no contact forces of their own).
+Everything is traceable: gradients of end-of-life outputs with respect to the as-built design
+pass through the growth (`tests/test_life.py` checks them against central differences in a
+start-up; over a chaotic rattle they are as noisy as any output's, and the design fits such
+outputs by secants).
+
+**The wear rate's spread.** Published rates for one lubricant span an order of magnitude
 (`tolerax.physics.wear.LUBRICANTS`); `MissionLife(spread=(low, high))` makes the rate an
 uncertain input of each unit: its logarithm, drawn over $[\\ln$ low$, \\ln$ high$]$, follows the
 unit's design values (`WEAR_FACTOR`, `spread_tolerances`), so Monte Carlo verifies the end of
 life over the band while a design, whose units carry only their design values, is made at the
-chosen estimate. Everything is traceable: gradients of end-of-life outputs with respect to the
-as-built design pass through the growth (`tests/test_life.py` checks them against central
-differences in a start-up; over a chaotic rattle they are as noisy as any output's, and the
-design fits such outputs by secants).
+chosen estimate.
 """
 
 import equinox as eqx
