@@ -37,7 +37,8 @@ um against a 29 % scatter, resolved over a wider neighbourhood than a tight zone
 `--surface LO HI` (m): both outputs fitted once over `--secant-units` units spread over [LO, HI]
 for every feature, the design made on that response surface (`design_problem(surface_box=...)`);
 adds `_surface`. `--surface-rounds K` (default 4): then up to K - 1 more surfaces, each fitted
-over the last design's zones, the design solved again on it (`propose_design(surface_rounds=)`);
+over a box about the last design's zones, the design solved again on it and held inside the box
+(`propose_design(surface_rounds=)`);
 adds `_rounds` (1: the single surface of the earlier results).
 """
 
@@ -175,7 +176,8 @@ def main():
                + (", the jitter's line fitted to its logarithm (`--log-fit`)" if args.log_fit else "")
                + (f", the secant units spanning at least +-{args.secant_reach * 1e6:g} um (`--secant-reach`)" if args.secant_reach else "")
                + (f", on a response surface fitted over [{args.surface[0] * 1e6:g}, {args.surface[1] * 1e6:g}] um (`--surface`)"
-                  + (f", then again over each design's zones, at most {args.surface_rounds} surfaces (`--surface-rounds`)"
+                  + (f", then again over a box about each design's zones (the design held inside it), at most {args.surface_rounds} "
+                     "surfaces (`--surface-rounds`)"
                      if args.surface_rounds > 1 else "") if args.surface else "")
                + ". "
                f"Total wall {total:.0f} s, compilation included."),
