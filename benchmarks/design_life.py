@@ -6,7 +6,8 @@ made for the beginning of life alone, both verified by Monte Carlo at both ends 
         [--secant-units 32] [--verify-units 50] [--results DIR]
 
 Scene: `tolerax.scan("azimuth", fidelity=("planetary", "ideal"))` (the azimuth stage in full:
-its journal clearances wear), steady start, Tsit5 at rtol 1e-6, window [0.3, 0.6] s at 500
+its journal clearances wear, and since ef55dd5 its tooth flanks: the committed result predates
+that), steady start, Tsit5 at rtol 1e-6, window [0.3, 0.6] s at 500
 saves/s, with `PointingObjective(life=MissionLife.from_years(--years, --duty, MoS2 sputtered
 film median, points=2))`: each unit is simulated as built, at mid-life and at the end of life
 (3 solves), its outputs `pointing_rms` and `pointing_rms_eol`. Requirement: both at most
@@ -17,7 +18,8 @@ stage's RMS are not its slopes over a zone: `tests/test_life.py` checks them onl
 `--secant-units` units per surface, lower limits >= 5 um, bands 1-50 um, ISO 286 cost; no
 Monte Carlo check inside (the verification is the check). Verified on `--verify-units` fresh
 units each (`tolerax.monte_carlo`, key 2026): the yield at each end of life with its 95 % Wilson
-interval. The wear rate is the lubricant's median for every unit (its spread is not drawn).
+interval. The wear rate is the lubricant's median for every unit (its spread is not drawn here:
+`life_spread_check.py` verifies these designs again with it).
 """
 
 import time
