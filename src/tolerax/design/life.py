@@ -135,9 +135,7 @@ def spread_of_lubricant(name: str, estimate: str = "median") -> tuple[float, flo
     """`MissionLife(spread=...)` for `LUBRICANTS[name]`'s band: the factors that take its rate at
     `estimate` to its `low` and `high` rates."""
     lub = _wear.lubricant(name)
-    if estimate not in _wear.ESTIMATES:
-        raise ValueError(f"estimate={estimate!r} is unknown; use one of {_wear.ESTIMATES}.")
-    rate = getattr(lub, estimate)
+    rate = lub.at(estimate)
     return lub.low / rate, lub.high / rate
 
 

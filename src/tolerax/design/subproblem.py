@@ -116,8 +116,11 @@ def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, req
         top = np.asarray(zone_upper, dtype=float)
         edge = np.maximum(top, 1e-12)  # each row relative to its edge
         zone_jac = -np.concatenate([np.diag(l_span), 2.0 * np.diag(scale)], axis=1) / edge[:, None]
-        constraints.append({"type": "ineq", "fun": lambda y: (top - unpack(y)[0] - 2.0 * unpack(y)[1]) / edge,
-                            "jac": lambda y: zone_jac})
+        def zone_room(y):
+            l, b = unpack(y)
+            return (top - l - 2.0 * b) / edge
+
+        constraints.append({"type": "ineq", "fun": zone_room, "jac": lambda y: zone_jac})
     result = scipy.optimize.minimize(cost, y0, jac=cost_grad, method="SLSQP", bounds=[(0.0, 1.0)] * (2 * n),
                                      constraints=constraints, options=dict(ftol=1e-12, maxiter=500))
     # SLSQP leaves a variable on its bound only to its own tolerance: snap it there, so that the

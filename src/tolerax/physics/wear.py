@@ -96,6 +96,9 @@ MM3_PER_NM = 1e-9
 """One mm³/(N m) in m³/(N m)."""
 
 
+ESTIMATES = ("median", "low", "high")
+
+
 @dataclasses.dataclass(frozen=True)
 class Lubricant:
     """Specific wear rates $k$ of one lubricated pair (m³/(N m)): a `median` estimate and a
@@ -113,6 +116,12 @@ class Lubricant:
                 raise ValueError(f"Lubricant.{name} must be a finite specific wear rate >= 0 (m^3/(N m)), got {value!r}.")
         if not self.low <= self.median <= self.high:
             raise ValueError(f"Lubricant rates must satisfy low <= median <= high, got {self.low}, {self.median}, {self.high}.")
+
+    def at(self, estimate: str) -> float:
+        """The rate (m³/(N m)) at `estimate`: `"median"`, `"low"` or `"high"`."""
+        if estimate not in ESTIMATES:
+            raise ValueError(f"estimate={estimate!r} is unknown; use one of {ESTIMATES}.")
+        return getattr(self, estimate)
 
 
 LUBRICANTS: dict[str, Lubricant] = {
@@ -166,9 +175,6 @@ def lubricant(name: str) -> Lubricant:
     return LUBRICANTS[name]
 
 
-ESTIMATES = ("median", "low", "high")
-
-
 class ArchardWear(eqx.Module):
     """Archard wear data of one stage's clearance contacts and tooth flanks.
 
@@ -214,9 +220,7 @@ class ArchardWear(eqx.Module):
     def from_lubricant(cls, name: str, estimate: str = "median", length=None, **options) -> "ArchardWear":
         """The rate of `LUBRICANTS[name]` at `estimate` (`"median"`, `"low"` or `"high"`) for every
         contact and flank; `options`: `flanks`, `face_width`."""
-        if estimate not in ESTIMATES:
-            raise ValueError(f"estimate={estimate!r} is unknown; use one of {ESTIMATES}.")
-        return cls(getattr(lubricant(name), estimate), length, **options)
+        return cls(lubricant(name).at(estimate), length, **options)
 
     @property
     def flank_k(self) -> Array:
