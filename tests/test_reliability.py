@@ -448,3 +448,66 @@ def test_surface_rounds_refit_over_the_design_zones(scan_pointing, monkeypatch):
     assert float(trusted.zone_upper[0]) == hi and float(result.x.nominal[0]) >= lo
     assert float(result.x.nominal[0] + 2 * result.x.band[0]) <= hi * (1 + 1e-6)
     assert abs(true_yield(result.x) - 0.9) <= 0.005 and abs(true_yield(first.x) - 0.9) > 0.02
+
+
+def test_design_units_draw_the_wear_rate_of_a_life_with_spread(scan_pointing, monkeypatch):
+    """A life whose wear rate spreads from unit to unit (`MissionLife(spread=...)`): the design's
+    secant units, its surface's and its Monte Carlo check's each draw the rate's logarithm over
+    its band (one more column after the design values), and the fit's residual scatter carries
+    its effect. On a response linear in one feature and in the drawn logarithm (the simulation
+    replaced): the fitted slope is the feature's, the scatter that of the drawn term (uniform:
+    half-width / sqrt(3)), and the 99 % quantile the design reads lies above the exact one of
+    the same response over uniform units and rates (the normal tail is longer than a bounded
+    term's; conservative) and within 15 % of its reach. Without secants and scatter the design
+    problem is refused; `propose_design` linearises every requirement by secants."""
+    import dataclasses
+
+    from tolerax.design.life import WEAR_FACTOR, MissionLife
+    from tolerax.design.problem import design_problem
+    from tolerax.physics.wear import ArchardWear
+
+    life = MissionLife(1.0, ArchardWear(rate=1e-15), spread=(0.25, 2.5))
+    pointing = dataclasses.replace(scan_pointing, life=life)
+    n = len(tx.design_names(pointing.scene))
+    assert pointing.uncertain_inputs == (WEAR_FACTOR,)
+    middle_w, half_w = (float(v[0]) for v in pointing.uncertain_box())
+    assert middle_w == pytest.approx(0.5 * np.log(0.25 * 2.5)) and half_w == pytest.approx(0.5 * np.log(2.5 / 0.25))
+    c0, s_true, c_w = 100.0, 2.0e6, 30.0  # arcsec, arcsec/m on the first feature, arcsec per unit of log(factor)
+
+    def fake(values, pointing_, output, width):
+        assert values.shape[-1] == n + 1, "a unit must carry its wear-rate factor"
+        y = c0 + s_true * (values[0] - 50e-6) + c_w * (values[n] - middle_w)
+        return jnp.stack([y]) if isinstance(output, tuple) else y
+
+    monkeypatch.setattr(rel, "unit_output", fake)
+    monkeypatch.setattr(rel, "_simulate_units", lambda p, o, units, w: jax.vmap(lambda v: fake(v, p, o, w))(units))
+    objective = rel.LinearisedYield(pointing, q=0.99, secant_units=64, scatter=True)
+    x = tx.Design(jnp.full(n, 50e-6), jnp.full(n, 20e-6))
+    f, s, sigma = eqx.filter_jit(lambda o, x_: o.model(x_, None))(objective, x)
+    # The drawn term is noise to a line in the features: a slope's standard error is its scatter
+    # over sqrt(units) x the feature's standard deviation over the zone (2.2e5 arcsec/m here).
+    slope_se = c_w * half_w / np.sqrt(3.0) / (np.sqrt(64) * 20e-6 / np.sqrt(3.0))
+    assert abs(float(s[0]) - s_true) < 3 * slope_se and np.all(np.abs(np.asarray(s[1:])) < 3 * slope_se)
+    assert float(sigma) == pytest.approx(c_w * half_w / np.sqrt(3.0), rel=0.1)
+    surface = rel.fit_surface(objective, np.full(n, 20e-6), np.full(n, 80e-6))
+    assert float(surface.sigma[0]) == pytest.approx(c_w * half_w / np.sqrt(3.0), rel=0.1)
+    draws = rel.yield_draws(n + 1, 16384)
+    q = float(eqx.filter_jit(objective)(x, draws, None))
+    rng = np.random.default_rng(3)
+    v0 = 50e-6 + 20e-6 * rng.uniform(-1, 1, 400_000)
+    exact = np.quantile(c0 + s_true * (v0 - 50e-6) + c_w * half_w * rng.uniform(-1, 1, v0.size), 0.99)
+    reach = exact - c0
+    assert exact < q < exact + 0.15 * reach, (q, exact)
+    check = rel.yield_check(objective, x, 150.0, 64, jax.random.key(1))
+    # The check's units drew the rate over the whole band: their responses less the feature's
+    # term span nearly +-c_w * half_w and never beyond.
+    values = np.asarray(rel.realise(x, tx.unit_draws(jax.random.key(1), 64, n + 1)[:, :n]))
+    drawn = check.simulated - (c0 + s_true * (values[:, 0] - 50e-6))
+    assert np.all(np.abs(drawn) <= c_w * half_w * (1 + 1e-9)) and drawn.min() < -0.7 * c_w * half_w and drawn.max() > 0.7 * c_w * half_w
+    with pytest.raises(ValueError, match="draws life.log_wear_factor"):
+        design_problem(pointing, yield_=0.99)
+    requirements, options = _propose._requirements_and_options(pointing, tx.Requirement("pointing_rms", 150.0), None,
+                                                                "sequential", 0.99, {})
+    assert requirements[0].secants and options["scatter"] and options["secant_units"] >= n + 2
+    with pytest.raises(ValueError, match="leave scatter on"):
+        _propose._requirements_and_options(pointing, tx.Requirement("pointing_rms", 150.0), None, "sequential", 0.99, {"scatter": False})

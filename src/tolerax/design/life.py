@@ -28,9 +28,10 @@ outputs by secants).
 **The wear rate's spread.** Published rates for one lubricant span an order of magnitude
 (`tolerax.physics.wear.LUBRICANTS`); `MissionLife(spread=(low, high))` makes the rate an
 uncertain input of each unit: its logarithm, drawn over $[\\ln$ low$, \\ln$ high$]$, follows the
-unit's design values (`WEAR_FACTOR`, `spread_tolerances`), so Monte Carlo verifies the end of
-life over the band while a design, whose units carry only their design values, is made at the
-chosen estimate.
+unit's design values (`WEAR_FACTOR`, `spread_tolerances`): Monte Carlo verifies the end of
+life over the band, and a design draws it in every unit it fits its lines through, reading its
+effect as the fits' residual scatter (`tolerax.design.reliability.LinearisedYield`, uncertain
+inputs): a design over the band, not at one estimate.
 """
 
 import equinox as eqx
@@ -66,7 +67,7 @@ class MissionLife(eqx.Module):
       $e^x$, $x$ drawn with the unit's other inputs over $[\\ln$ low$, \\ln$ high$]$ (log-uniform
       for uniform tolerances; `spread_tolerances`), read by `PointingObjective` as one more value
       after the design's (`WEAR_FACTOR`). `spread_of_lubricant` gives a `LUBRICANTS` entry's band.
-      A design vector without it is at factor 1.
+      A design vector without it is at factor 1; `propose_design` draws it in its secant units.
     """
 
     operating_time: Array

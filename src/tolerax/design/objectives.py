@@ -160,6 +160,16 @@ class PointingObjective(eqx.Module):
         factor of a life with a `spread` (`tolerax.design.life.WEAR_FACTOR`), else none."""
         return (WEAR_FACTOR,) if self.life is not None and self.life.spread is not None else ()
 
+    def uncertain_box(self):
+        """`(middle, half-width)` of the band each of `uncertain_inputs` spreads over (arrays, one
+        value per input; the wear-rate factor's logarithm: `MissionLife.spread_tolerances`), or
+        `None` without them. A design's secant units draw them uniformly over it
+        (`tolerax.design.reliability`)."""
+        if not self.uncertain_inputs:
+            return None
+        box = self.life.spread_tolerances()
+        return jnp.asarray(box.nominal, dtype=float), jnp.asarray(box.band, dtype=float)
+
     def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
         window = None if self.jitter_cutoff is None else self.jitter_window()  # check before the solve
         values, scale = self._split(values)

@@ -226,6 +226,9 @@ def design_problem(
       `surface_box` (`(lower, upper)`, m, scalars or one per feature; with `secant_units`): fit
       the outputs once over units spread over that box (`fit_surface`, at smoothing
       `surface_width`, m) and design on that response surface (`LinearisedYield.surface`).
+    - A pointing objective whose units draw uncertain inputs (`PointingObjective.uncertain_inputs`:
+      a life with a wear-rate `spread`) needs `yield_`, `secant_units` and `scatter`: the
+      secant units draw them, the fit's residual carries their effect (`LinearisedYield`).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
       a mapping name -> its half-width (m), held at the starting nominal +- that, or a
@@ -233,6 +236,13 @@ def design_problem(
       (their cost is counted, constant).
     """
     scene = pointing.scene
+    uncertain = getattr(pointing, "uncertain_inputs", ())
+    if uncertain and not (yield_ is not None and secant_units is not None and scatter):
+        raise ValueError(
+            f"propose_design: each unit of this pointing objective draws {', '.join(uncertain)} (a life's spread: the wear rate "
+            "varies from unit to unit); a design over it needs a yield requirement (yield_=...) linearised by secants over units "
+            "that draw it, with their residual scatter (secant_units=..., scatter=True): its effect is scatter the design's "
+            "features do not carry. propose_design sets them for every requirement; design_problem needs them given.")
     names = design_names(scene)
     nominal0 = np.asarray(design_of(scene))
     lumped = [joint for joint, stage_of, _ in scene.named_stages()

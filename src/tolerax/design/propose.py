@@ -164,6 +164,10 @@ def propose_design(
       (`secant_standard_error`, at least 1 %, at most 50 %); the optimiser is told the slopes'
       noise (`DesignProblem.gradient_noise`); each check simulates both metrics on the same
       units and may shift either requirement. The report's `jitter` holds that part.
+    - A pointing objective with a life whose wear rate has a `spread` (`MissionLife(spread=...)`,
+      a scene's `[life] spread`): every requirement is linearised by secants over units that
+      draw each unit's rate, with their residual scatter (`LinearisedYield`, uncertain inputs),
+      so that the design meets its yield over the rate's band, not at one estimate.
     - `surface_rounds` (with `surface_box`): at most this many response surfaces, each after the
       first fitted over a box about the zones the last one's design gave (each middle +- 1.5
       half-widths, or +- `secant_reach` where wider) and the design solved again on it from
@@ -307,6 +311,13 @@ def _requirements_and_options(pointing, requirement, jitter, method, yield_, opt
     (secant units, with their scatter, where a requirement is linearised by secants)."""
     requirements_ = tuple(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit))
                           for r in as_requirements(requirement, jitter, options.get("output", "pointing_rms")))
+    if pointing.uncertain_inputs:
+        # Each unit draws the life's wear rate (its spread): every requirement is linearised by
+        # secants over units that draw it, its effect in the fits' residual scatter.
+        if options.get("scatter") is False:
+            raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread); its "
+                             "effect is read as the secant fits' residual scatter: leave scatter on.")
+        requirements_ = tuple(r if r.secants else dataclasses.replace(r, secants=True) for r in requirements_)
     for r in requirements_:
         if r.output not in pointing.outputs:
             raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "

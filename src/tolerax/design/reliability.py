@@ -103,6 +103,27 @@ def secant_draws(n_features: int, n_units: int, seed: int = 1) -> Array:
     return jnp.concatenate([jnp.zeros((1, int(n_features))), jnp.asarray(2.0 * points - 1.0)])
 
 
+def _uncertain_count(pointing) -> int:
+    """How many inputs a unit of `pointing` carries after its design values
+    (`PointingObjective.uncertain_inputs`: a life's wear-rate factor)."""
+    return len(getattr(pointing, "uncertain_inputs", ()))
+
+
+def _with_uncertain(pointing, units, positions):
+    """`units` (design values, m; one row per unit) with `pointing`'s uncertain inputs appended
+    (`PointingObjective.uncertain_inputs`: a life's wear-rate factor), each spread over its band
+    (`PointingObjective.uncertain_box`) by the columns of the standardised `positions` ([-1, 1])
+    after the design's; `units` itself where there are none. The design's features do not carry
+    these inputs: a line through such units leaves their effect in its residual scatter, which a
+    quantile with `scatter` reads as a normal term of the same variance (for a bounded input,
+    such as a log-uniform wear rate, a longer tail than its own: conservative)."""
+    box = None if not _uncertain_count(pointing) else pointing.uncertain_box()
+    if box is None:
+        return units
+    middle, half = box
+    return jnp.concatenate([units, middle + half * positions[:, units.shape[1] :]], axis=1)
+
+
 def _fitted(values, log):
     """`values` (units, outputs) on the scale their line is fitted on: the logarithm of the
     outputs where `log` (a tuple of bools, one per output) holds, non-positive values then NaN
@@ -133,9 +154,13 @@ def value_and_secants(middle, band, positions, pointing, output, width, log=()):
     shape (k,) and `s` (k, n), all fitted from the same solves. `sigma`: the residual standard
     deviation about the line (output units; the unit-to-unit scatter the features do not
     explain), not differentiated. `log` (one bool per output; default none): fit those outputs'
-    logarithm instead, and `f`, `s`, `sigma` are then on that scale (`LinearisedYield.log_outputs`)."""
-    units = realise(Design(middle, band), positions)
-    values = jax.vmap(lambda v: unit_output(v, pointing, output, width))(units)
+    logarithm instead, and `f`, `s`, `sigma` are then on that scale (`LinearisedYield.log_outputs`).
+    Where `pointing` has uncertain inputs (a life's wear-rate spread), `positions` carries one
+    more column for each, and each unit draws them (`_with_uncertain`): their effect is in
+    `sigma`, not in the line."""
+    units = realise(Design(middle, band), positions[:, : middle.shape[0]])
+    drawn = _with_uncertain(pointing, units, positions)
+    values = jax.vmap(lambda v: unit_output(v, pointing, output, width))(drawn)
     values = _fitted(values.reshape(units.shape[0], -1), log)  # (units, outputs)
     ok = jnp.all(jnp.isfinite(values), axis=1)
     scale = jnp.where(band > 0, band, 1.0)
@@ -243,7 +268,18 @@ class LinearisedYield(eqx.Module):
     simulation per evaluation. Where an output's trend is resolved only across the whole bounds
     (the jitter: `jitter_reach.md`), a local fit follows noise and the global one does not; what
     the line misses of the response's curvature over the box is in its scatter (conservative).
-    Checked by the Monte Carlo verification like any linearisation."""
+    Checked by the Monte Carlo verification like any linearisation.
+
+    **Uncertain inputs** (`PointingObjective.uncertain_inputs`: a life's wear-rate spread, which
+    varies from unit to unit but is not designed): every secant or surface unit, and every unit
+    of `yield_check`, draws them over their band (`PointingObjective.uncertain_box`, one more
+    Latin-hypercube column each). The line is in the design's features alone; the inputs'
+    effect is in its residual scatter, which the quantile reads with `scatter` as a normal
+    term of the same variance (`design_problem` refuses such an objective without secants and
+    scatter). For a bounded input (a log-uniform wear rate) that tail is longer than the
+    input's own: conservative, by up to the ratio 2.33 / 1.73 of the normal's 99 % point to a
+    uniform's end at equal variance where the input's term dominates, by less as the features'
+    terms join it."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -308,7 +344,7 @@ class LinearisedYield(eqx.Module):
                 sigma = sf.sigma
             return value, slopes, (sigma if self.scatter else None)
         if self.secant_units is not None:
-            positions = secant_draws(middle.shape[0], self.secant_units, self.secant_seed)
+            positions = secant_draws(middle.shape[0] + _uncertain_count(self.pointing), self.secant_units, self.secant_seed)
             f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing, self.output,
                                             width, self.log)
             return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
@@ -388,9 +424,11 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
 def _fit_units(objective: LinearisedYield, middle, band, width):
     """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
     n = middle.shape[0]
-    units = realise(Design(middle, band), secant_draws(n, objective.secant_units, objective.secant_seed))
+    positions = secant_draws(n + _uncertain_count(objective.pointing), objective.secant_units, objective.secant_seed)
+    units = realise(Design(middle, band), positions[:, :n])
+    drawn = _with_uncertain(objective.pointing, units, positions)  # a life's wear rate, drawn per unit: in the residual
     width = None if width is None else jnp.asarray(width, dtype=float)
-    values = np.asarray(_fitted(_simulate_units(objective.pointing, objective.output, units, width).reshape(units.shape[0], -1),
+    values = np.asarray(_fitted(_simulate_units(objective.pointing, objective.output, drawn, width).reshape(units.shape[0], -1),
                                 objective.log))
     ok = np.all(np.isfinite(values), axis=1)
     scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
@@ -479,7 +517,8 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
 def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50):
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m; draws from
     `unit_draws(key, ...)`) with `objective`'s pointing model, and compare them with its
-    linearised model on the same units (see `YieldCheck`). `width`: smoothing width (m);
+    linearised model on the same units (see `YieldCheck`); each unit draws the objective's
+    uncertain inputs too (a life's wear rate: `LinearisedYield`). `width`: smoothing width (m);
     `chunk`: units per compiled batch. A tuple `output` (two requirements, e.g. RMS and
     jitter): `requirement` one per output, and one `YieldCheck` per output from the same units."""
     if int(n) < 2:
@@ -488,7 +527,9 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     requirements = np.broadcast_to(np.asarray(requirement, dtype=float), (len(outputs),))
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
     width = None if width is None else jnp.asarray(width, dtype=float)
-    values = realise(x, unit_draws(key, int(n), x.nominal.shape[0]))
+    draws = unit_draws(key, int(n), x.nominal.shape[0] + _uncertain_count(objective.pointing))
+    values = realise(x, draws[:, : x.nominal.shape[0]])
+    drawn = _with_uncertain(objective.pointing, values, draws)  # each unit's wear rate drawn too (a life's spread)
     f, s, sigma = eqx.filter_jit(lambda o, x_, w: o.model(x_, w))(objective, x, width)
     linear = np.asarray(jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T).reshape(int(n), len(outputs))
     if sigma is not None:
@@ -498,7 +539,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
         linear = linear + np.atleast_1d(np.asarray(sigma)) * np.random.default_rng(0).standard_normal((int(n), len(outputs)))
     linear = np.asarray(_unfitted(jnp.asarray(linear), objective.log))  # from the log scale for `log_outputs`
     simulated = np.concatenate([
-        np.asarray(_simulate_units(objective.pointing, objective.output, values[i : i + chunk], width)).reshape(-1, len(outputs))
+        np.asarray(_simulate_units(objective.pointing, objective.output, drawn[i : i + chunk], width)).reshape(-1, len(outputs))
         for i in range(0, int(n), chunk)
     ])
     ok = np.all(np.isfinite(simulated), axis=1)
