@@ -454,3 +454,50 @@ def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys)
     last = rows[2].strip("| ").split(" | ")
     assert float(last[2]) == pytest.approx(float(outputs["pointing_rms"][2]), abs=0.051)
     np.testing.assert_allclose([float(v) for v in last[4:]], np.asarray(depths["azimuth"][2]) * 1e6, rtol=5e-3, atol=1e-12)
+
+
+def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
+    """`tolerax design SCENE --life YEARS [--wear-spread]`: the scene's `[life]` lasting YEARS
+    (its other keys kept, or the defaults without one), the RMS requirement met at the end of
+    life too (one budget), each unit's rate drawn over the lubricant's band with `--wear-spread`;
+    what reaches `propose_design` is read off (the design itself is replaced: its solves are
+    tested in test_life.py and test_reliability.py). Refused where nothing wears, and
+    `--wear-spread` without `--life`."""
+    from tolerax.cli import commands
+    from tolerax.design.life import YEAR, WEAR_FACTOR
+    from tolerax.physics.wear import LUBRICANTS
+
+    seen = {}
+
+    def propose(pointing, requirements, options, command):
+        seen.update(pointing=pointing, requirements=requirements)
+        return 0
+
+    monkeypatch.setattr(commands, "_propose", propose)
+    lifeless = tmp_path / "lifeless.toml"
+    lifeless.write_text(LIFE_SCENE.split("[life]")[0])
+    args = ["design", str(lifeless), "--requirement", "500", "--yield", "0.9", "--out", str(tmp_path / "d")]
+    assert cli.main(args + ["--life", "10", "--wear-spread"]) == 0
+    life = seen["pointing"].life
+    mos2 = LUBRICANTS["MoS2 sputtered film, vacuum"]
+    assert float(life.operating_time) == pytest.approx(10 * YEAR, rel=1e-15) and float(life.wear.rate) == mos2.median
+    assert life.spread == pytest.approx((mos2.low / mos2.median, mos2.high / mos2.median), rel=1e-12)
+    assert seen["pointing"].uncertain_inputs == (WEAR_FACTOR,)
+    assert [(r.output, r.limit) for r in seen["requirements"]] == [("pointing_rms", 500.0), ("pointing_rms_eol", 500.0)]
+    # The scene's own [life] keeps its lubricant and duty; --require sets the end of life's own limit.
+    own = tmp_path / "own.toml"
+    own.write_text(LIFE_SCENE)
+    assert cli.main(["design", str(own), "--requirement", "500", "--life", "2", "--require", "pointing_rms_eol=800",
+                     "--out", str(tmp_path / "e")]) == 0
+    life = seen["pointing"].life
+    assert float(life.operating_time) == pytest.approx(0.5 * YEAR, rel=1e-15) and life.spread is None
+    assert float(life.wear.rate) == LUBRICANTS["PFPE grease (Braycote-type), vacuum"].high
+    assert [(r.output, r.limit) for r in seen["requirements"]] == [("pointing_rms", 500.0), ("pointing_rms_eol", 800.0)]
+    capsys.readouterr()
+    lumped = tmp_path / "lumped.toml"
+    lumped.write_text(LIFE_SCENE.split("[life]")[0].replace('["planetary", "ideal"]', '["lumped", "ideal"]'))
+    assert cli.main(["design", str(lumped), "--requirement", "500", "--life", "10", "--out", str(tmp_path / "f")]) == 2
+    assert "nothing wears in this scene" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        cli.main(args + ["--wear-spread"])
+    assert info.value.code == 2 and "--wear-spread needs --life" in capsys.readouterr().err

@@ -271,7 +271,19 @@ def design_command(parser, args) -> int:
             args.verify_fidelity = "planetary"  # the jitter is read on the full stage (tolerax.design.fidelity)
             print(f"tolerax design: --verify simulates the units at planetary fidelity: {scene_file.name} has lumped or "
                   "planetary-scaled joints, which do not read the jitter as the full stage does.")
+    if args.life is not None:
+        from ..io import scenefile as F
+
+        try:
+            scene_file = with_life(scene_file, args.life, args.wear_spread)
+        except F.SceneFileError as err:
+            print(f"tolerax design --life: {err}", file=sys.stderr)
+            return 2
+    elif args.wear_spread:
+        parser.error("--wear-spread needs --life YEARS (the life whose wear rate it draws)")
     more = _more_requirements(parser, args)
+    if args.life is not None and not any(r.output == "pointing_rms_eol" for r in more):
+        more.append(Requirement("pointing_rms_eol", requirement))  # one pointing budget over the whole life
     # A [life] costs its points + 1 runs per unit: carried only where a requirement reads the end of life.
     eol = any(r.output.endswith("_eol") for r in more)
     pointing = scene_file.objective(jitter_cutoff=cutoff, **({} if eol else {"life": None}))
@@ -385,6 +397,18 @@ def _fidelities(scene_file) -> list[str]:
     scene = scene_file.data["scene"]
     current = scene.get("fidelity", inspect.signature(BUILDERS[scene["kind"]]).parameters["fidelity"].default)
     return [current, current] if isinstance(current, str) else list(current)
+
+
+def with_life(scene_file, years, spread=False):
+    """`scene_file` with its `[life]` lasting `years` in orbit (its other keys kept; without a
+    `[life]`, the table's defaults: duty 1, sputtered MoS2 at its median rate, 2 points) and,
+    with `spread`, each unit's wear rate drawn over the lubricant's band (`spread = true`).
+    `SceneFileError` where nothing in the scene wears."""
+    from ..io import scenefile as F
+
+    data = copy.deepcopy(scene_file.data)
+    data["life"] = {**data.get("life", {}), "years": float(years)} | ({"spread": True} if spread else {})
+    return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
 
 
 def with_fidelity(scene_file, fidelity):

@@ -159,6 +159,15 @@ def main(argv=None) -> int:
                         help="a further requirement on another output of the pointing objective, met at the same statistic "
                         "or yield, e.g. --require pointing_peak=2500 (arcsec; outputs: pointing_peak, pointing_smooth_peak, "
                         "tracking_speed_rms in arcsec/s); repeat for more")
+    design.add_argument("--life", type=positive, default=None, metavar="YEARS",
+                        help="design for the end of a mission of YEARS years as well: the RMS requirement met at the end of "
+                        "life too (one budget over the life; --require pointing_rms_eol=LIMIT sets another), the clearances "
+                        "grown by wear from the simulated contacts. The scene's [life] table gives the rest (lubricant, duty, "
+                        "points, flanks, spread); without one, sputtered MoS2 at its median rate, duty 1, 2 life points. Each "
+                        "unit costs points + 1 runs. Needs a planetary joint (--fidelity planetary)")
+    design.add_argument("--wear-spread", action="store_true",
+                        help="with --life: each unit's wear rate drawn over the lubricant's published band ([life] spread = "
+                        "true), so the design meets its yield over the band, not at one rate (needs --yield)")
     design.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ",
                         help="with --jitter: the start of the stability band, Hz (default 20)")
     design.add_argument("--verify", type=count(0), default=0, metavar="N",
