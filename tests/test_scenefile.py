@@ -9,6 +9,7 @@ import textwrap
 
 import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -501,3 +502,41 @@ def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
     with pytest.raises(SystemExit) as info:
         cli.main(args + ["--wear-spread"])
     assert info.value.code == 2 and "--wear-spread needs --life" in capsys.readouterr().err
+
+
+def test_life_comparison_shows_the_wear_allowance(tmp_path):
+    """`tolerax.design.life.life_comparison` (what `tolerax design --life` adds to design.md):
+    per feature both designs' zones and the growth by wear at the first's middles, equal to
+    `over_life`'s end point (the pins: least and most over the planets); both designs simulated
+    on the same units at both ends of life, the yields those units give."""
+    import types
+
+    from tolerax.design.life import feature_growth, life_comparison
+
+    sf = tx.parse_scene(LIFE_SCENE.replace("start = \"rest\"", "start = \"rest\"\nsettle = 0.0"))
+    pointing = sf.objective()
+    names = tx.design_names(pointing.scene)
+    middle, half = np.full(len(names), 20e-6), np.full(len(names), 10e-6)  # the pins touch within the 0.02 s
+
+    def report(m, b, cost):
+        return types.SimpleNamespace(nominal=m, band=b, cost=cost, tolerances=tx.Tolerances(names, m, b))
+
+    growth = feature_growth(pointing, middle)
+    _, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(pointing, jnp.asarray(middle))
+    end = np.asarray(depths["azimuth"][-1])
+    assert growth["azimuth.planet_clearance"] == pytest.approx((end[2:5].min(), end[2:5].max()), rel=1e-12)
+    assert growth["azimuth.sun_backlash"] == pytest.approx((end[5:8].min(), end[5:8].max()), rel=1e-12)
+    assert growth["azimuth.carrier_clearance"] == pytest.approx((end[1], end[1]), rel=1e-12)
+    limits = {"pointing_rms": 400.0, "pointing_rms_eol": 400.0}
+    text, results = life_comparison(pointing, report(middle, half, 2.0), report(middle + 20e-6, half, 1.5), limits, 3,
+                                    jax.random.key(0), chunk=3)
+    rows = [line for line in text.splitlines() if line.startswith("| azimuth.")]
+    assert len(rows) == len(names) and rows[2].split(" | ")[1:3] == ["10.0-30.0", "30.0-50.0"]
+    g = growth["azimuth.planet_clearance"]
+    assert g[1] > 1.001 * g[0] > 0 and rows[2].rstrip(" |").endswith(f"{g[0] * 1e6:.3g}-{g[1] * 1e6:.3g}")
+    both, alone = results.values()
+    for mc, cost in ((both, "2.000"), (alone, "1.500")):
+        rms = mc.dataset["pointing_rms_eol"].values
+        met = np.mean(rms <= 400.0)
+        assert f"(cost {cost}): pointing_rms " in text and f"pointing_rms_eol {met:.3f}" in text
+    assert np.all(both.dataset["pointing_rms"].values < alone.dataset["pointing_rms"].values)  # the same draws, tighter zones

@@ -241,6 +241,29 @@ def _propose(pointing, requirement, options, command):
     return report, time.perf_counter() - start
 
 
+def _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff):
+    """A design for the end of life too (`report`): the same requirements at the beginning of life
+    alone, designed with the same options, and both designs simulated at both ends of life on
+    the same units (`--verify` N, else 32): `tolerax.design.life.life_comparison`'s markdown, or an
+    exit code."""
+    import jax
+
+    from ..design.life import life_comparison
+
+    alone_requirements = [r for r in requirements if not r.output.endswith("_eol")]
+    print("tolerax design: the same requirements at the beginning of life alone (what the end of life's allowance is "
+          "measured against) ...", flush=True)
+    proposed = _propose(scene_file.objective(jitter_cutoff=cutoff, life=None), alone_requirements, options, "design")
+    if isinstance(proposed, int):
+        return proposed
+    alone, _ = proposed
+    units = args.verify or 32
+    print(f"tolerax design: both designs on {units} units at both ends of life ...", flush=True)
+    text, _ = life_comparison(pointing, report, alone, {r.output: r.limit for r in requirements}, units, jax.random.key(args.seed),
+                              chunk=args.chunk, progress=True)
+    return text
+
+
 def design_command(parser, args) -> int:
     import matplotlib
 
@@ -309,6 +332,9 @@ def design_command(parser, args) -> int:
     if isinstance(proposed, int):
         return proposed
     report, wall = proposed
+    life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if eol else None
+    if isinstance(life_text, int):
+        return life_text
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
@@ -318,7 +344,8 @@ def design_command(parser, args) -> int:
     proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))
     if as_answer and report.drawable is not None:  # the same proposal on whole ISO grades, as a scene file too
         F.save_scene(written.with_drawable(report.drawable), out / "proposal_drawable.toml")
-    text = "\n".join([report.table(), "", f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
+    text = "\n".join([report.table(), "", *([life_text, ""] if life_text else []),
+                      f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else
                        f"The best design reached as a scene file ({report.status}, not a proposal): `{proposal}`")
@@ -335,7 +362,8 @@ def design_command(parser, args) -> int:
         + (f" and jitter (RMS pointing error above {cutoff:g} Hz) <= {args.jitter:g} arcsec" if cutoff else "")
         + "".join(f" and {r.text()}" for r in more) + f", {_statistic(args)}. Scene `{scene_file.source}`; "
         f"the {'proposal' if report.accepted else 'best design reached'} as a scene file: [{proposal.name}]({proposal.name}).", "",
-        "## Proposal", "", report.table(), "", "![the zones with their grades and fits, and the sensitivities](design.png)", "",
+        "## Proposal", "", report.table(), "", *([life_text, ""] if life_text else []),
+        "![the zones with their grades and fits, and the sensitivities](design.png)", "",
         "![the optimiser's history](design_history.png)", "",
     ]
     _write_report(out, sections, scene_file, args, wall)

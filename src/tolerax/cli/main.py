@@ -164,7 +164,9 @@ def main(argv=None) -> int:
                         "life too (one budget over the life; --require pointing_rms_eol=LIMIT sets another), the clearances "
                         "grown by wear from the simulated contacts. The scene's [life] table gives the rest (lubricant, duty, "
                         "points, flanks, spread); without one, sputtered MoS2 at its median rate, duty 1, 2 life points. Each "
-                        "unit costs points + 1 runs. Needs a planetary joint (--fidelity planetary)")
+                        "unit costs points + 1 runs. The same requirements are then designed for the beginning of life alone, "
+                        "and design.md shows the wear allowance per feature and both designs' yields at both ends of life on "
+                        "the same units (--verify N of them, else 32). Needs a planetary joint (--fidelity planetary)")
     design.add_argument("--wear-spread", action="store_true",
                         help="with --life: each unit's wear rate drawn over the lubricant's published band ([life] spread = "
                         "true), so the design meets its yield over the band, not at one rate (needs --yield)")

@@ -196,3 +196,71 @@ def window_wear_rates(scene, result, window, life: MissionLife) -> dict:
     depths = _wear.wear_over_run(scene, result, {j: life.model(j) for j, _ in joints}, saves)
     length = result.ts[last] - result.ts[first]
     return {joint: jnp.stack([depths[joint][c] for c in names]) / length for joint, names in joints}
+
+
+def feature_growth(pointing, values) -> dict[str, tuple[float, float]]:
+    """Each design feature's growth by wear over `pointing`'s life (`PointingObjective(life=...)`)
+    from the as-built design `values` (m, `design_names` order), at the life's rate estimate
+    (factor 1): `{feature: (least, most)}` (m) over the contacts or meshes it stands for (a
+    planet-pin clearance and a mesh's backlash wear planet by planet), from `over_life`'s end
+    point. Features that do not wear are left out."""
+    from .features import design_names
+
+    names = set(design_names(pointing.scene))
+    _, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(pointing, jnp.asarray(values, dtype=float))
+    out: dict[str, tuple[float, float]] = {}
+    for joint, worn in worn_joints(pointing.scene, pointing.life):
+        for name, grown in zip(worn, np.asarray(depths[joint][-1], dtype=float)):
+            base = name.rstrip("0123456789")
+            feature = base.replace("_mesh", "_backlash") if base.endswith("_mesh") else f"{base}_clearance"
+            index = name[len(base) :]
+            key = f"{joint}.{feature}[{index}]" if f"{joint}.{feature}[{index}]" in names else f"{joint}.{feature}"
+            least, most = out.get(key, (np.inf, -np.inf))
+            out[key] = (min(least, grown), max(most, grown))
+    return out
+
+
+def life_comparison(pointing, designed, alone, requirements: dict, units: int, key, chunk: int = 8, progress: bool = False):
+    """Markdown: what designing for the end of life takes, against designing for the beginning of
+    life alone. `designed`, `alone`: the two `DesignReport`s (the first met its requirements at
+    the end of life too); `pointing`: the objective with the life (`PointingObjective(life=...)`);
+    `requirements`: output -> limit for the Monte Carlo (e.g. `{"pointing_rms": R,
+    "pointing_rms_eol": R}`). Per feature the two designs' zones and the growth by wear over the
+    life at the first's zone middles (`feature_growth`): the wear allowance; then both designs
+    simulated on `units` fresh units each (the same draws, `tolerax.monte_carlo` with `key`;
+    each unit's wear rate drawn where the life has a spread) at both ends of life, with 95 %
+    Wilson intervals. Returns `(text, {label: MonteCarloResult})`."""
+    from ..uncertainty.montecarlo import monte_carlo
+    from .features import design_names
+
+    growth = feature_growth(pointing, designed.nominal)
+    rows = ["| feature | zone designed for both ends (um) | zone for the beginning of life alone (um) | "
+            "grown by wear over the life at the first's middles (um) |", "|---|---|---|---|"]
+    for j, name in enumerate(design_names(pointing.scene)):
+        zone = [f"{(float(r.nominal[j]) - float(r.band[j])) * 1e6:.1f}-{(float(r.nominal[j]) + float(r.band[j])) * 1e6:.1f}"
+                for r in (designed, alone)]
+        g = growth.get(name)
+        grown = "-" if g is None else (f"{g[0] * 1e6:.3g}" if g[1] - g[0] <= 1e-3 * abs(g[1]) else f"{g[0] * 1e6:.3g}-{g[1] * 1e6:.3g}")
+        rows.append(f"| {name} | {zone[0]} | {zone[1]} | {grown} |")
+    results, lines = {}, []
+    for label, report in (("designed for both ends", designed), ("for the beginning of life alone", alone)):
+        tolerances = report.tolerances
+        if pointing.uncertain_inputs:
+            tolerances = tolerances.joined(pointing.life.spread_tolerances(tolerances.distribution))
+        mc = monte_carlo(pointing, tolerances, int(units), key, chunk_size=chunk, progress=progress, requirement=requirements)
+        results[label] = mc
+        summary = mc.summary()
+        cells = [f"{name} {summary[name]['yield']:.3f} [{summary[name]['yield_low']:.3f}, {summary[name]['yield_high']:.3f}]"
+                 for name in requirements]
+        lines.append(f"- {label} (cost {report.cost:.3f}): " + "; ".join(cells) + f" ({summary[next(iter(requirements))]['n_used']} "
+                     "units used)")
+    spread = "" if not pointing.uncertain_inputs else (f", each unit's wear rate drawn over x{pointing.life.spread[0]:.3g} to "
+                                                       f"x{pointing.life.spread[1]:.3g}")
+    text = "\n".join([
+        "## Over the mission's life: the wear allowance", "",
+        f"The design met its requirements at the end of life too; the same requirements at the beginning of life alone give the "
+        f"zones beside it. The growth is the wear over the life ({float(pointing.life.operating_time) / YEAR:.3g} operating years) "
+        "from the first design's zone middles at the lubricant's estimate.", "", *rows, "",
+        f"Both designs on the same {int(units)} fresh units{spread}, yield at each end of life [95 % Wilson]:", "", *lines,
+    ])
+    return text, results
