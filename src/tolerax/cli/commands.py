@@ -242,10 +242,12 @@ def _propose(pointing, requirement, options, command):
 
 
 def _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff):
-    """A design for the end of life too (`report`): the same requirements at the beginning of life
-    alone, designed with the same options, and both designs simulated at both ends of life on
-    the same units (`--verify` N, else 32): `tolerax.design.life.life_comparison`'s markdown, or an
-    exit code."""
+    """`--life`: a design for the end of life too (`report`) beside the same requirements at the
+    beginning of life alone, designed with the same options on the as-built objective (its
+    requirements linearised as such a design's are: by tangents unless secants are asked for),
+    and both designs simulated at both ends of life on the same units (`--verify` N, else 32):
+    `tolerax.design.life.life_comparison`'s markdown, or a note saying why it is missing (the
+    main design is written either way)."""
     import jax
 
     from ..design.life import life_comparison
@@ -254,13 +256,18 @@ def _life_allowance(pointing, report, requirements, options, args, scene_file, c
     print("tolerax design: the same requirements at the beginning of life alone (what the end of life's allowance is "
           "measured against) ...", flush=True)
     proposed = _propose(scene_file.objective(jitter_cutoff=cutoff, life=None), alone_requirements, options, "design")
-    if isinstance(proposed, int):
-        return proposed
+    if isinstance(proposed, int):  # the main design stands: say why there is no comparison
+        return ("## Over the mission's life: the wear allowance\n\nNot shown: the design for the beginning of life alone "
+                "failed (above).")
     alone, _ = proposed
     units = args.verify or 32
     print(f"tolerax design: both designs on {units} units at both ends of life ...", flush=True)
-    text, _ = life_comparison(pointing, report, alone, {r.output: r.limit for r in requirements}, units, jax.random.key(args.seed),
-                              chunk=args.chunk, progress=True)
+    try:
+        text, _ = life_comparison(pointing, report, alone, {r.output: r.limit for r in requirements}, units,
+                                  jax.random.key(args.seed), chunk=args.chunk, progress=True)
+    except (ValueError, RuntimeError) as err:
+        print(f"tolerax design: the life comparison failed: {err}", file=sys.stderr)
+        return f"## Over the mission's life: the wear allowance\n\nNot shown: the comparison failed ({err})."
     return text
 
 
@@ -304,6 +311,8 @@ def design_command(parser, args) -> int:
             return 2
     elif args.wear_spread:
         parser.error("--wear-spread needs --life YEARS (the life whose wear rate it draws)")
+    if args.wear_spread and args.yield_ is None:
+        parser.error("--wear-spread needs --yield Y (the design meets a yield over units whose wear rates are drawn)")
     more = _more_requirements(parser, args)
     if args.life is not None and not any(r.output == "pointing_rms_eol" for r in more):
         more.append(Requirement("pointing_rms_eol", requirement))  # one pointing budget over the whole life
@@ -332,9 +341,7 @@ def design_command(parser, args) -> int:
     if isinstance(proposed, int):
         return proposed
     report, wall = proposed
-    life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if eol else None
-    if isinstance(life_text, int):
-        return life_text
+    life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if args.life is not None else None
     out.mkdir(parents=True, exist_ok=True)
     F.save_scene(scene_file, out / "scene.toml")
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is

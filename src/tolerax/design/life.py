@@ -256,11 +256,13 @@ def life_comparison(pointing, designed, alone, requirements: dict, units: int, k
                      "units used)")
     spread = "" if not pointing.uncertain_inputs else (f", each unit's wear rate drawn over x{pointing.life.spread[0]:.3g} to "
                                                        f"x{pointing.life.spread[1]:.3g}")
+    status = getattr(designed, "status", None)
     text = "\n".join([
         "## Over the mission's life: the wear allowance", "",
-        f"The design met its requirements at the end of life too; the same requirements at the beginning of life alone give the "
-        f"zones beside it. The growth is the wear over the life ({float(pointing.life.operating_time) / YEAR:.3g} operating years) "
-        "from the first design's zone middles at the lubricant's estimate.", "", *rows, "",
+        f"The design for the end of life too{'' if status is None else f' ({status})'} beside the same requirements at the "
+        f"beginning of life alone{'' if getattr(alone, 'status', None) is None else f' ({alone.status})'}. The growth is the wear "
+        f"over the life ({float(pointing.life.operating_time) / YEAR:.3g} operating years) from the first design's zone middles "
+        "at the lubricant's estimate.", "", *rows, "",
         f"Both designs on the same {int(units)} fresh units{spread}, yield at each end of life [95 % Wilson]:", "", *lines,
     ])
     return text, results

@@ -243,6 +243,10 @@ def design_problem(
             "varies from unit to unit); a design over it needs a yield requirement (yield_=...) linearised by secants over units "
             "that draw it, with their residual scatter (secant_units=..., scatter=True): its effect is scatter the design's "
             "features do not carry. propose_design sets them for every requirement; design_problem needs them given.")
+    if uncertain and secant_units <= len(design_names(scene)) + len(uncertain):
+        raise ValueError(f"propose_design: secant_units must exceed the {len(design_names(scene))} design features plus the "
+                         f"{len(uncertain)} input(s) each unit draws ({', '.join(uncertain)}): a line through the units needs "
+                         f"at least {len(design_names(scene)) + len(uncertain) + 1}; got {secant_units}.")
     names = design_names(scene)
     nominal0 = np.asarray(design_of(scene))
     lumped = [joint for joint, stage_of, _ in scene.named_stages()

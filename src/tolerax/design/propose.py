@@ -314,6 +314,10 @@ def _requirements_and_options(pointing, requirement, jitter, method, yield_, opt
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
         # secants over units that draw it, its effect in the fits' residual scatter.
+        if yield_ is None or method != "sequential":
+            raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread: the "
+                             "wear rate from unit to unit); a design over it needs a yield requirement (yield_=..., --yield) "
+                             "and method='sequential'.")
         if options.get("scatter") is False:
             raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread); its "
                              "effect is read as the secant fits' residual scatter: leave scatter on.")

@@ -121,6 +121,10 @@ def _with_uncertain(pointing, units, positions):
     if box is None:
         return units
     middle, half = box
+    if positions.shape[1] != units.shape[1] + middle.shape[0]:
+        raise ValueError(f"the units of this pointing objective draw {', '.join(pointing.uncertain_inputs)} after their "
+                         f"{units.shape[1]} design values: their positions need {units.shape[1] + middle.shape[0]} columns, got "
+                         f"{positions.shape[1]}.")
     return jnp.concatenate([units, middle + half * positions[:, units.shape[1] :]], axis=1)
 
 
@@ -306,6 +310,9 @@ class LinearisedYield(eqx.Module):
             raise ValueError(f"LinearisedYield: log_outputs {unknown} are not among the outputs {self.outputs}.")
         if self.log_outputs and self.secant_units is None:
             raise ValueError("LinearisedYield: log_outputs (a line through the logarithm over units) needs secant_units.")
+        if _uncertain_count(self.pointing) and self.secant_units is None:
+            raise ValueError(f"LinearisedYield: each unit of this pointing objective draws {', '.join(self.pointing.uncertain_inputs)} "
+                             "(a life's spread); a tangent at the zone's middle cannot carry it: give secant_units (and scatter).")
         if self.secant_reach is not None and (self.secant_units is None or not self.secant_reach > 0):
             raise ValueError(f"LinearisedYield: secant_reach must be > 0 (m) and needs secant_units, got {self.secant_reach!r}.")
 
