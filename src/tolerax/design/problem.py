@@ -304,7 +304,8 @@ def design_problem(
         if surface_box is not None:
             objective = eqx.tree_at(lambda o: o.surface, objective, fit_surface(objective, *surface_box, surface_width),
                                     is_leaf=lambda v: v is None)
-        draws = yield_draws(n + 1 if scatter else n, n_yield_draws)  # the last column carries the scatter's draws
+        # The features' columns, then the scatter's, then each drawn input's (a wear rate: LinearisedYield).
+        draws = yield_draws(n + (1 if scatter else 0) + len(uncertain), n_yield_draws)
     return DesignProblem(
         objective=FromLowerLimit(objective),
         features=Features(names, feature_sizes(scene)),

@@ -53,7 +53,7 @@ def yield_draws(n_features: int, n: int = 16384, seed: int = 0) -> Array:
     return jnp.asarray(2.0 * points - 1.0)
 
 
-def linear_quantile(value, slopes, x: Design, draws, q: float, scatter=None) -> Array:
+def linear_quantile(value, slopes, x: Design, draws, q: float, scatter=None, shift=None) -> Array:
     """The `q`-quantile (Harrell–Davis) of the linearised metric $f + s \\cdot (v - m)$ over the
     units $v$ = `realise(x, draws)`: `value` $f$ at the zone middles `x.nominal` $m$ (metric
     units), `slopes` $s$ (metric units per m). Several metrics: `value` of shape (k,), `slopes`
@@ -62,14 +62,21 @@ def linear_quantile(value, slopes, x: Design, draws, q: float, scatter=None) -> 
     `scatter` $\\sigma$ (metric units, one per metric; optional): add an independent normal term
     $\\sigma z$ per unit, the unit-to-unit scatter the features do not explain (a secant fit's
     residual: chaotic rattle). `draws` then has one more column than the features, whose
-    uniform draws give $z = \\Phi^{-1}((u + 1)/2)$."""
+    uniform draws give $z = \\Phi^{-1}((u + 1)/2)$.
+
+    `shift` (optional, shape (draws,), or (draws, k) for k metrics): a further term per draw,
+    the part of the line in inputs that are drawn, not designed (`LinearisedYield.uncertain_term`:
+    a life's wear rate)."""
     n = x.nominal.shape[0]
     deltas = realise(x, draws[:, :n]) - x.nominal
     noise = 0.0 if scatter is None else jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12))
     if jnp.ndim(value) == 1:
         sigma = jnp.zeros_like(value) if scatter is None else scatter
-        return jax.vmap(lambda f, s, sd: robust(f + deltas @ s + sd * noise, kind="quantile", q=q))(value, slopes, sigma)
-    return robust(value + deltas @ slopes + (0.0 if scatter is None else scatter * noise), kind="quantile", q=q)
+        more = jnp.zeros((draws.shape[0], value.shape[0])) if shift is None else shift
+        return jax.vmap(lambda f, s, sd, c: robust(f + deltas @ s + sd * noise + c, kind="quantile", q=q),
+                        in_axes=(0, 0, 0, 1))(value, slopes, sigma, more)
+    return robust(value + deltas @ slopes + (0.0 if scatter is None else scatter * noise) + (0.0 if shift is None else shift),
+                  kind="quantile", q=q)
 
 
 @eqx.filter_custom_vjp
@@ -113,10 +120,9 @@ def _with_uncertain(pointing, units, positions):
     """`units` (design values, m; one row per unit) with `pointing`'s uncertain inputs appended
     (`PointingObjective.uncertain_inputs`: a life's wear-rate factor), each spread over its band
     (`PointingObjective.uncertain_box`) by the columns of the standardised `positions` ([-1, 1])
-    after the design's; `units` itself where there are none. The design's features do not carry
-    these inputs: a line through such units leaves their effect in its residual scatter, which a
-    quantile with `scatter` reads as a normal term of the same variance (for a bounded input,
-    such as a log-uniform wear rate, a longer tail than its own: conservative)."""
+    after the design's; `units` itself where there are none. The line through such units carries
+    each input as a regressor (`_uncertain_columns`), and the quantile draws it
+    (`LinearisedYield`)."""
     box = None if not _uncertain_count(pointing) else pointing.uncertain_box()
     if box is None:
         return units
@@ -126,6 +132,27 @@ def _with_uncertain(pointing, units, positions):
                          f"{units.shape[1]} design values: their positions need {units.shape[1] + middle.shape[0]} columns, got "
                          f"{positions.shape[1]}.")
     return jnp.concatenate([units, middle + half * positions[:, units.shape[1] :]], axis=1)
+
+
+def _uncertain_columns(pointing, x):
+    """The line's regressors of drawn uncertain inputs `x` (shape (units, m): each the logarithm
+    of a factor, the wear rate's): each factor $e^x$, scaled to [-1, 1] over its band
+    (`PointingObjective.uncertain_box`). In the factor, not its logarithm: the depth worn, and so
+    each clearance's growth, is proportional to the rate."""
+    middle, half = pointing.uncertain_box()
+    low, high = jnp.exp(middle - half), jnp.exp(middle + half)
+    spread = 0.5 * (high - low)
+    return (jnp.exp(x) - 0.5 * (low + high)) / jnp.where(spread > 0, spread, 1.0)
+
+
+def _design_rows(pointing, units, drawn, middle, scale):
+    """A least-squares line's design matrix: 1, each feature's standardised deviation from the
+    middle, and each uncertain input's regressor (`_uncertain_columns`) where `pointing` draws
+    them (`drawn`: the units with those inputs appended)."""
+    rows = [jnp.ones((units.shape[0], 1)), (units - middle) / scale]
+    if _uncertain_count(pointing):
+        rows.append(_uncertain_columns(pointing, drawn[:, units.shape[1] :]))
+    return jnp.concatenate(rows, axis=1)
 
 
 def _fitted(values, log):
@@ -160,27 +187,29 @@ def value_and_secants(middle, band, positions, pointing, output, width, log=()):
     explain), not differentiated. `log` (one bool per output; default none): fit those outputs'
     logarithm instead, and `f`, `s`, `sigma` are then on that scale (`LinearisedYield.log_outputs`).
     Where `pointing` has uncertain inputs (a life's wear-rate spread), `positions` carries one
-    more column for each, and each unit draws them (`_with_uncertain`): their effect is in
-    `sigma`, not in the line."""
+    more column for each, each unit draws them (`_with_uncertain`) and the line carries them
+    (`_uncertain_columns`): a fourth result `t`, the line's coefficient of each input's regressor
+    (shape (k, m), or (m,) for one output; m = 0 without them), not differentiated."""
     units = realise(Design(middle, band), positions[:, : middle.shape[0]])
     drawn = _with_uncertain(pointing, units, positions)
     values = jax.vmap(lambda v: unit_output(v, pointing, output, width))(drawn)
     values = _fitted(values.reshape(units.shape[0], -1), log)  # (units, outputs)
     ok = jnp.all(jnp.isfinite(values), axis=1)
     scale = jnp.where(band > 0, band, 1.0)
-    rows = jnp.concatenate([jnp.ones((units.shape[0], 1)), (units - middle) / scale], axis=1)
+    n = middle.shape[0]
+    rows = _design_rows(pointing, units, drawn, middle, scale)
     rows, values = jnp.where(ok[:, None], rows, 0.0), jnp.where(ok[:, None], values, 0.0)
     coef = jnp.linalg.lstsq(rows, values)[0]
-    value, slopes = coef[0], jnp.where(band > 0, coef[1:].T / scale, 0.0)
+    value, slopes, t = coef[0], jnp.where(band > 0, coef[1 : 1 + n].T / scale, 0.0), coef[1 + n :].T
     dof = jnp.maximum(jnp.sum(ok) - rows.shape[1], 1)  # the design matrix has full column rank (Latin hypercube)
     sigma = jnp.sqrt(jnp.sum(jnp.where(ok[:, None], values - rows @ coef, 0.0) ** 2, axis=0) / dof)
-    return (value, slopes, sigma) if isinstance(output, tuple) else (value[0], slopes[0], sigma[0])
+    return (value, slopes, sigma, t) if isinstance(output, tuple) else (value[0], slopes[0], sigma[0], t[0])
 
 
 @value_and_secants.def_fwd
 def _value_and_secants_fwd(perturbed, middle, band, positions, pointing, output, width, log=()):
-    value, slopes, sigma = value_and_secants(middle, band, positions, pointing, output, width, log)
-    return (value, slopes, sigma), slopes
+    value, slopes, sigma, t = value_and_secants(middle, band, positions, pointing, output, width, log)
+    return (value, slopes, sigma, t), slopes
 
 
 @value_and_secants.def_bwd
@@ -194,7 +223,9 @@ class Surface(eqx.Module):
     (centre $c$, half-widths `half`, m), with the standard errors of $f_0$ and $s$ and the
     residual scatter $\\sigma$ (on the log scale for a `log_outputs` output). Shapes: `center`,
     `half` (n,), `value`, `value_se`,
-    `sigma` (k,), `slopes`, `slope_se` (k, n) (output units per m)."""
+    `sigma` (k,), `slopes`, `slope_se` (k, n) (output units per m); `uncertain_slopes` (k, m):
+    the line's coefficients of the uncertain inputs' regressors (`_uncertain_columns`; m = 0
+    without them)."""
 
     center: Array
     half: Array
@@ -203,6 +234,7 @@ class Surface(eqx.Module):
     value_se: Array
     slope_se: Array
     sigma: Array
+    uncertain_slopes: Array
 
 
 class LinearisedYield(eqx.Module):
@@ -277,13 +309,12 @@ class LinearisedYield(eqx.Module):
     **Uncertain inputs** (`PointingObjective.uncertain_inputs`: a life's wear-rate spread, which
     varies from unit to unit but is not designed): every secant or surface unit, and every unit
     of `yield_check`, draws them over their band (`PointingObjective.uncertain_box`, one more
-    Latin-hypercube column each). The line is in the design's features alone; the inputs'
-    effect is in its residual scatter, which the quantile reads with `scatter` as a normal
-    term of the same variance (`design_problem` refuses such an objective without secants and
-    scatter). For a bounded input (a log-uniform wear rate) that tail is longer than the
-    input's own: conservative, by up to the ratio 2.33 / 1.73 of the normal's 99 % point to a
-    uniform's end at equal variance where the input's term dominates, by less as the features'
-    terms join it."""
+    Latin-hypercube column each), and the line carries each as one more regressor, the factor
+    $e^x$ scaled over its band (`_uncertain_columns`: wear grows in proportion to the rate, not
+    its logarithm), its coefficient `t` fitted with the slopes and held fixed like them. The
+    quantile draws the inputs too (the last m columns of `draws`: `yield_draws(n_features + 1 +
+    m)` with `scatter`), so the residual scatter is what neither the features nor the inputs
+    explain. `design_problem` refuses such an objective without secants and scatter."""
 
     pointing: PointingObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
@@ -337,33 +368,51 @@ class LinearisedYield(eqx.Module):
         return self.model(x, width)[:2]
 
     def model(self, x: Design, width):
-        """`(f, s, sigma)`: `linear_model` and the residual scatter `sigma` about it (output
-        units; `None` unless `scatter`), from the same solves; on the log scale for the
-        `log_outputs`."""
+        """`(f, s, sigma, t)`: `linear_model`, the residual scatter `sigma` about it (output
+        units; `None` unless `scatter`) and the line's coefficients `t` of the uncertain inputs'
+        regressors (`None` without uncertain inputs), from the same solves; on the log scale for
+        the `log_outputs`."""
         middle = x.nominal
+        uncertain = _uncertain_count(self.pointing) > 0
         if self.surface is not None:
             sf = self.surface
             slopes = jax.lax.stop_gradient(sf.slopes)
             value = sf.value + slopes @ (middle - sf.center)
+            sigma, t = sf.sigma, jax.lax.stop_gradient(sf.uncertain_slopes)
             if not isinstance(self.output, tuple):
-                value, slopes, sigma = value[0], slopes[0], sf.sigma[0]
-            else:
-                sigma = sf.sigma
-            return value, slopes, (sigma if self.scatter else None)
+                value, slopes, sigma, t = value[0], slopes[0], sigma[0], t[0]
+            return value, slopes, (sigma if self.scatter else None), (t if uncertain else None)
         if self.secant_units is not None:
             positions = secant_draws(middle.shape[0] + _uncertain_count(self.pointing), self.secant_units, self.secant_seed)
-            f, s, sigma = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing, self.output,
-                                            width, self.log)
-            return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None)
+            f, s, sigma, t = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing,
+                                               self.output, width, self.log)
+            return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None), (jax.lax.stop_gradient(t) if uncertain else None)
         if self.slope_width is None:
-            return (*value_and_slopes(middle, self.pointing, self.output, width), None)
+            return (*value_and_slopes(middle, self.pointing, self.output, width), None, None)
         smooth, slopes = value_and_slopes(middle, self.pointing, self.output, jnp.asarray(self.slope_width, dtype=float))
         value = jax.lax.stop_gradient(unit_output(middle, self.pointing, self.output, width))
-        return value + (smooth - jax.lax.stop_gradient(smooth)), slopes, None
+        return value + (smooth - jax.lax.stop_gradient(smooth)), slopes, None, None
+
+    def uncertain_term(self, t, draws):
+        """Per draw, the uncertain inputs' part of the line: `_uncertain_columns` of the inputs
+        the last m columns of `draws` draw (uniform on [-1, 1] over each input's band, the
+        logarithm's: log-uniform factors) times their coefficients `t`; shape (draws,) for one
+        output, (draws, k) for k; `None` where `t` is `None`."""
+        if t is None:
+            return None
+        m = _uncertain_count(self.pointing)
+        middle, half = self.pointing.uncertain_box()
+        columns = _uncertain_columns(self.pointing, middle + half * draws[:, draws.shape[1] - m :])
+        return columns @ (t.T if jnp.ndim(t) == 2 else t)
 
     def __call__(self, x: Design, draws, width) -> Array:
-        value, slopes, sigma = self.model(x, width)
-        quantile = linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma)
+        value, slopes, sigma, t = self.model(x, width)
+        m = _uncertain_count(self.pointing)
+        if m and draws.shape[1] != x.nominal.shape[0] + (sigma is not None) + m:
+            raise ValueError(f"LinearisedYield: the draws need {x.nominal.shape[0] + (sigma is not None) + m} columns (the "
+                             f"features, {'the scatter, ' if sigma is not None else ''}then each of "
+                             f"{', '.join(self.pointing.uncertain_inputs)}), got {draws.shape[1]}.")
+        quantile = linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma, self.uncertain_term(t, draws))
         return _unfitted(quantile, self.log) if any(self.log) else quantile
 
 
@@ -411,7 +460,7 @@ def _simulate_units(pointing, output, values, width):
 
 
 def _secant_noise(objective: LinearisedYield, x: Design, width):
-    """`(value, slopes, value_se, slope_se, sigma)` of the least-squares line `objective`'s secant fit
+    """`(value, slopes, value_se, slope_se, sigma, t)` of the least-squares line `objective`'s secant fit
     draws at the design `x` (`Design(middle, half-width)`, m), from one batch of its
     `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
     errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
@@ -422,7 +471,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
         sf = objective.surface
         slopes = np.asarray(sf.slopes)
         return (np.asarray(sf.value) + slopes @ (np.asarray(x.nominal) - np.asarray(sf.center)), slopes, np.asarray(sf.value_se),
-                np.asarray(sf.slope_se), np.asarray(sf.sigma))
+                np.asarray(sf.slope_se), np.asarray(sf.sigma), np.asarray(sf.uncertain_slopes))
     if objective.secant_units is None:
         raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
     return _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width)
@@ -433,22 +482,23 @@ def _fit_units(objective: LinearisedYield, middle, band, width):
     n = middle.shape[0]
     positions = secant_draws(n + _uncertain_count(objective.pointing), objective.secant_units, objective.secant_seed)
     units = realise(Design(middle, band), positions[:, :n])
-    drawn = _with_uncertain(objective.pointing, units, positions)  # a life's wear rate, drawn per unit: in the residual
+    drawn = _with_uncertain(objective.pointing, units, positions)  # a life's wear rate, drawn per unit: carried by the line
     width = None if width is None else jnp.asarray(width, dtype=float)
     values = np.asarray(_fitted(_simulate_units(objective.pointing, objective.output, drawn, width).reshape(units.shape[0], -1),
                                 objective.log))
     ok = np.all(np.isfinite(values), axis=1)
     scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
-    rows = np.concatenate([np.ones((units.shape[0], 1)), (np.asarray(units) - np.asarray(middle)) / scale], axis=1)[ok]
+    rows = np.asarray(_design_rows(objective.pointing, units, drawn, middle, jnp.asarray(scale)))[ok]
     dof = rows.shape[0] - np.linalg.matrix_rank(rows)
     if dof < 1:
         raise ValueError(f"secant_standard_error: {int(ok.sum())} successful units leave no residual to estimate the noise from "
                          f"({n} features): use more secant_units.")
-    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]  # (1 + n, k)
+    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]  # (1 + n + m, k)
     sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
     root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
     per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
-    return coef[0], coef[1:].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1:] * per_m, sigma
+    return (coef[0], coef[1 : 1 + n].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1 : 1 + n] * per_m, sigma,
+            coef[1 + n :].T)
 
 
 def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface:
@@ -466,10 +516,10 @@ def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface
     lower, upper = (np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (lower, upper))
     if not (np.all(np.isfinite(lower)) and np.all(upper > lower) and np.all(lower >= 0)):
         raise ValueError(f"fit_surface: the box must have 0 <= lower < upper (m), finite; got {lower} and {upper}.")
-    value, slopes, value_se, slope_se, sigma = _fit_units(objective, jnp.asarray(0.5 * (lower + upper)),
-                                                          jnp.asarray(0.5 * (upper - lower)), width)
+    value, slopes, value_se, slope_se, sigma, t = _fit_units(objective, jnp.asarray(0.5 * (lower + upper)),
+                                                             jnp.asarray(0.5 * (upper - lower)), width)
     return Surface(jnp.asarray(0.5 * (lower + upper)), jnp.asarray(0.5 * (upper - lower)), jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(value_se),
-                   jnp.asarray(slope_se), jnp.asarray(sigma))
+                   jnp.asarray(slope_se), jnp.asarray(sigma), jnp.asarray(t))
 
 
 def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
@@ -502,7 +552,7 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     (`yield_draws`). For `sequential_design(gradient_noise=...)` and `optimality_residual`'s
     `gradient_se`. One batch of `secant_units` forward solves. For an output in
     `objective.log_outputs` ($Q = \\exp Q_{\\log}$) the log scale's standard errors times $Q$."""
-    value, slopes, _, slope_se, residual = _secant_noise(objective, x, width)
+    value, slopes, _, slope_se, residual, t = _secant_noise(objective, x, width)
     middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)  # the zone's units, whatever the fit spanned
     n = middle.shape[0]
     deltas = realise(Design(middle, band), draws[:, :n]) - middle
@@ -511,10 +561,14 @@ def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=No
     z = (jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12)) if objective.scatter
          else jnp.zeros(draws.shape[0]))
 
-    def weights(f, s, sd):  # Q and d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
-        return jax.value_and_grad(lambda t: robust(f + u @ t + sd * z, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
+    more = objective.uncertain_term(jnp.atleast_2d(jnp.asarray(t)) if _uncertain_count(objective.pointing) else None, draws)
+    more = jnp.zeros((draws.shape[0], np.shape(value)[0])) if more is None else more  # the drawn inputs' part (a wear rate)
 
-    quantile, u_bar = (np.asarray(a) for a in jax.vmap(weights)(jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(sigma)))
+    def weights(f, s, sd, c):  # Q and d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
+        return jax.value_and_grad(lambda t_: robust(f + u @ t_ + sd * z + c, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
+
+    quantile, u_bar = (np.asarray(a) for a in jax.vmap(weights, in_axes=(0, 0, 0, 1))(jnp.asarray(value), jnp.asarray(slopes),
+                                                                                     jnp.asarray(sigma), more))
     band_factor = np.abs(1.0 + u_bar) if lower_limit else np.abs(u_bar)
     noise = np.concatenate([slope_se, slope_se * band_factor], axis=1)
     noise = noise * np.where(objective.log, np.exp(np.where(objective.log, quantile, 0.0)), 1.0)[:, None]  # d exp(Q) = exp(Q) dQ
@@ -537,8 +591,11 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     draws = unit_draws(key, int(n), x.nominal.shape[0] + _uncertain_count(objective.pointing))
     values = realise(x, draws[:, : x.nominal.shape[0]])
     drawn = _with_uncertain(objective.pointing, values, draws)  # each unit's wear rate drawn too (a life's spread)
-    f, s, sigma = eqx.filter_jit(lambda o, x_, w: o.model(x_, w))(objective, x, width)
-    linear = np.asarray(jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T).reshape(int(n), len(outputs))
+    f, s, sigma, t = eqx.filter_jit(lambda o, x_, w: o.model(x_, w))(objective, x, width)
+    linear = jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T
+    if t is not None:  # each unit's own drawn inputs (a wear rate) through the line
+        linear = linear + _uncertain_columns(objective.pointing, drawn[:, x.nominal.shape[0] :]) @ jnp.atleast_2d(t).T
+    linear = np.asarray(linear).reshape(int(n), len(outputs))
     if sigma is not None:
         # The model's scatter cannot predict a unit's own: each unit's prediction carries an
         # independent draw of it (seeded), so that the model's quantile over these units is the
