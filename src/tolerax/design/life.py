@@ -29,9 +29,10 @@ outputs by secants).
 (`tolerax.physics.wear.LUBRICANTS`); `MissionLife(spread=(low, high))` makes the rate an
 uncertain input of each unit: its logarithm, drawn over $[\\ln$ low$, \\ln$ high$]$, follows the
 unit's design values (`WEAR_FACTOR`, `spread_tolerances`): Monte Carlo verifies the end of
-life over the band, and a design draws it in every unit it fits its lines through, reading its
-effect as the fits' residual scatter (`tolerax.design.reliability.LinearisedYield`, uncertain
-inputs): a design over the band, not at one estimate.
+life over the band, and a design draws it in every unit it fits its lines through, each line
+carrying the factor as one more regressor and the quantile drawing it
+(`tolerax.design.reliability.LinearisedYield`, uncertain inputs): a design over the band, not at
+one estimate.
 """
 
 import equinox as eqx

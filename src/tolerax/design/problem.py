@@ -228,7 +228,8 @@ def design_problem(
       `surface_width`, m) and design on that response surface (`LinearisedYield.surface`).
     - A pointing objective whose units draw uncertain inputs (`PointingObjective.uncertain_inputs`:
       a life with a wear-rate `spread`) needs `yield_`, `secant_units` and `scatter`: the
-      secant units draw them, the fit's residual carries their effect (`LinearisedYield`).
+      secant units draw them, the line carries them and the quantile draws them
+      (`LinearisedYield`; `draws` get one more column each).
     - `fixed`: features whose tolerance zone is given, not designed (a bought-in bearing, a
       part already made): names, held at their starting zone (nominal +- `band`, or `start`'s),
       a mapping name -> its half-width (m), held at the starting nominal +- that, or a
@@ -241,8 +242,8 @@ def design_problem(
         raise ValueError(
             f"propose_design: each unit of this pointing objective draws {', '.join(uncertain)} (a life's spread: the wear rate "
             "varies from unit to unit); a design over it needs a yield requirement (yield_=...) linearised by secants over units "
-            "that draw it, with their residual scatter (secant_units=..., scatter=True): its effect is scatter the design's "
-            "features do not carry. propose_design sets them for every requirement; design_problem needs them given.")
+            "that draw it, with their residual scatter (secant_units=..., scatter=True): a tangent at the zone's middle cannot "
+            "carry it. propose_design sets them for every requirement; design_problem needs them given.")
     if uncertain and secant_units <= len(design_names(scene)) + len(uncertain):
         raise ValueError(f"propose_design: secant_units must exceed the {len(design_names(scene))} design features plus the "
                          f"{len(uncertain)} input(s) each unit draws ({', '.join(uncertain)}): a line through the units needs "

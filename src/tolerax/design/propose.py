@@ -166,8 +166,9 @@ def propose_design(
       units and may shift either requirement. The report's `jitter` holds that part.
     - A pointing objective with a life whose wear rate has a `spread` (`MissionLife(spread=...)`,
       a scene's `[life] spread`): every requirement is linearised by secants over units that
-      draw each unit's rate, with their residual scatter (`LinearisedYield`, uncertain inputs),
-      so that the design meets its yield over the rate's band, not at one estimate.
+      each draw their rate, the line carrying the rate and the quantile drawing it
+      (`LinearisedYield`, uncertain inputs), so that the design meets its yield over the rate's
+      band, not at one estimate.
     - `surface_rounds` (with `surface_box`): at most this many response surfaces, each after the
       first fitted over a box about the zones the last one's design gave (each middle +- 1.5
       half-widths, or +- `secant_reach` where wider) and the design solved again on it from
@@ -313,14 +314,14 @@ def _requirements_and_options(pointing, requirement, jitter, method, yield_, opt
                           for r in as_requirements(requirement, jitter, options.get("output", "pointing_rms")))
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
-        # secants over units that draw it, its effect in the fits' residual scatter.
+        # secants over units that draw it, the line carrying it (LinearisedYield).
         if yield_ is None or method != "sequential":
             raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread: the "
                              "wear rate from unit to unit); a design over it needs a yield requirement (yield_=..., --yield) "
                              "and method='sequential'.")
         if options.get("scatter") is False:
-            raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread); its "
-                             "effect is read as the secant fits' residual scatter: leave scatter on.")
+            raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread), whose "
+                             "secant fits keep the scatter of what neither the features nor the rate explain: leave scatter on.")
         requirements_ = tuple(r if r.secants else dataclasses.replace(r, secants=True) for r in requirements_)
     for r in requirements_:
         if r.output not in pointing.outputs:
