@@ -361,7 +361,8 @@ def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
     objective = rel.LinearisedYield(scan_pointing, output="pointing_jitter", q=0.9, secant_units=6, scatter=True,
                                     log_outputs=("pointing_jitter",))
     x = tx.Design(jnp.array([50e-6]), jnp.array([20e-6]))
-    f, s, sigma = eqx.filter_jit(lambda o, x_: o.model(x_, None))(objective, x)
+    f, s, sigma, t = eqx.filter_jit(lambda o, x_: o.model(x_, None))(objective, x)
+    assert t is None  # no drawn inputs: no life with a spread
     assert float(f) == pytest.approx(a + (50e-6 - m0) * s_true, rel=1e-12)
     assert float(s[0]) == pytest.approx(s_true, rel=1e-9) and abs(float(sigma)) < 1e-9
     draws = rel.yield_draws(2, 4096)
@@ -386,7 +387,7 @@ def test_log_fit_is_exact_on_a_log_linear_response(scan_pointing, monkeypatch):
                                log_outputs=("pointing_jitter",), secant_reach=30e-6)
     narrow = tx.Design(jnp.array([50e-6]), jnp.array([5e-6]))
     assert float(wide.fit_band(narrow.band)[0]) == 30e-6 and float(wide.fit_band(x.band)[0]) == 30e-6
-    f_w, s_w, _ = eqx.filter_jit(lambda o, x_: o.model(x_, None))(wide, narrow)
+    f_w, s_w, _, _ = eqx.filter_jit(lambda o, x_: o.model(x_, None))(wide, narrow)
     assert float(s_w[0]) == pytest.approx(s_true, rel=1e-9) and float(f_w) == pytest.approx(float(f), rel=1e-12)
     q_w = float(eqx.filter_jit(wide)(narrow, draws, None))
     assert q_w == pytest.approx(np.exp(a + (50e-6 - m0) * s_true + s_true * 5e-6 * (2 * 0.9 - 1)), rel=2e-3)
