@@ -223,8 +223,8 @@ def feature_growth(pointing, values) -> dict[str, tuple[float, float]]:
 
 def life_comparison(pointing, designed, alone, requirements: dict, units: int, key, chunk: int = 8, progress: bool = False):
     """Markdown: what designing for the end of life takes, against designing for the beginning of
-    life alone. `designed`, `alone`: the two `DesignReport`s (the first met its requirements at
-    the end of life too); `pointing`: the objective with the life (`PointingObjective(life=...)`);
+    life alone. `designed`, `alone`: the two `DesignReport`s (the first designed for the end of
+    life too, its status said in the text); `pointing`: the objective with the life (`PointingObjective(life=...)`);
     `requirements`: output -> limit for the Monte Carlo (e.g. `{"pointing_rms": R,
     "pointing_rms_eol": R}`). Per feature the two designs' zones and the growth by wear over the
     life at the first's zone middles (`feature_growth`): the wear allowance; then both designs
