@@ -21,3 +21,12 @@ def _release_compiled_programs():
     yield
     jax.clear_caches()
     gc.collect()
+
+
+@pytest.fixture(scope="module")
+def life_scan():
+    """The azimuth scan at planetary fidelity (its stage wears): `test_life.py`,
+    `test_life_flanks.py`."""
+    import tolerax as tx  # here, not at the top: the cache setting above comes first
+
+    return tx.scan("azimuth", fidelity=("planetary", "ideal"))

@@ -8,35 +8,22 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
-import tolerax as tx
 from tolerax.design.life import MissionLife
 from tolerax.physics.wear import ArchardWear
 
-# The start-up from rest (20 ms), as test_life.py's: the contacts carry load, the motion is not
-# yet a rattle.
-HORIZON, N_SAVE = 0.02, 41
+from _life_helpers import life_objective as _objective
 
 
-@pytest.fixture(scope="module")
-def scan():
-    return tx.scan("azimuth", fidelity=("planetary", "ideal"))
-
-
-def _objective(scene, life, **kw):
-    return tx.PointingObjective(scene, duration=HORIZON, settle=0.0, start="rest", n_save=N_SAVE, life=life, **kw)
-
-
-def test_flank_wear_gradient(scan):
+def test_flank_wear_gradient(life_scan):
     """The end-of-life gradient through the flanks' wear alone (journals at k = 0, flanks at the
     MoS2 median): the backlash grows by k|F||w_a - w_b|/(4 z b) per mesh. Measured over
     test_life.py's start-up, the forward-mode gradient agrees with central differences at 10 and 5 nm
     to within 2e-3 for every feature (its differences are flat to that level from 40 nm down:
     the mesh forces' and rates' zero crossings do not sit on saves here)."""
     life = MissionLife.from_years(0.02, wear=ArchardWear(0.0, flank_rate=4e-15), points=2)
-    pointing = _objective(scan, life, rtol=1e-10, atol=1e-13)
-    forward = _objective(scan, life, rtol=1e-10, atol=1e-13, adjoint=diffrax.ForwardMode())
+    pointing = _objective(life_scan, life, rtol=1e-10, atol=1e-13)
+    forward = _objective(life_scan, life, rtol=1e-10, atol=1e-13, adjoint=diffrax.ForwardMode())
     width, values = 1e-6, jnp.full(5, 5e-6)
     f = eqx.filter_jit(lambda p, v: p(v, width)["pointing_rms_eol"])
     both = eqx.filter_jit(lambda p, v: p(v, width))(pointing, values)
