@@ -46,13 +46,16 @@ def test_bench_runs_at_paper_speed(bench_run):
 
 
 def test_pi_step_controller_rejects_fewer_steps_same_answer():
-    # simulate(pcoeff, icoeff) reaches diffrax's controller: a PI controller (0.3, 0.3) on the
-    # bench's start-up (0.2 s, before the planets land on their pins) rejects 68 steps where the
-    # default I-controller rejects 211, and both agree with an rtol 1e-10 run to ~1e-11 rad of
-    # transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3 rad signal).
+    # simulate(pcoeff, icoeff) reaches diffrax's controller: the default PI controller (0.3, 0.3)
+    # on the bench's start-up (0.2 s, before the planets land on their pins) rejects 68 steps
+    # where diffrax's I-controller (0, 1) rejects 211, and both agree with an rtol 1e-10 run to
+    # ~1e-11 rad of transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3
+    # rad signal).
     bench = tx.TestBench()
-    plain = tx.simulate(bench, 0.2, n_save=31)
-    pi = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.3, icoeff=0.3)
+    plain = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.0, icoeff=1.0)
+    pi = tx.simulate(bench, 0.2, n_save=31)
+    explicit = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.3, icoeff=0.3)  # the default is that PI controller
+    assert (int(pi.num_steps), int(pi.num_rejected)) == (int(explicit.num_steps), int(explicit.num_rejected))
     ref = tx.simulate(bench, 0.2, n_save=31, rtol=1e-10, atol=1e-13)
     assert int(pi.num_rejected) < 0.5 * int(plain.num_rejected)
     for res in (plain, pi):
@@ -62,6 +65,25 @@ def test_pi_step_controller_rejects_fewer_steps_same_answer():
         tx.simulate(bench, 1e-3, icoeff=0.0)
     with pytest.raises(ValueError, match="pcoeff must be .* >= 0"):
         tx.simulate(bench, 1e-3, pcoeff=float("nan"))
+
+
+def test_solver_by_name_same_run_and_bosh3_within_its_tolerance():
+    # simulate(solver="Bosh3") is diffrax.Bosh3(); unknown names are refused with the list. On the
+    # bench's start-up (0.2 s) Bosh3 at rtol 1e-4 agrees with an rtol 1e-10 Tsit5 run to ~1e-9 rad
+    # of transmission error: 1e-4 of a ~3e-3 rad signal is 3e-7 rad, so the bound holds the error
+    # control 300x tighter than its tolerance allows (it is a bound on the solver, not on rtol).
+    bench = tx.TestBench()
+    named = tx.simulate(bench, 0.2, n_save=31, solver="Bosh3", rtol=1e-4, atol=1e-7)
+    given = tx.simulate(bench, 0.2, n_save=31, solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7)
+    assert int(named.num_steps) == int(given.num_steps)
+    np.testing.assert_array_equal(np.asarray(named.transmission_error), np.asarray(given.transmission_error))
+    ref = tx.simulate(bench, 0.2, n_save=31, rtol=1e-10, atol=1e-13)
+    te = np.abs(np.asarray(named.transmission_error) - np.asarray(ref.transmission_error)).max()
+    assert te < 1e-8, te
+    with pytest.raises(ValueError, match=r"solver 'RK4' is unknown; use one of \['Bosh3', 'Dopri5', 'Dopri8', 'Tsit5'\]"):
+        tx.simulate(bench, 1e-3, solver="RK4")
+    with pytest.raises(TypeError, match="solver must be a name"):
+        tx.simulate(bench, 1e-3, solver=3)
 
 
 def test_failure_is_reported_not_hidden():

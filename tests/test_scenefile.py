@@ -142,9 +142,15 @@ def test_replace_and_objective():
     with pytest.raises(tx.SceneFileError, match=r"\[run\] settle: .*settle < duration"):
         scene_file.replace(duration=0.1)
     # The step-size controller's coefficients reach the objective (and `simulate`, which checks them).
-    pi = short.replace(pcoeff=0.3, icoeff=0.3)
-    assert (pi.objective().pcoeff, pi.objective().icoeff) == (0.3, 0.3)
-    assert (objective.pcoeff, objective.icoeff) == (0.0, 1.0)
+    plain = short.replace(pcoeff=0.0, icoeff=1.0)
+    assert (plain.objective().pcoeff, plain.objective().icoeff) == (0.0, 1.0)
+    assert (objective.pcoeff, objective.icoeff) == (0.3, 0.3)  # the default: a PI controller
+    # The solver by name, from [run] to the objective; an unknown name is refused naming the key.
+    assert objective.solver == "Tsit5" and short.replace(solver="Bosh3").objective().solver == "Bosh3"
+    with pytest.raises(tx.SceneFileError, match=r"\[run\] solver: solver 'Euler' is unknown"):
+        short.replace(solver="Euler")
+    with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):
+        tx.PointingObjective(short.build(), duration=0.1, settle=0.0, solver="Euler")
 
 
 # --------------------------------------------------------------------------------------------
@@ -186,7 +192,7 @@ def test_good_text_parses():
     [
         ("planet_clearance = 5e-05", "planet_clearence = 5e-05", 10, "scene.azimuth_stage", "planet_clearence", "unknown key"),
         ('mode = "azimuth"', 'mode = "azimuth"\nrotor = 1', 6, "scene", "rotor", "unknown key"),
-        ('start = "steady"', 'start = "steady"\nsolver = "Tsit5"', 16, "run", "solver", "unknown key"),
+        ('start = "steady"', 'start = "steady"\nsolver = "Euler"', 16, "run", "solver", "solver 'Euler' is unknown"),
         ('title = "a test scene"', 'titel = "a test scene"', 1, "", "titel", "unknown key"),
         ("sun_teeth = 20", "sun_teeth = 20.0", 9, "scene.azimuth_stage", "sun_teeth", "must be an integer"),
         ("duration = 0.6", 'duration = "0.6"', 13, "run", "duration", "must be a number"),

@@ -20,6 +20,32 @@ DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
 # scene files' `[run]` check (which names the key and line) both read it.
 PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
+# The default (pcoeff, icoeff): a PI controller. On every scene measured it attempts fewer steps
+# than diffrax's I-controller (0, 1) at the same rtol, with outputs within the I-controller's own
+# error against a tight solve: the full planetary antenna in developed rattle 0.83x the wall
+# time, the lumped antenna, the planetary scan and the bench 0.86-0.93x
+# (`benchmarks/results/rattle_window.md`).
+DEFAULT_PID = (0.3, 0.3)
+# The explicit Runge-Kutta solvers a run may name (scene files' `[run] solver`, `simulate(solver=
+# "Bosh3")`). Tsit5 is the default. Bosh3 (3rd order, 3 evaluations a step) at rtol 1e-4 reads the
+# full planetary stage's pointing RMS and jitter within Tsit5's own error at rtol 1e-6, in 0.56x
+# its wall time in developed rattle (`benchmarks/results/rattle_window.md`).
+SOLVERS = {"Tsit5": diffrax.Tsit5, "Bosh3": diffrax.Bosh3, "Dopri5": diffrax.Dopri5, "Dopri8": diffrax.Dopri8}
+
+
+def solver_named(solver) -> diffrax.AbstractSolver:
+    """`solver` as a diffrax solver: a name in `SOLVERS`, a diffrax solver (returned as it is),
+    or `None` (Tsit5). `ValueError` for an unknown name, `TypeError` for anything else."""
+    if solver is None:
+        return diffrax.Tsit5()
+    if isinstance(solver, str):
+        if solver not in SOLVERS:
+            raise ValueError(f"solver {solver!r} is unknown; use one of {sorted(SOLVERS)} (or pass a diffrax solver).")
+        return SOLVERS[solver]()
+    if not isinstance(solver, diffrax.AbstractSolver):
+        raise TypeError(f"solver must be a name in {sorted(SOLVERS)} or a diffrax solver (e.g. diffrax.Tsit5()), "
+                        f"got {type(solver).__name__}.")
+    return solver
 
 
 class SimulationError(RuntimeError):
@@ -105,7 +131,7 @@ def _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_
     else:
         # force_dtmin=False: a step the error control wants below dtmin ends the solve with
         # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
-        # `pid` = (pcoeff, icoeff), Python floats: static (the default (0, 1) is diffrax's own).
+        # `pid` = (pcoeff, icoeff), Python floats: static (default `DEFAULT_PID`; (0, 1) is diffrax's I-controller).
         pcoeff, icoeff = pid
         controller = _NanSafe(
             diffrax.PIDController(
@@ -167,8 +193,8 @@ def solve(
     fixed_step: float | None = None,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
-    pcoeff: float = 0.0,
-    icoeff: float = 1.0,
+    pcoeff: float = DEFAULT_PID[0],
+    icoeff: float = DEFAULT_PID[1],
 ):
     """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times.
 
@@ -176,7 +202,8 @@ def solve(
     `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13) stops the solve with
     `RESULTS.dt_min_reached`: a journal crossing the 1 nm smoothing zone at 0.2 m/s needs steps of
     order 5 ns, 5e4 times the default; `pcoeff`, `icoeff` its proportional and integral
-    coefficients, Python numbers, default (0, 1): the I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
+    coefficients, Python numbers, default `DEFAULT_PID` = (0.3, 0.3), a PI controller; (0, 1) is
+    diffrax's I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
     multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
     the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
 
@@ -201,7 +228,7 @@ def solve(
         if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
             raise ValueError(
                 f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "
-                "the default (pcoeff, icoeff) = (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
+                "the default (pcoeff, icoeff) = (0.3, 0.3) is a PI controller, (0, 1) an I-controller."
             )
     if not dtmin < dt0 <= dtmax:
         raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")

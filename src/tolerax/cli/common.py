@@ -37,7 +37,7 @@ def versions() -> str:
 def settings(scene_file) -> str:
     """The solver settings of a scene's `[run]`, for a report."""
     run = scene_file.run
-    keys = ("duration", "settle", "start", "n_save", "rtol", "atol", "pcoeff", "icoeff", "dtmax", "max_steps")
+    keys = ("duration", "settle", "start", "n_save", "rtol", "atol", "pcoeff", "icoeff", "solver", "dtmax", "max_steps")
     return ", ".join(f"{k} {run[k]}" for k in keys if run.get(k) is not None)
 
 

@@ -18,6 +18,7 @@ from .features import design_names, with_design
 from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
+from ..solve import DEFAULT_PID, SOLVERS
 
 EOL = "_eol"
 """The suffix of an output's end-of-life twin (`PointingObjective(life=...)`)."""
@@ -74,7 +75,8 @@ class PointingObjective(eqx.Module):
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
     recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
-    step-size controller's coefficients (`simulate`; default the I-controller).
+    step-size controller's coefficients (`simulate`; default its PI controller); `solver` the
+    name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`).
 
     `life` (optional, a `MissionLife`): the clearances worn over the mission's life
     (`tolerax.design.life`); every output then has an end-of-life twin named `<output>_eol`
@@ -101,13 +103,16 @@ class PointingObjective(eqx.Module):
     # and cannot be hashed. It holds no arrays, so `eqx.filter_jit` still treats it as static.
     adjoint: diffrax.AbstractAdjoint | None = None
     # Appended after the older fields, so positional construction keeps its meaning.
-    pcoeff: float = eqx.field(static=True, default=0.0)
-    icoeff: float = eqx.field(static=True, default=1.0)
+    pcoeff: float = eqx.field(static=True, default=DEFAULT_PID[0])
+    icoeff: float = eqx.field(static=True, default=DEFAULT_PID[1])
     jitter_cutoff: float | None = eqx.field(static=True, default=None)
     metrics: tuple[AbstractMetric, ...] = ()
     life: MissionLife | None = None
+    solver: str = eqx.field(static=True, default="Tsit5")
 
     def __check_init__(self):
+        if self.solver not in SOLVERS:
+            raise ValueError(f"PointingObjective: solver {self.solver!r} is unknown; use one of {sorted(SOLVERS)}.")
         if not (0.0 <= self.settle < self.duration):
             raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
         names = [getattr(m, "name", None) for m in self.metrics]
@@ -144,7 +149,7 @@ class PointingObjective(eqx.Module):
         """`scene`'s result with this objective's run settings (`throw=False`)."""
         return simulate(
             scene, self.duration, start=self.start, n_save=self.n_save, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
-            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint,
+            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint, solver=self.solver,
         )
 
     def jitter_window(self) -> np.ndarray:

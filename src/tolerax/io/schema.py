@@ -23,7 +23,7 @@ from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
-from ..solve import PID_RULES
+from ..solve import PID_RULES, SOLVERS
 
 # ---------------------------------------------------------------------------------------------
 # The schema
@@ -51,6 +51,7 @@ RUN_KEYS = {
     "fixed_step": (float, None),
     "pcoeff": (float, _SIM["pcoeff"].default),
     "icoeff": (float, _SIM["icoeff"].default),
+    "solver": (str, "Tsit5"),
     "settle": (float, 0.0),
 }
 
@@ -352,8 +353,11 @@ def _check_run(chk: Checker, run: dict):
     for key, (ok, rule) in PID_RULES.items():
         x = value[key]
         if not (math.isfinite(x) and ok(x)):
-            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
-                            "(0.3, 0.3) a PI controller).", table, key)
+            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0.3, 0.3) is a PI controller, "
+                            "(0, 1) an I-controller).", table, key)
+    if value["solver"] not in SOLVERS:
+        raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)} (Tsit5, the default; "
+                        "Bosh3 at rtol 1e-4 for the full planetary stage's Monte Carlo, docs/scene_files.md).", table, "solver")
     if value["start"] not in STARTS:
         raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
     if value["n_save"] < 2:

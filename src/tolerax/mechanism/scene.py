@@ -15,7 +15,7 @@ import equinox as eqx
 import jax
 
 from .. import _validate as V
-from ..solve import DTMIN, SolverReport, raise_on_failure, solve
+from ..solve import DEFAULT_PID, DTMIN, SolverReport, raise_on_failure, solve, solver_named
 
 STARTS = ("rest", "steady", "loaded")
 
@@ -61,7 +61,7 @@ def simulate(
     start: str = "rest",
     y0: tuple | None = None,
     n_save: int = 1001,
-    solver: diffrax.AbstractSolver | None = None,
+    solver: diffrax.AbstractSolver | str | None = None,
     rtol: float = 1e-6,
     atol: float = 1e-9,
     dt0: float = 1e-6,
@@ -72,8 +72,8 @@ def simulate(
     throw: bool = True,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
-    pcoeff: float = 0.0,
-    icoeff: float = 1.0,
+    pcoeff: float = DEFAULT_PID[0],
+    icoeff: float = DEFAULT_PID[1],
 ):
     """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
 
@@ -90,19 +90,23 @@ def simulate(
       Ignored when `y0` is given.
     - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
     - `n_save`: number of equally spaced save times.
-    - `solver`: a diffrax solver (default `Tsit5`, explicit; implicit solvers are compared in
-      `benchmarks/work_precision.py`).
+    - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
+      default; `"Bosh3"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage, `"Bosh3"` at
+      rtol 1e-4 reads the pointing RMS and jitter within Tsit5's own error at rtol 1e-6 in
+      0.56x its wall time (developed rattle, `benchmarks/results/rattle_window.md`); implicit
+      solvers are compared in `benchmarks/work_precision.py`.
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
       below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
     - `max_steps`: step budget.
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
-      (`diffrax.PIDController`). The default (0, 1) is the I-controller; a PI controller
-      (0.3, 0.3) rejects fewer steps in a rattling run (planetary dual-axis antenna in its
-      developed rattle: 0.85x the right-hand-side evaluations, pointing within 5e-6 arcsec of an
-      rtol 1e-9 run, `benchmarks/results/archive/explicit_window.md`). Python numbers: changing them
-      recompiles (like `solver`); ignored with `fixed_step`.
+      (`diffrax.PIDController`). The default (0.3, 0.3) is a PI controller: it rejects fewer
+      steps than diffrax's I-controller (0, 1) and takes 0.83x its wall time on the planetary
+      dual-axis antenna in developed rattle, 0.86-0.93x on the bench, the lumped antenna and the
+      planetary scan, with outputs within the I-controller's own error against a tight solve
+      (`benchmarks/results/rattle_window.md`). Python numbers: changing them recompiles (like
+      `solver`); ignored with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
@@ -122,7 +126,7 @@ def simulate(
         y0 = scene.initial_state(start)
     else:
         V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
-    solver = diffrax.Tsit5() if solver is None else solver
+    solver = solver_named(solver)
     sol, observed = solve(
         scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
         dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step, progress=progress, adjoint=adjoint,
