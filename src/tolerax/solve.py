@@ -20,16 +20,17 @@ DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
 # scene files' `[run]` check (which names the key and line) both read it.
 PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
-# The default (pcoeff, icoeff): a PI controller. On every scene measured it attempts fewer steps
-# than diffrax's I-controller (0, 1) at the same rtol, with outputs within the I-controller's own
-# error against a tight solve: the full planetary antenna in developed rattle 0.83x the wall
-# time, the lumped antenna, the planetary scan and the bench 0.86-0.93x
-# (`benchmarks/results/rattle_window.md`).
+# The default (pcoeff, icoeff): a PI controller. On every scene measured it rejects fewer steps
+# than diffrax's I-controller (0, 1) at the same rtol, with outputs as close to a tight solve as
+# the I-controller's: the full planetary antenna in developed rattle 0.88x the wall time, the
+# lumped antenna, the planetary scan and the bench 0.87-0.95x; on rattling Monte Carlo units of
+# the planetary scan the same (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
 DEFAULT_PID = (0.3, 0.3)
 # The explicit Runge-Kutta solvers a run may name (scene files' `[run] solver`, `simulate(solver=
-# "Bosh3")`). Tsit5 is the default. Bosh3 (3rd order, 3 evaluations a step) at rtol 1e-4 reads the
-# full planetary stage's pointing RMS and jitter within Tsit5's own error at rtol 1e-6, in 0.56x
-# its wall time in developed rattle (`benchmarks/results/rattle_window.md`).
+# "Bosh3")`). Tsit5 is the default. Bosh3 (3rd order, 3 evaluations a step) at rtol 1e-4 runs the
+# full planetary stage 1.6-1.7x faster than Tsit5 at rtol 1e-6, its pointing RMS within Tsit5's
+# own error, its peak and jitter up to 1.6x and 3x that error on the worst of 16 rattling units
+# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
 SOLVERS = {"Tsit5": diffrax.Tsit5, "Bosh3": diffrax.Bosh3, "Dopri5": diffrax.Dopri5, "Dopri8": diffrax.Dopri8}
 
 
