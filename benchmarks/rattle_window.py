@@ -7,7 +7,8 @@ must-show scene), and of the step-size controller on every fidelity, in one run.
 **Work-precision** (`--configs`): `tolerax.antenna("dual", fidelity="planetary")` (free base,
 100 um clearances and backlash, 0.98 deg/s on both joints) from a steady start over
 `warmup + window` seconds through the public `tolerax.simulate`, one configuration per row
-(solver, rtol, the controller's (pcoeff, icoeff); atol = rtol / 1000). Each row's program is
+(solver, rtol, the controller's (pcoeff, icoeff); atol = rtol / 1000; solvers by their names in
+`tolerax.solve.SOLVERS`). Each row's program is
 compiled first by a 0.01 s call of the same structure (the duration is a value), then the whole
 run is timed once: **wall seconds per simulated second** over the run, accepted and rejected
 steps, right-hand-side evaluations (stages per attempted step). Outputs over the window
@@ -17,11 +18,11 @@ stability metric, `pointing_metrics`), each against the reference row (Tsit5, rt
 I-controller) as a relative error, and the largest difference of the pointing error over the
 window's saves (arcsec). The rattle is chaotic: two correct solves at different tolerances part
 after a while, so the jitter's difference between two tight solves is part of what "within the
-solver's error" means; the table has today's default (Tsit5, rtol 1e-6, I-controller) and a
-tighter I-controller row to read that against.
+solver's error" means; the table has the I- and the PI-controller's Tsit5 at rtol 1e-6 and tighter
+rows to read that against.
 
-**Controllers across scenes** (`--scenes`): the same comparison of diffrax's I-controller (0, 1,
-tolerax's default) against the PI controller (0.3, 0.3) at rtol 1e-6 on the other scenes a user
+**Controllers across scenes** (`--scenes`): the same comparison of diffrax's I-controller (0, 1;
+tolerax's default until this benchmark) against the PI controller (0.3, 0.3, `tolerax.solve.DEFAULT_PID` since) at rtol 1e-6 on the other scenes a user
 runs: the default joint on its bench from rest (0.4 s), the dual antenna with lumped joints
 (2 s), the azimuth scan at planetary fidelity (the Monte Carlo scene, 0.6 s). Wall time,
 attempted steps, and each one's difference from the reference setting on the same scene (the
@@ -32,16 +33,15 @@ bench: the output angle error).
 import dataclasses
 import time
 
-import diffrax
 import numpy as np
 
 import tolerax as tx
 from tolerax.mechanism.outputs import pointing_metrics
+from tolerax.solve import DEFAULT_PID, SOLVERS
 
 import harness
 
-SOLVERS = {"Tsit5": diffrax.Tsit5, "Bosh3": diffrax.Bosh3, "Dopri5": diffrax.Dopri5, "Dopri8": diffrax.Dopri8}
-CONTROLLERS = {"I": (0.0, 1.0), "PI": (0.3, 0.3)}
+CONTROLLERS = {"I": (0.0, 1.0), "PI": DEFAULT_PID}
 DEFAULT_CONFIGS = (
     "Tsit5:I:1e-6", "Tsit5:PI:1e-6", "Tsit5:I:1e-8", "Tsit5:PI:1e-8", "Tsit5:PI:1e-4", "Dopri5:PI:1e-6",
     "Bosh3:I:1e-4", "Bosh3:PI:1e-3", "Bosh3:PI:1e-4", "Bosh3:PI:1e-5",
@@ -160,7 +160,7 @@ def main():
         rows,
         about=(f"`tolerax.antenna('dual', fidelity='planetary')`, steady start, {duration:g} s ({args.n_save} saves); the window "
                f"is {args.warmup:g}-{duration:g} s; jitter above {args.jitter_cutoff:g} Hz. Controller I = (pcoeff, icoeff) "
-               f"(0, 1), diffrax's and tolerax's default; PI = (0.3, 0.3); atol = rtol / 1000. Reference {reference.label}: "
+               f"(0, 1), diffrax's; PI = {DEFAULT_PID}, tolerax's default; atol = rtol / 1000. Reference {reference.label}: "
                f"{ref_wall:.1f} s, {int(ref.num_steps)} accepted ({int(ref.num_rejected)} rejected) steps, pointing RMS "
                f"{ref_rms:.3f} arcsec and jitter {ref_jitter:.4f} arcsec over the window. Each row compiled by a 0.01 s run first, "
                f"then timed once. Total wall {time.perf_counter() - start_all:.0f} s."),

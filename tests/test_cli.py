@@ -158,9 +158,16 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     assert len(calls) == 1
     again = json.loads((out / "backlash-small.json").read_text())
     assert again[0] == rows[0] and again[1]["backlash"] == rows[1]["backlash"]
+    # A row solved with another step control (written before the controller was recorded: the
+    # I-controller) is another run too: only that scene solves again.
+    older = [dict(again[0]), again[1]]
+    del older[0]["pcoeff"], older[0]["icoeff"]
+    (out / "backlash-small.json").write_text(json.dumps(older))
+    assert cli.main(args + ["--resume"]) == 0
+    assert len(calls) == 2
     # Another horizon is another run, even with --resume: both scenes solve again.
     assert cli.main(["studies", "backlash", "--duration", "0.03", "--out", str(out), "--resume"]) == 0
-    assert len(calls) == 3
+    assert len(calls) == 4
     assert [r["duration_s"] for r in json.loads((out / "backlash-small.json").read_text())] == [0.03, 0.03]
 
 

@@ -147,6 +147,13 @@ def test_replace_and_objective():
     assert (objective.pcoeff, objective.icoeff) == (0.3, 0.3)  # the default: a PI controller
     # The solver by name, from [run] to the objective; an unknown name is refused naming the key.
     assert objective.solver == "Tsit5" and short.replace(solver="Bosh3").objective().solver == "Bosh3"
+    # ... and it is what the objective's runs and the scene file's own run solve with.
+    tiny = short.replace(duration=0.01, n_save=11, solver="Bosh3")
+    by_objective = tiny.objective().simulate_scene(tiny.build())
+    by_simulate = tx.simulate(tiny.build(), 0.01, start="steady", n_save=11, solver="Bosh3")
+    assert int(by_objective.num_steps) == int(by_simulate.num_steps) == int(tiny.simulate().num_steps)
+    tsit5 = short.replace(duration=0.01, n_save=11).simulate()
+    assert int(by_objective.num_steps) != int(tsit5.num_steps)
     with pytest.raises(tx.SceneFileError, match=r"\[run\] solver: solver 'Euler' is unknown"):
         short.replace(solver="Euler")
     with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):

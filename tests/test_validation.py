@@ -138,8 +138,10 @@ def test_run_arguments_are_checked():
         tx.simulate(bench, 1e-3, y0=(q[:-1], qd, v))
     with pytest.raises(ValueError, match="structure"):
         tx.simulate(bench, 1e-3, y0=(q, qd))
-    with pytest.raises(TypeError, match="diffrax solver"):
+    with pytest.raises(ValueError, match="solver 'rk45' is unknown"):
         tx.simulate(bench, 1e-3, solver="rk45")
+    with pytest.raises(TypeError, match="diffrax solver"):
+        tx.simulate(bench, 1e-3, solver=object())
     # A stage is not a scene: it needs a bench or a mechanism around it.
     with pytest.raises(TypeError, match="TestBench or a Mechanism"):
         tx.simulate(tx.default_stage(), 1e-3)

@@ -20,25 +20,31 @@ DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
 # scene files' `[run]` check (which names the key and line) both read it.
 PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
-# The default (pcoeff, icoeff): a PI controller. On every scene measured it rejects fewer steps
-# than diffrax's I-controller (0, 1) at the same rtol, with outputs as close to a tight solve as
-# the I-controller's: the full planetary antenna in developed rattle 0.88x the wall time, the
-# lumped antenna, the planetary scan and the bench 0.87-0.95x; on rattling Monte Carlo units of
-# the planetary scan the same (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
+# The default (pcoeff, icoeff): a PI controller. It rejects fewer steps than diffrax's I-controller
+# (0, 1) at the same rtol: 0.88x the wall time on the full planetary antenna in developed rattle,
+# 0.87-0.95x on the bench, the lumped antenna and the planetary scan; no gain at rtol 1e-8 or on
+# rattling Monte Carlo units (0.97-1.04x). Its outputs are as near a tight solve as the
+# I-controller's, or nearer, on the lumped antenna, the scan and 16 rattling Monte Carlo units;
+# 4x farther on the one rattle window's pointing RMS (6.5e-4 against 1.5e-4 relative, where two
+# tight solves differ by 1.3e-4-2.2e-4: the rattle is chaotic)
+# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
 DEFAULT_PID = (0.3, 0.3)
 # The explicit Runge-Kutta solvers a run may name (scene files' `[run] solver`, `simulate(solver=
-# "Bosh3")`). Tsit5 is the default. Bosh3 (3rd order, 3 evaluations a step) at rtol 1e-4 runs the
-# full planetary stage 1.6-1.7x faster than Tsit5 at rtol 1e-6, its pointing RMS within Tsit5's
-# own error, its peak and jitter up to 1.6x and 3x that error on the worst of 16 rattling units
+# "Bosh3")`). Tsit5 is the default (`DEFAULT_SOLVER`). Bosh3 (3rd order, 3 evaluations a step) at
+# rtol 1e-4 runs the full planetary stage 1.4x (developed rattle) and 1.65-1.8x (rattling Monte
+# Carlo units) faster than Tsit5 at rtol 1e-6, both with the PI default; against a tight solve
+# its pointing RMS errs 1.1-1.3x as much as Tsit5's with the I-controller on the Monte Carlo units
+# (2.3x on the rattle window), its peak 1.6x, its jitter up to 3.4x on the worst of 16 units
 # (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
+DEFAULT_SOLVER = "Tsit5"
 SOLVERS = {"Tsit5": diffrax.Tsit5, "Bosh3": diffrax.Bosh3, "Dopri5": diffrax.Dopri5, "Dopri8": diffrax.Dopri8}
 
 
 def solver_named(solver) -> diffrax.AbstractSolver:
     """`solver` as a diffrax solver: a name in `SOLVERS`, a diffrax solver (returned as it is),
-    or `None` (Tsit5). `ValueError` for an unknown name, `TypeError` for anything else."""
+    or `None` (`DEFAULT_SOLVER`). `ValueError` for an unknown name, `TypeError` for anything else."""
     if solver is None:
-        return diffrax.Tsit5()
+        return SOLVERS[DEFAULT_SOLVER]()
     if isinstance(solver, str):
         if solver not in SOLVERS:
             raise ValueError(f"solver {solver!r} is unknown; use one of {sorted(SOLVERS)} (or pass a diffrax solver).")

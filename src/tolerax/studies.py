@@ -33,6 +33,7 @@ from .physics.gears import default_stage
 from .mechanism.mechanism import Mechanism
 from .mechanism.outputs import MechanismResult, pointing_metrics, vibration_amplitude
 from .mechanism.scene import simulate
+from .solve import DEFAULT_PID
 from .mechanism.scenes import antenna
 
 UM = 1e-6
@@ -196,11 +197,15 @@ def size_spec(size: str, duration: float | None = None, settle: float | None = N
 
 
 def _same_scene(row: dict, labels: dict, spec: StudySize, size: str) -> bool:
-    """Whether `row` (of an earlier run) is the scene `labels` at the horizon of `spec`. Rows
-    written before horizons could be overridden carry none: theirs is the size's own."""
+    """Whether `row` (of an earlier run) is the scene `labels` at the horizon of `spec`, solved
+    with today's step control (`simulate`'s default controller). Rows written before horizons
+    could be overridden carry none: theirs is the size's own; rows written before the controller
+    was recorded were solved with diffrax's I-controller (0, 1)."""
     own = SIZES[size]
     horizon = (row.get("duration_s", own.duration), row.get("settle_s", own.settle))
+    control = (row.get("pcoeff", 0.0), row.get("icoeff", 1.0))
     return (all(math.isclose(a, b) for a, b in zip(horizon, (spec.duration, spec.settle)))
+            and all(math.isclose(a, b) for a, b in zip(control, DEFAULT_PID))
             and all(row.get(k) == v for k, v in labels.items()))
 
 
@@ -220,7 +225,8 @@ def run(
 
     - `duration`, `settle` (s): override the size's horizon and metrics start (`size_spec`).
     - `done`: rows of an earlier run (its JSON); a scene with a row there of the same labels and
-      horizon is not run again and its row is kept (a long study resumes where it stopped).
+      horizon and step control (`pcoeff`, `icoeff`, recorded in each row) is not run again and its
+      row is kept (a long study resumes where it stopped).
     - `on_row(rows)`: called with the rows so far after each scene (to save them as they come).
     """
     spec = size_spec(size, duration, settle)
@@ -236,7 +242,7 @@ def run(
         res = simulate(mech, spec.duration, n_save=spec.n_save, start="steady")
         wall = time.perf_counter() - start
         row = dict(study=study, **labels, **metrics(mech, res, spec.settle), duration_s=spec.duration,
-                   settle_s=spec.settle, wall_s=wall)
+                   settle_s=spec.settle, pcoeff=DEFAULT_PID[0], icoeff=DEFAULT_PID[1], wall_s=wall)
         if spec.start_up is not None:
             early = metrics(mech, res, spec.start_up[0], end=spec.start_up[1])
             row["start_up"] = {k: v for k, v in early.items() if k not in ("steps", "rejected")}

@@ -18,7 +18,7 @@ from .features import design_names, with_design
 from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
-from ..solve import DEFAULT_PID, SOLVERS
+from ..solve import DEFAULT_PID, DEFAULT_SOLVER, SOLVERS
 
 EOL = "_eol"
 """The suffix of an output's end-of-life twin (`PointingObjective(life=...)`)."""
@@ -76,7 +76,8 @@ class PointingObjective(eqx.Module):
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
     recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
     step-size controller's coefficients (`simulate`; default its PI controller); `solver` the
-    name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`).
+    name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`; a name, not a
+    solver object: run settings are static and hashable).
 
     `life` (optional, a `MissionLife`): the clearances worn over the mission's life
     (`tolerax.design.life`); every output then has an end-of-life twin named `<output>_eol`
@@ -108,11 +109,11 @@ class PointingObjective(eqx.Module):
     jitter_cutoff: float | None = eqx.field(static=True, default=None)
     metrics: tuple[AbstractMetric, ...] = ()
     life: MissionLife | None = None
-    solver: str = eqx.field(static=True, default="Tsit5")
+    solver: str = eqx.field(static=True, default=DEFAULT_SOLVER)
 
     def __check_init__(self):
         if self.solver not in SOLVERS:
-            raise ValueError(f"PointingObjective: solver {self.solver!r} is unknown; use one of {sorted(SOLVERS)}.")
+            raise ValueError(f"PointingObjective: solver {self.solver!r} is unknown; use the name of one of {sorted(SOLVERS)}.")
         if not (0.0 <= self.settle < self.duration):
             raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
         names = [getattr(m, "name", None) for m in self.metrics]

@@ -23,7 +23,7 @@ from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
-from ..solve import PID_RULES, SOLVERS
+from ..solve import DEFAULT_SOLVER, PID_RULES, SOLVERS
 
 # ---------------------------------------------------------------------------------------------
 # The schema
@@ -51,7 +51,7 @@ RUN_KEYS = {
     "fixed_step": (float, None),
     "pcoeff": (float, _SIM["pcoeff"].default),
     "icoeff": (float, _SIM["icoeff"].default),
-    "solver": (str, "Tsit5"),
+    "solver": (str, DEFAULT_SOLVER),
     "settle": (float, 0.0),
 }
 

@@ -92,10 +92,10 @@ def simulate(
     - `n_save`: number of equally spaced save times.
     - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
       default; `"Bosh3"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage, `"Bosh3"` at
-      rtol 1e-4 (atol 1e-7) runs 1.6-1.7x faster than Tsit5 at rtol 1e-6, its pointing RMS
-      within Tsit5's own error, its peak and jitter up to 1.6x and 3x that error on the worst
-      of 16 rattling units (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`);
-      implicit solvers are compared in `benchmarks/work_precision.py`.
+      rtol 1e-4 (atol 1e-7) runs 1.4-1.8x faster than Tsit5 at rtol 1e-6; against a tight
+      solve its pointing RMS errs 1.1-2.3x as much, its peak 1.6x, its jitter up to 3.4x on the
+      worst of 16 rattling units (`tolerax.solve.SOLVERS` has the figures); implicit solvers
+      are compared in `benchmarks/work_precision.py`.
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
@@ -103,11 +103,9 @@ def simulate(
     - `max_steps`: step budget.
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
       (`diffrax.PIDController`). The default (0.3, 0.3) is a PI controller: it rejects fewer
-      steps than diffrax's I-controller (0, 1) and takes 0.88x its wall time on the planetary
-      dual-axis antenna in developed rattle, 0.87-0.95x on the bench, the lumped antenna and the
-      planetary scan, its outputs as close to a tight solve as the I-controller's
-      (`benchmarks/results/rattle_window.md`). Python numbers: changing them recompiles (like
-      `solver`); ignored with `fixed_step`.
+      steps than diffrax's I-controller (0, 1), at 0.87-0.95x its wall time on the scenes
+      measured (`tolerax.solve.DEFAULT_PID` has the figures, accuracy included). Python numbers:
+      changing them recompiles (like `solver`); ignored with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
