@@ -9,7 +9,7 @@ steady motion, pointing window after 0.3 s), its tolerance zones widened to nomi
 (50 um: the units rattle, as the design verifications' do). Every configuration evaluates the
 same `--n` units (same key) through the public `tolerax.monte_carlo` (vmap backend) with the
 scene's objective at that solver, rtol (atol = rtol / 1000) and controller (I = diffrax's
-(0, 1), tolerax's default until this benchmark; PI = (0.3, 0.3), `tolerax.solve.DEFAULT_PID` since): a warm-up call of
+(0, 1), tolerax's default; PI = (0.3, 0.3)): a warm-up call of
 one chunk compiles, then the timed call. **Units per minute** and their ratio to the first
 configuration; **errors**: the relative difference of each unit's pointing RMS, peak and jitter
 (above 20 Hz) from the reference (Tsit5, rtol 1e-10, I-controller) on the same unit, the median

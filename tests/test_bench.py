@@ -46,16 +46,15 @@ def test_bench_runs_at_paper_speed(bench_run):
 
 
 def test_pi_step_controller_rejects_fewer_steps_same_answer():
-    # simulate(pcoeff, icoeff) reaches diffrax's controller: the default PI controller (0.3, 0.3)
-    # on the bench's start-up (0.2 s, before the planets land on their pins) rejects 68 steps
-    # where diffrax's I-controller (0, 1) rejects 211, and both agree with an rtol 1e-10 run to
-    # ~1e-11 rad of transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3
-    # rad signal).
+    # simulate(pcoeff, icoeff) reaches diffrax's controller: a PI controller (0.3, 0.3) on the
+    # bench's start-up (0.2 s, before the planets land on their pins) rejects 68 steps where the
+    # default I-controller rejects 211, and both agree with an rtol 1e-10 run to ~1e-11 rad of
+    # transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3 rad signal).
     bench = tx.TestBench()
-    plain = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.0, icoeff=1.0)
-    pi = tx.simulate(bench, 0.2, n_save=31)
-    explicit = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.3, icoeff=0.3)  # the default is that PI controller
-    assert (int(pi.num_steps), int(pi.num_rejected)) == (int(explicit.num_steps), int(explicit.num_rejected))
+    plain = tx.simulate(bench, 0.2, n_save=31)
+    pi = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.3, icoeff=0.3)
+    explicit = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.0, icoeff=1.0)  # the default is diffrax's I-controller
+    assert (int(plain.num_steps), int(plain.num_rejected)) == (int(explicit.num_steps), int(explicit.num_rejected))
     ref = tx.simulate(bench, 0.2, n_save=31, rtol=1e-10, atol=1e-13)
     assert int(pi.num_rejected) < 0.5 * int(plain.num_rejected)
     for res in (plain, pi):

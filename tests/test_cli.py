@@ -158,11 +158,11 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     assert len(calls) == 1
     again = json.loads((out / "backlash-small.json").read_text())
     assert again[0] == rows[0] and again[1]["backlash"] == rows[1]["backlash"]
-    # A row solved with another step control (written before the controller was recorded: the
-    # I-controller) is another run too: only that scene solves again.
-    older = [dict(again[0]), again[1]]
-    del older[0]["pcoeff"], older[0]["icoeff"]
-    (out / "backlash-small.json").write_text(json.dumps(older))
+    # A row solved with another step control (a PI controller) is another run too: only that
+    # scene solves again; a row written before the controller was recorded (the I-controller,
+    # today's default) is kept.
+    other = [dict(again[0], pcoeff=0.3, icoeff=0.3), {k: v for k, v in again[1].items() if k not in ("pcoeff", "icoeff")}]
+    (out / "backlash-small.json").write_text(json.dumps(other))
     assert cli.main(args + ["--resume"]) == 0
     assert len(calls) == 2
     # Another horizon is another run, even with --resume: both scenes solve again.

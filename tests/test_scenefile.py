@@ -142,9 +142,9 @@ def test_replace_and_objective():
     with pytest.raises(tx.SceneFileError, match=r"\[run\] settle: .*settle < duration"):
         scene_file.replace(duration=0.1)
     # The step-size controller's coefficients reach the objective (and `simulate`, which checks them).
-    plain = short.replace(pcoeff=0.0, icoeff=1.0)
-    assert (plain.objective().pcoeff, plain.objective().icoeff) == (0.0, 1.0)
-    assert (objective.pcoeff, objective.icoeff) == (0.3, 0.3)  # the default: a PI controller
+    pi = short.replace(pcoeff=0.3, icoeff=0.3)
+    assert (pi.objective().pcoeff, pi.objective().icoeff) == (0.3, 0.3)
+    assert (objective.pcoeff, objective.icoeff) == (0.0, 1.0)  # the default: the I-controller
     # The solver by name, from [run] to the objective; an unknown name is refused naming the key.
     assert objective.solver == "Tsit5" and short.replace(solver="Bosh3").objective().solver == "Bosh3"
     # ... and it is what the objective's runs and the scene file's own run solve with.

@@ -20,19 +20,19 @@ DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # The step-size controller's coefficients: name -> (valid, the rule in words). `solve` and the
 # scene files' `[run]` check (which names the key and line) both read it.
 PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
-# The default (pcoeff, icoeff): a PI controller. It rejects fewer steps than diffrax's I-controller
-# (0, 1) at the same rtol: 0.88x the wall time on the full planetary antenna in developed rattle,
-# 0.87-0.95x on the bench, the lumped antenna and the planetary scan; no gain at rtol 1e-8 or on
-# rattling Monte Carlo units (0.97-1.04x). Its outputs are as near a tight solve as the
-# I-controller's, or nearer, on the lumped antenna, the scan and 16 rattling Monte Carlo units;
-# 4x farther on the one rattle window's pointing RMS (6.5e-4 against 1.5e-4 relative, where two
-# tight solves differ by 1.3e-4-2.2e-4: the rattle is chaotic)
-# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
-DEFAULT_PID = (0.3, 0.3)
+# The default (pcoeff, icoeff): diffrax's I-controller. A PI controller (0.3, 0.3) rejects fewer
+# steps at the same rtol: 0.88x the wall time on the full planetary antenna in developed rattle,
+# 0.87-0.95x on the bench, the lumped antenna and the planetary scan; but no gain at rtol 1e-8 or
+# on rattling Monte Carlo units (0.97-1.04x), 4x farther from a tight solve on the one rattle
+# window's pointing RMS (6.5e-4 against 1.5e-4 relative; nearer on the other scenes)
+# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`), and the same solve compiled
+# in two programs (a vmapped batch, a gradient) then differs by ~1e-8 instead of rounding
+# (tests/test_reliability.py). Tried as the default and reverted: it is an option, not the default.
+DEFAULT_PID = (0.0, 1.0)
 # The explicit Runge-Kutta solvers a run may name (scene files' `[run] solver`, `simulate(solver=
 # "Bosh3")`). Tsit5 is the default (`DEFAULT_SOLVER`). Bosh3 (3rd order, 3 evaluations a step) at
-# rtol 1e-4 runs the full planetary stage 1.4x (developed rattle) and 1.65-1.8x (rattling Monte
-# Carlo units) faster than Tsit5 at rtol 1e-6, both with the PI default; against a tight solve
+# rtol 1e-4 with the PI controller runs the full planetary stage 1.6x (developed rattle) and
+# 1.7x (rattling Monte Carlo units) faster than Tsit5 at rtol 1e-6; against a tight solve
 # its pointing RMS errs 1.1-1.3x as much as Tsit5's with the I-controller on the Monte Carlo units
 # (2.3x on the rattle window), its peak 1.6x, its jitter up to 3.4x on the worst of 16 units
 # (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
@@ -138,7 +138,7 @@ def _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_
     else:
         # force_dtmin=False: a step the error control wants below dtmin ends the solve with
         # RESULTS.dt_min_reached (a step-size collapse) instead of being silently accepted.
-        # `pid` = (pcoeff, icoeff), Python floats: static (default `DEFAULT_PID`; (0, 1) is diffrax's I-controller).
+        # `pid` = (pcoeff, icoeff), Python floats: static (default `DEFAULT_PID`, diffrax's I-controller (0, 1)).
         pcoeff, icoeff = pid
         controller = _NanSafe(
             diffrax.PIDController(
@@ -209,8 +209,7 @@ def solve(
     `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13) stops the solve with
     `RESULTS.dt_min_reached`: a journal crossing the 1 nm smoothing zone at 0.2 m/s needs steps of
     order 5 ns, 5e4 times the default; `pcoeff`, `icoeff` its proportional and integral
-    coefficients, Python numbers, default `DEFAULT_PID` = (0.3, 0.3), a PI controller; (0, 1) is
-    diffrax's I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
+    coefficients, Python numbers, default `DEFAULT_PID` = (0, 1): diffrax's I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
     multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
     the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
 
@@ -235,7 +234,7 @@ def solve(
         if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
             raise ValueError(
                 f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "
-                "the default (pcoeff, icoeff) = (0.3, 0.3) is a PI controller, (0, 1) an I-controller."
+                "the default (pcoeff, icoeff) = (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
             )
     if not dtmin < dt0 <= dtmax:
         raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")

@@ -75,7 +75,7 @@ class PointingObjective(eqx.Module):
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). Run settings are static: changing them
     recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
-    step-size controller's coefficients (`simulate`; default its PI controller); `solver` the
+    step-size controller's coefficients (`simulate`; default its I-controller); `solver` the
     name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`; a name, not a
     solver object: run settings are static and hashable).
 

@@ -353,8 +353,8 @@ def _check_run(chk: Checker, run: dict):
     for key, (ok, rule) in PID_RULES.items():
         x = value[key]
         if not (math.isfinite(x) and ok(x)):
-            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0.3, 0.3) is a PI controller, "
-                            "(0, 1) an I-controller).", table, key)
+            raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
+                            "(0.3, 0.3) a PI controller).", table, key)
     if value["solver"] not in SOLVERS:
         raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)} (Tsit5, the default; "
                         "Bosh3 at rtol 1e-4 for the full planetary stage's Monte Carlo, docs/scene_files.md).", table, "solver")

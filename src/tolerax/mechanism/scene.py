@@ -92,7 +92,8 @@ def simulate(
     - `n_save`: number of equally spaced save times.
     - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
       default; `"Bosh3"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage, `"Bosh3"` at
-      rtol 1e-4 (atol 1e-7) runs 1.4-1.8x faster than Tsit5 at rtol 1e-6; against a tight
+      rtol 1e-4 (atol 1e-7) with `pcoeff = icoeff = 0.3` runs 1.6-1.7x faster than Tsit5 at
+      rtol 1e-6; against a tight
       solve its pointing RMS errs 1.1-2.3x as much, its peak 1.6x, its jitter up to 3.4x on the
       worst of 16 rattling units (`tolerax.solve.SOLVERS` has the figures); implicit solvers
       are compared in `benchmarks/work_precision.py`.
@@ -102,10 +103,11 @@ def simulate(
       below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
     - `max_steps`: step budget.
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
-      (`diffrax.PIDController`). The default (0.3, 0.3) is a PI controller: it rejects fewer
-      steps than diffrax's I-controller (0, 1), at 0.87-0.95x its wall time on the scenes
-      measured (`tolerax.solve.DEFAULT_PID` has the figures, accuracy included). Python numbers:
-      changing them recompiles (like `solver`); ignored with `fixed_step`.
+      (`diffrax.PIDController`). The default (0, 1) is diffrax's I-controller; a PI controller
+      (0.3, 0.3) rejects fewer steps, 0.87-0.95x the wall time of a single run at rtol 1e-6, no
+      gain on rattling Monte Carlo units (`tolerax.solve.DEFAULT_PID` has the figures and why it
+      is not the default). Python numbers: changing them recompiles (like `solver`); ignored
+      with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
