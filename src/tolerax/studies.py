@@ -198,9 +198,9 @@ def size_spec(size: str, duration: float | None = None, settle: float | None = N
 
 def _same_scene(row: dict, labels: dict, spec: StudySize, size: str) -> bool:
     """Whether `row` (of an earlier run) is the scene `labels` at the horizon of `spec`, solved
-    with today's step control (`simulate`'s default controller, `DEFAULT_PID`). Rows written before horizons
-    could be overridden carry none: theirs is the size's own; rows written before the controller
-    was recorded were solved with diffrax's I-controller (0, 1)."""
+    with today's step control (`simulate`'s default controller, `DEFAULT_PID`). Rows written
+    before horizons could be overridden carry none: theirs is the size's own; rows written before
+    the controller was recorded were solved with diffrax's I-controller (0, 1)."""
     own = SIZES[size]
     horizon = (row.get("duration_s", own.duration), row.get("settle_s", own.settle))
     control = (row.get("pcoeff", 0.0), row.get("icoeff", 1.0))

@@ -177,8 +177,8 @@ def summary_md(s: dict) -> str:
     lines += [
         "## Run", "",
         f"- {run['duration']} s simulated from `start = \"{run['start']}\"`, {run['n_save']} saved times, "
-        f"{run.get('solver', 'Tsit5')}, rtol {run['rtol']:g}, atol {run['atol']:g}, step-size controller (pcoeff, icoeff) = "
-        f"({run.get('pcoeff', 0.3):g}, {run.get('icoeff', 0.3):g}); pointing window from {run['settle']} s.",
+        f"{run['solver']}, rtol {run['rtol']:g}, atol {run['atol']:g}, step-size controller (pcoeff, icoeff) = "
+        f"({run['pcoeff']:g}, {run['icoeff']:g}); pointing window from {run['settle']} s.",
         f"- Solver: **{s['result']}**, reached {s['t_reached_s']:.6g} s in {s['steps_accepted']} accepted and "
         f"{s['steps_rejected']} rejected steps"
         + (f"; {s['wall_s_including_compile']} s of wall time including compilation." if s["wall_s_including_compile"] is not None else "."),

@@ -93,10 +93,9 @@ def simulate(
     - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
       default; `"Bosh3"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage, `"Bosh3"` at
       rtol 1e-4 (atol 1e-7) with `pcoeff = icoeff = 0.3` runs 1.6-1.7x faster than Tsit5 at
-      rtol 1e-6; against a tight
-      solve its pointing RMS errs 1.1-2.3x as much, its peak 1.6x, its jitter up to 3.4x on the
-      worst of 16 rattling units (`tolerax.solve.SOLVERS` has the figures); implicit solvers
-      are compared in `benchmarks/work_precision.py`.
+      rtol 1e-6; against a tight solve its pointing RMS errs 1.1-2.3x as much, its peak 1.6x,
+      its jitter up to 3.4x on the worst of 16 rattling units (`tolerax.solve.SOLVERS` has the
+      figures); implicit solvers are compared in `benchmarks/work_precision.py`.
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
