@@ -143,3 +143,62 @@ def test_mass_scaling_adds_inertia_only_to_relative_motion():
             tx.MassScaledPlanetaryJoint(mass_scaling=bad)
     with pytest.raises(ValueError, match="families"):
         tx.MassScaledPlanetaryJoint(families=("ring_translation",))
+
+
+def _joints_for_the_pattern():
+    from tolerax.physics.stage import Support
+
+    ring = eqx.tree_at(
+        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(), (Support("spring", 1e8), jnp.asarray(1e8)),
+        is_leaf=lambda x: x is None,
+    )
+    stages = {
+        "clearances": tx.default_stage(),
+        "rigid supports": tx.default_stage(sun_support="rigid", carrier_support="rigid", planet_support="rigid"),
+        "springs": tx.default_stage(sun_support="spring", carrier_support="spring", planet_support="spring"),
+        "spring ring": ring,
+    }
+    joints = {f"planetary, {name}": tx.PlanetaryJoint(stage) for name, stage in stages.items()}
+    joints["mass-scaled"] = tx.MassScaledPlanetaryJoint()
+    joints["lumped"] = tx.LumpedJoint()
+    joints["lumped, rigid output bearing"] = tx.LumpedJoint(stages["rigid supports"])
+    joints["ideal, torque drive"] = tx.IdealJoint(drive=tx.TorqueDrive(1.0))
+    joints["ideal, servo"] = tx.IdealJoint()
+    joints["custom (the default: every coordinate)"] = TorsionSpringJoint()
+    return joints
+
+
+@pytest.mark.parametrize("name", list(_joints_for_the_pattern()))
+def test_body_coordinates_are_what_moves_each_body(name):
+    # Independent: forward-mode derivatives of the joint's planar poses at a random state. The
+    # mechanism's block solve needs every coordinate that moves a body in its declared set (a
+    # missing one would drop mass-matrix terms); a declared coordinate that moves nothing only
+    # wastes work, so the fidelities' declarations must be exact (the default, every
+    # coordinate for every body, is a superset by construction).
+    joint = _joints_for_the_pattern()[name]
+    size = joint.layout.size
+    qj = jax.random.uniform(jax.random.key(3), (size,), minval=-1.0, maxval=1.0) * jnp.where(
+        jnp.asarray([n.startswith("theta") for n in joint.layout.names], bool), 3.0, 1e-4
+    ) if size else jnp.zeros(0)
+
+    def poses(q):
+        centres, angles, out_c, out_a = joint.planar(q, jnp.asarray(0.37))
+        return jnp.concatenate([centres, out_c[None]]), jnp.concatenate([angles, jnp.reshape(out_a, (1,))])
+
+    jc, ja = (np.asarray(x) for x in jax.jacfwd(poses)(qj))
+    declared = joint.body_coordinates()
+    assert len(declared) == jc.shape[0] == int(joint.body_inertia()[0].shape[0]) + 1
+    for b, cols in enumerate(declared):
+        moves = set(np.flatnonzero((np.abs(jc[b]).max(axis=0) > 0) | (np.abs(ja[b]) > 0)).tolist())
+        assert moves <= set(cols), (b, sorted(moves), cols)
+        if not name.startswith("custom"):
+            assert moves == set(cols), (b, sorted(moves), cols)
+
+
+def test_block_solve_is_used_where_speeds_are_a_body_s_own():
+    # The full stage eliminates each sun's and planet's spin and translations (3 each); the
+    # lumped joint the sun's angle; a joint with added inertia (mass scaling) is solved whole.
+    blocks = tx.antenna("dual", fidelity="planetary").kane_blocks()
+    assert blocks is not None and blocks.own.shape == (8, 3) and blocks.shared.size == 12
+    assert tx.antenna("dual", fidelity="lumped").kane_blocks().own.shape == (2, 1)
+    assert tx.antenna("dual", fidelity="planetary-scaled").kane_blocks() is None

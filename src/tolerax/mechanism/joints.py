@@ -106,6 +106,16 @@ class AbstractJoint(eqx.Module):
     def body_inertia(self):
         """Masses (nb,) and principal inertias (nb, 3) of the bodies of `planar`."""
 
+    def body_coordinates(self) -> tuple[tuple[int, ...], ...]:
+        """For each body of `planar` (the gear bodies, then the output), the indices of the
+        joint's coordinates its pose depends on (static). The mechanism solves its equations of
+        motion by blocks where a coordinate moves one body alone (`Mechanism.accelerations`), so
+        a declared set must contain every coordinate the body moves with (a test checks each
+        fidelity against the Jacobian of `planar`). Default: every coordinate, for every body
+        (correct for any joint, and no blocks)."""
+        every = tuple(range(self.layout.size))
+        return (every,) * (int(jnp.shape(self.body_inertia()[0])[0]) + 1)
+
     def commanded_angle(self, t):
         """Commanded output angle (rad) of a servo; `None` for a torque drive."""
         return self.drive.angle(t) if isinstance(self.drive, AbstractServo) else None
@@ -215,6 +225,14 @@ class _AbstractRigidTrainJoint(AbstractJoint):
     def body_inertia(self):
         # The ring, if spring-mounted in the stage data, is fixed in these fidelities.
         return disc_tensors(self.stage, self.motor_inertia, 2 + self.stage.n_planets)
+
+    def body_coordinates(self):
+        lay = self.layout
+        carrier = () if lay.carrier is None else (lay.carrier,)
+        carried = carrier + (() if lay.carrier_xy is None else tuple(range(lay.carrier_xy.start, lay.carrier_xy.stop)))
+        sun = carrier if lay.sun is None else (lay.sun,)
+        # sun, carrier, the planets (rolling with the carrier), the output (the carrier)
+        return (sun, carried) + (carried,) * self.stage.n_planets + (carried,)
 
 
 def disc_tensors(stage, motor_inertia, n_bodies):

@@ -11,9 +11,14 @@ offsets, each joint's planar motion in its housing from autodiff of its few coor
 by differentiating the whole chain over all speeds. Then
 $$M(q)\\dot u = Q - \\sum_b J_b^T m_b a_b^0 - \\sum_b J_b^{\\omega T}(I_b\\alpha^0_b + \\omega_b\\times I_b\\omega_b),$$
 $M = \\sum_b m_bJ_b^TJ_b + J^{\\omega T}_bI_bJ^\\omega_b$, and $a^0_b, \\alpha^0_b$ the
-accelerations at $\\dot u = 0$; $M$ is solved by Cholesky. (The earlier formulation, `jacfwd`
-of the twists over $u$ and a `jvp` over $(q, t)$, is kept in tests/_kane_reference.py, the
-reference the equivalence tests compare against.) Nothing is linearised: the gears spin inside a
+accelerations at $\\dot u = 0$. $M\\dot u = f$ is solved by blocks: a speed that moves
+one body alone (a gear's spin and its translations in its bearing) couples only with that
+body's own speeds and the speeds it rides on, so those are eliminated body by body (small
+Cholesky factorisations) and the shared speeds (base, carriers) solved from their Schur
+complement, one more Cholesky: the same equations, a fraction of the dense product's work
+(`Mechanism.kane_blocks`). (The earlier formulation, `jacfwd` of the twists over $u$ and a
+`jvp` over $(q, t)$, is kept in tests/_kane_reference.py, the reference the equivalence tests
+compare against.) Nothing is linearised: the gears spin inside a
 housing that turns (gyroscopic terms included), and the base reacts. Internal forces (meshes,
 contacts, servo and drive torques, drag) act on *relative* coordinates, so with a free base and
 no external load linear and angular momentum are conserved exactly by the equations (a test).
@@ -50,13 +55,15 @@ the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 
 bodies, forces, contacts and any inertia added on its own speeds.
 """
 
+import collections
 import dataclasses
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 from collections.abc import Iterator
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optimistix as optx
 from . import outputs as _outputs
 from .. import _validate as V
@@ -225,22 +232,101 @@ class Mechanism(AbstractScene):
                 parts += [gears, offset(out, g.link2_centre), offset(out, g.reflector_centre)]
         return jax.tree.map(lambda *xs: jnp.concatenate(xs), *parts)
 
-    def dynamics(self, q, u, t):
-        """Mass matrix $M(q)$ and the velocity-product and inertial terms $b(q,u)$ with
-        $M\\dot u = Q - b$ (Kane's equations over the body Jacobians of `kinematics`)."""
+    def body_columns(self) -> tuple[tuple[int, ...], ...]:
+        """For each body, in the order of `body_inertia`, the speeds (indices into `u`) its
+        twist depends on (static): the base's own; a joint's bodies their housing's and their
+        joint's `AbstractJoint.body_coordinates`; link 1, the pitch joint's housing, link 2
+        and the reflector those of the output they ride on."""
+        lay = self.layout
+        base = tuple(range(lay.base_u))
+
+        def joint_bodies(joint, su, housing):
+            every = [housing + tuple(su.start + i for i in cols) for cols in joint.body_coordinates()]
+            return every[:-1], every[-1]  # gears, output
+
+        azimuth_gears, azimuth_out = joint_bodies(self.azimuth, lay.azimuth_u, base)
+        pitch_gears, pitch_out = joint_bodies(self.pitch, lay.pitch_u, azimuth_out)
+        return (base, *azimuth_gears, azimuth_out, *pitch_gears, pitch_out, pitch_out)
+
+    def kane_blocks(self) -> "KaneBlocks | None":
+        """The static partition of the speeds behind the block solve of `accelerations`, or
+        `None` where there is nothing to eliminate (no speed moves one body alone) or a joint
+        adds inertia of its own (`AbstractJoint.added_inertia`, which may couple any of its
+        speeds): then $M$ is formed whole and factorised (`dynamics`)."""
+        if any(joint.added_inertia() is not None for joint, *_ in self.joints()):
+            return None
+        columns = self.body_columns()
+        uses = collections.Counter(c for cols in columns for c in cols)
+        own = [tuple(c for c in cols if uses[c] == 1) for cols in columns]
+        bodies = [b for b, cols in enumerate(own) if cols]
+        if not bodies:
+            return None
+        n, width = self.layout.size_u, max(len(own[b]) for b in bodies)
+        shared = [c for c in range(n) if not any(c in cols for cols in own)]
+        # Own speeds per body, padded to one width with index n (a column of zeros).
+        padded = np.array([own[b] + (n,) * (width - len(own[b])) for b in bodies], dtype=int)
+        order = np.concatenate([shared, padded.ravel()])
+        position = np.zeros(n, dtype=int)
+        position[order[order < n]] = np.flatnonzero(order < n)
+        return KaneBlocks(np.array(shared, dtype=int), np.array(bodies, dtype=int), padded, position)
+
+    def _kane_terms(self, q, u, t):
+        """Per body: the stacked twist Jacobian (nb, 6, n) with the angular rows in body axes,
+        the weights (nb, 6) (mass, principal inertias) and the inertial terms $g$ (nb, 6)
+        ($m a^0$, $I\\alpha^0 + \\omega\\times I\\omega$): $M = \\sum J^TWJ$, $b = \\sum J^Tg$."""
         masses, principal = self.body_inertia()
         f = self.kinematics(q, u, t)
         # Angular quantities in body axes, where the inertia is diagonal.
         jw = jnp.einsum("bji,bjn->bin", f.rot, f.jw)
         w, alpha = (jnp.einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
         rot_term = principal * alpha + jnp.cross(w, principal * w)
+        jac = jnp.concatenate([f.jv, jw], axis=1)
+        weights = jnp.concatenate([jnp.broadcast_to(masses[:, None], f.a.shape), principal], axis=1)
+        return jac, weights, jnp.concatenate([masses[:, None] * f.a, rot_term], axis=1)
+
+    def dynamics(self, q, u, t):
+        """Mass matrix $M(q)$ and the velocity-product and inertial terms $b(q,u)$ with
+        $M\\dot u = Q - b$ (Kane's equations over the body Jacobians of `kinematics`), whole."""
+        jac, weights, g = self._kane_terms(q, u, t)
         # One stacked Jacobian J (6 nb x n) and weights W: M = J^T W J and b = J^T g as two
         # products (fewer, larger kernels than one pair per translation and rotation).
-        jac = jnp.concatenate([f.jv, jw], axis=1).reshape(-1, f.jv.shape[-1])
-        weights = jnp.concatenate([jnp.broadcast_to(masses[:, None], f.a.shape), principal], axis=1).reshape(-1)
-        mass = jnp.einsum("kn,k,km->nm", jac, weights, jac)
-        bias = jnp.einsum("kn,k->n", jac, jnp.concatenate([masses[:, None] * f.a, rot_term], axis=1).reshape(-1))
+        mass = jnp.einsum("bkn,bk,bkm->nm", jac, weights, jac)
+        bias = jnp.einsum("bkn,bk->n", jac, g)
         return self._with_added_inertia(mass), bias
+
+    def _solve(self, q, u, t, force):
+        """$\\dot u$ from $M\\dot u = Q - b$ with $Q$ = `force`, by blocks (`kane_blocks`).
+
+        With the speeds split into shared ones $s$ and each eliminated body's own $o_k$ (its
+        Jacobian's only nonzero entries in those columns are its own rows), $M_{oo}$ is block
+        diagonal, so $X_k = M_{o_ko_k}^{-1}[M_{o_ks}\\;f_{o_k}]$ body by body, the Schur
+        complement $S = M_{ss} - \\sum_k M_{so_k}X_k$ gives $\\dot u_s$, and
+        $\\dot u_{o_k} = M_{o_ko_k}^{-1}f_{o_k} - X_k\\dot u_s$. Cholesky elimination in another
+        order: as stable as the whole factorisation (M is symmetric positive definite) and equal
+        to it to rounding (the Kane tests compare it with an LU solve of the whole $M$)."""
+        blocks = self.kane_blocks()
+        if blocks is None:
+            mass, bias = self.dynamics(q, u, t)
+            # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
+            return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force - bias)
+        jac, weights, g = self._kane_terms(q, u, t)
+        jac = jnp.concatenate([jac, jnp.zeros((*jac.shape[:2], 1))], axis=2)  # column n: the padding's zeros
+        j_s = jac[:, :, blocks.shared]  # (nb, 6, ns)
+        j_o = jnp.take_along_axis(jac[blocks.bodies], blocks.own[:, None, :], axis=2)  # (nk, 6, width)
+        w_o = weights[blocks.bodies]
+        m_ss = jnp.einsum("bkn,bk,bkm->nm", j_s, weights, j_s)
+        m_so = jnp.einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
+        # The padding's rows and columns are zero: a unit diagonal there (its force is zero too).
+        m_oo = jnp.einsum("bkn,bk,bkm->bnm", j_o, w_o, j_o) + np.stack([np.diag(row == len(blocks.position)) for row in blocks.own])
+        force = jnp.append(force, 0.0)
+        f_s = force[blocks.shared] - jnp.einsum("bkn,bk->n", j_s, g)
+        f_o = force[blocks.own] - jnp.einsum("bkn,bk->bn", j_o, g[blocks.bodies])
+        x = _small_spd_solve(m_oo, jnp.concatenate([jnp.swapaxes(m_so, 1, 2), f_o[:, :, None]], axis=2))
+        x_so, x_o = x[:, :, :-1], x[:, :, -1]
+        schur = m_ss - jnp.einsum("bni,bim->nm", m_so, x_so)
+        ud_s = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(schur), f_s - jnp.einsum("bni,bi->n", m_so, x_o))
+        ud_o = x_o - jnp.einsum("bin,n->bi", x_so, ud_s)
+        return jnp.concatenate([ud_s, ud_o.ravel()])[blocks.position]
 
     def _with_added_inertia(self, mass):
         """`mass` plus each joint's constant `added_inertia` on its own speeds (no bias term:
@@ -345,11 +431,9 @@ class Mechanism(AbstractScene):
         """`accelerations` and the mass matrix they were solved with (an unused output costs
         nothing under jit)."""
         lay = self.layout
-        mass, bias = self.dynamics(q, u, t)
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
-        force = jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]) - bias
-        # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
-        return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force), (ca, cp), mass
+        ud = self._solve(q, u, t, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]))
+        return ud, (ca, cp), self.dynamics(q, u, t)[0]
 
     def vector_field(self, t, y, args):
         q, u, v = y
@@ -466,6 +550,35 @@ class Mechanism(AbstractScene):
         )
 
 
+
+
+class KaneBlocks(NamedTuple):
+    """Static index arrays of the block solve (`Mechanism.kane_blocks`)."""
+
+    shared: np.ndarray  # (ns,) speeds solved from the Schur complement
+    bodies: np.ndarray  # (nk,) bodies whose own speeds are eliminated first
+    own: np.ndarray  # (nk, width) each such body's own speeds, padded with n (no speed)
+    position: np.ndarray  # (n,) each speed's place in [shared, own.ravel()]
+
+
+def _small_spd_solve(a, b):
+    """$a^{-1}b$ for a stack of small symmetric positive definite matrices `a` (..., k, k) and
+    right-hand sides `b` (..., k, m): Cholesky unrolled over the few `k` (one body's own speeds)
+    in elementwise operations, which fuse into a handful of kernels (a batched LAPACK call
+    costs more than its arithmetic at these sizes)."""
+    k = a.shape[-1]
+    low = [[None] * k for _ in range(k)]
+    for j in range(k):
+        low[j][j] = jnp.sqrt(a[..., j, j] - sum(low[j][p] ** 2 for p in range(j)))
+        for i in range(j + 1, k):
+            low[i][j] = (a[..., i, j] - sum(low[i][p] * low[j][p] for p in range(j))) / low[j][j]
+    y = []
+    for i in range(k):
+        y.append((b[..., i, :] - sum(low[i][p][..., None] * y[p] for p in range(i))) / low[i][i][..., None])
+    x = [None] * k
+    for i in reversed(range(k)):
+        x[i] = (y[i] - sum(low[p][i][..., None] * x[p] for p in range(i + 1, k))) / low[i][i][..., None]
+    return jnp.stack(x, axis=-2)
 
 
 def _loaded_residual(mech: Mechanism, q, u, x):

@@ -35,6 +35,17 @@ class _AbstractStageJoint(AbstractJoint):
         n_bodies = 2 + self.stage.n_planets + (self.stage.layout.ring_theta is not None)
         return disc_tensors(self.stage, self.motor_inertia, n_bodies)
 
+    def body_coordinates(self):
+        lay = self.stage.layout
+
+        def xy(block, k=0):  # the k-th (x, y) pair of a translation block, if it exists
+            return () if block is None else (block.start + 2 * k, block.start + 2 * k + 1)
+
+        carrier = (lay.carrier_theta, *xy(lay.carrier_xy))
+        planets = tuple((*carrier, lay.planet_theta.start + n, *xy(lay.planet_xy, n)) for n in range(self.stage.n_planets))
+        ring = () if lay.ring_theta is None else ((lay.ring_theta, *xy(lay.ring_xy)),)
+        return ((lay.sun_theta, *xy(lay.sun_xy)), carrier, *planets, *ring, carrier)
+
     def steady_speeds(self, t=0.0):
         uj = super().steady_speeds(t)
         if isinstance(self.drive, AbstractServo):
