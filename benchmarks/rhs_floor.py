@@ -15,11 +15,13 @@ Each piece is compiled alone with the XLA options `tolerax.simulate` uses on a C
   perturbed states, so nothing is hoisted and Python never dispatches): microseconds per call,
   best of 3.
 
-Pieces: the whole vector field (`Mechanism.vector_field`), the mass matrix and bias terms
-(`Mechanism.dynamics`, Kane's equations over the frames), the joints' forces
-(`Mechanism.joint_forces`: meshes, bearing contacts, servos), the Cholesky solve of M x = f, the
-impact-rate rates. The whole vector field is also `vmap`ped over `--batches` states (what a
-Monte Carlo chunk pays per state).
+Pieces: the whole vector field (`Mechanism.vector_field`) as it is (the equations of motion
+solved by blocks, `Mechanism.kane_blocks`) and as it was before them (`mass_solve="whole"`: the
+whole mass matrix formed and factorised, the same equations), the accelerations by blocks
+(Kane's terms over the frames and the block solve), the whole mass matrix and bias terms
+(`Mechanism.dynamics`), the joints' forces (`Mechanism.joint_forces`: meshes, bearing contacts,
+servos), the Cholesky solve of the whole M x = f, the impact-rate rates. The whole vector field
+is also `vmap`ped over `--batches` states (what a Monte Carlo chunk pays per state), both ways.
 
 **The core's ceiling**, measured in the same run: a float64 matrix product (512 x 512, the
 machine's best flop rate on one core) and 500 elementwise passes over 32 k doubles (256 kB:
@@ -112,6 +114,7 @@ def main():
     args = harness.parse_args(parser)
     start = time.perf_counter()
     mech = tx.antenna("dual", fidelity="planetary")
+    whole = tx.Mechanism(mech.azimuth, mech.pitch, mech.geometry, mech.inertias, mech.base, mass_solve="whole")
     res = tx.simulate(mech, 0.3, start="steady", n_save=2)
     q, u, v = (jnp.asarray(x[-1]) for x in res.states)
     t = jnp.asarray(0.3)
@@ -121,10 +124,14 @@ def main():
     _, ud, _ = mech.vector_field(t, (q, u, v), None)
     n_states = q.size + u.size + v.size
     pieces = {
-        "vector field (all)": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (mech, t, q, u, v)),
-        "dynamics: M and b (Kane, frames)": (lambda m, t_, q_, u_: m.dynamics(q_, u_, t_), (mech, t, q, u)),
+        "vector field (all), by blocks": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (mech, t, q, u, v)),
+        "vector field (all), whole M (before the blocks)": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None),
+                                                            (whole, t, q, u, v)),
+        "accelerations by blocks: Kane's terms (frames) and the block solve": (lambda m, t_, q_, u_, f_: m._solve(q_, u_, t_, f_),
+                                                                                (mech, t, q, u, force + bias)),
+        "dynamics: whole M and b (Kane, frames)": (lambda m, t_, q_, u_: m.dynamics(q_, u_, t_), (mech, t, q, u)),
         "joint forces (meshes, contacts, servos)": (lambda m, t_, q_, u_, v_: m.joint_forces(q_, u_, v_, t_), (mech, t, q, u, v)),
-        "Cholesky solve M x = f": (lambda m_, f_: jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(m_), f_), (mass, force)),
+        "Cholesky solve of the whole M x = f": (lambda m_, f_: jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(m_), f_), (mass, force)),
         "impact-rate rates": (lambda m, q_, u_, ud_, v_: m.each_joint(lambda j, *x: j.impact_rate_rates(*x), ("q", q_), ("u", u_),
                                                                          ("u", ud_), ("v", v_)), (mech, q, u, ud, v)),
     }
@@ -144,13 +151,14 @@ def main():
         states = jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape)) * (1 + 1e-9 * jnp.arange(b).reshape(-1, *[1] * x.ndim)),
                               (q, u, v))
         fn = jax.vmap(lambda m, t_, y: m.vector_field(t_, y, None), in_axes=(None, None, 0))
-        arrays, static = eqx.partition((mech, t, states), eqx.is_array)
-        c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,))
-        us = per_call_us(fn, (mech, t, states), max(10, args.calls // b))
-        floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
-        batch_rows.append((str(b), f"{us:.1f}", f"{us / b:.2f}", f"{c['flops'] / b:.0f}", f"{c['bytes'] / b / 1e3:.1f}",
-                           str(c["fusions"]), f"{floor_us / b:.3f}", f"{us / floor_us:.0f}"))
-        print(batch_rows[-1], flush=True)
+        for solve, scene in (("blocks", mech), ("whole M (before)", whole)):
+            arrays, static = eqx.partition((scene, t, states), eqx.is_array)
+            c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,))
+            us = per_call_us(fn, (scene, t, states), max(10, args.calls // b))
+            floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
+            batch_rows.append((str(b), solve, f"{us:.1f}", f"{us / b:.2f}", f"{c['flops'] / b:.0f}", f"{c['bytes'] / b / 1e3:.1f}",
+                               str(c["fusions"]), f"{floor_us / b:.3f}", f"{us / floor_us:.0f}"))
+            print(batch_rows[-1], flush=True)
     harness.write_table(
         "rhs_floor", "One vector-field evaluation of the full planetary dual antenna: counted, timed, and its floor",
         harness.command(args),
@@ -164,7 +172,7 @@ def main():
                f"evaluation's data, {n_states} states and the scene's constants, stay in the caches). Total wall {time.perf_counter() - start:.0f} s, compilation included."),
         sections=[harness.Section(
             "The whole vector field vmapped over a batch of states",
-            ["batch", "µs per batched call", "µs per state", "flops per state", "kB accessed per state", "fusions (kernels)",
+            ["batch", "equations of motion solved", "µs per batched call", "µs per state", "flops per state", "kB accessed per state", "fusions (kernels)",
              "floor µs per state", "time / floor"], batch_rows)],
     )
 

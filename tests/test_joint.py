@@ -202,3 +202,6 @@ def test_block_solve_is_used_where_speeds_are_a_body_s_own():
     assert blocks is not None and blocks.own.shape == (8, 3) and blocks.shared.size == 12
     assert tx.antenna("dual", fidelity="lumped").kane_blocks().own.shape == (2, 1)
     assert tx.antenna("dual", fidelity="planetary-scaled").kane_blocks() is None
+    assert tx.Mechanism(mass_solve="whole").kane_blocks() is None
+    with pytest.raises(ValueError, match="mass_solve='dense' is unknown"):
+        tx.Mechanism(mass_solve="dense")

@@ -94,26 +94,35 @@ class MechanismLayout:
 
 
 BASES = ("free", "fixed")
+MASS_SOLVES = ("blocks", "whole")
 
 
 class Mechanism(AbstractScene):
     """The antenna pointing mechanism: two joints (any `AbstractJoint`: the fidelity is the
     joint's class), geometry, inertias and the base (static: `"free"` floating, 6 DOF, the
-    on-orbit case; or `"fixed"`, a ground test stand). Build the paper's scenes with `antenna`."""
+    on-orbit case; or `"fixed"`, a ground test stand). Build the paper's scenes with `antenna`.
+
+    `mass_solve` (static): `"blocks"` (the default) solves the equations of motion by blocks
+    (`kane_blocks`); `"whole"` forms the whole mass matrix and factorises it, as before the
+    blocks (the same equations to rounding; kept for the benchmarks that compare the two)."""
 
     azimuth: AbstractJoint
     pitch: AbstractJoint
     geometry: Geometry
     inertias: Inertias
     base: str = eqx.field(static=True)
+    mass_solve: str = eqx.field(static=True)
     _what = "mechanism"
     # The joints' names (the fields above), base to reflector: what everything outside the
     # mechanism reads instead of naming them (`named_joints`, `named_stages`).
     JOINTS: ClassVar[tuple[str, ...]] = ("azimuth", "pitch")
 
-    def __init__(self, azimuth=None, pitch=None, geometry=None, inertias=None, base="free"):
+    def __init__(self, azimuth=None, pitch=None, geometry=None, inertias=None, base="free", *, mass_solve="blocks"):
         if base not in BASES:
             raise ValueError(f"base={base!r} is unknown; use 'free' (floating spacecraft) or 'fixed'.")
+        if mass_solve not in MASS_SOLVES:
+            raise ValueError(f"mass_solve={mass_solve!r} is unknown; use one of {MASS_SOLVES}.")
+        self.mass_solve = mass_solve
         self.azimuth = PlanetaryJoint() if azimuth is None else azimuth
         self.pitch = PlanetaryJoint() if pitch is None else pitch
         self.geometry = Geometry() if geometry is None else geometry
@@ -250,10 +259,10 @@ class Mechanism(AbstractScene):
 
     def kane_blocks(self) -> "KaneBlocks | None":
         """The static partition of the speeds behind the block solve of `accelerations`, or
-        `None` where there is nothing to eliminate (no speed moves one body alone) or a joint
+        `None` where there is nothing to eliminate (no speed moves one body alone), a joint
         adds inertia of its own (`AbstractJoint.added_inertia`, which may couple any of its
-        speeds): then $M$ is formed whole and factorised (`dynamics`)."""
-        if any(joint.added_inertia() is not None for joint, *_ in self.joints()):
+        speeds) or `mass_solve="whole"`: then $M$ is formed whole and factorised (`dynamics`)."""
+        if self.mass_solve == "whole" or any(joint.added_inertia() is not None for joint, *_ in self.joints()):
             return None
         columns = self.body_columns()
         uses = collections.Counter(c for cols in columns for c in cols)
