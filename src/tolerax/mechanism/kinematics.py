@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array
 
 from ..physics.rigid import rz
@@ -38,10 +39,11 @@ def take(frames: Frames, index) -> Frames:
     return jax.tree.map(lambda x: x[index], frames)
 
 
-def base_frame(mech: "Mechanism", q, u) -> Frames:
+def base_frame(mech: "Mechanism", q, u, columns=None) -> Frames:
     """The base: velocity in the world frame and angular velocity in the base frame are its
     speeds, so its Jacobians are constant blocks and its accelerations at $\\dot u = 0$ vanish
-    ($\\tfrac{d}{dt}(R\\omega_B) = \\omega\\times\\omega = 0$)."""
+    ($\\tfrac{d}{dt}(R\\omega_B) = \\omega\\times\\omega = 0$). `columns` (static, or `None`:
+    every speed in order): the speeds its Jacobians' columns stand for (n: none, zero)."""
     n = mech.layout.size_u
     pos, rot = mech.base_pose(q)
     jv, jw = jnp.zeros((3, n)), jnp.zeros((3, n))
@@ -49,7 +51,10 @@ def base_frame(mech: "Mechanism", q, u) -> Frames:
         jv = jv.at[:, :3].set(jnp.eye(3))
         jw = jw.at[:, 3:6].set(rot)
     zero = jnp.zeros(3)
-    return Frames(pos[None], rot[None], jv[None], jw[None], (jv @ u)[None], (jw @ u)[None], zero[None], zero[None])
+    v, w = jv @ u, jw @ u
+    if columns is not None:
+        jv, jw = (jnp.concatenate([x, jnp.zeros((3, 1))], axis=1)[:, np.asarray(columns)] for x in (jv, jw))
+    return Frames(pos[None], rot[None], jv[None], jw[None], v[None], w[None], zero[None], zero[None])
 
 
 def offset(frame: Frames, offset, turn=None) -> Frames:
@@ -90,9 +95,11 @@ def planar_motion(joint: AbstractJoint, qj, uj, t):
     return c, theta, jc, jtheta, cd, thetad, cdd, thetadd
 
 
-def planar_frames(housing: Frames, motion, cols: slice, n: int) -> Frames:
+def planar_frames(housing: Frames, motion, cols: slice, n: int, index=None) -> Frames:
     """The bodies of one joint (`planar_motion`) in the housing frame `housing` (one frame),
-    with the joint's speeds at columns `cols` of the `n` speeds.
+    with the joint's speeds at columns `cols` of the `n` speeds; or, with `index` (static,
+    (nb, C)), each body's Jacobian columns the joint's coordinates `index` (its size: none,
+    zero), the housing's Jacobians in the same columns.
 
     A body at housing-plane centre $c(q_j, t)$ and angle $\\theta(q_j, t)$ has
     $\\rho = R_h c$, $\\omega = \\omega_h + \\dot\\theta R_h e_z$,
@@ -107,8 +114,15 @@ def planar_frames(housing: Frames, motion, cols: slice, n: int) -> Frames:
     rho = c @ plane.T
     rho_dot = cd @ plane.T  # R_h c'
     w_h, alpha_h = housing.w[0], housing.alpha[0]
-    jw_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(axis[None, :, None] * jtheta[:, None, :])
-    jv_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(jnp.einsum("ik,bkn->bin", plane, jc))
+    if index is None:
+        jw_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(axis[None, :, None] * jtheta[:, None, :])
+        jv_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(jnp.einsum("ik,bkn->bin", plane, jc))
+    else:
+        index = np.asarray(index)
+        jc = jnp.take_along_axis(jnp.concatenate([jc, jnp.zeros((nb, 2, 1))], axis=2), index[:, None, :], axis=2)
+        jtheta = jnp.take_along_axis(jnp.concatenate([jtheta, jnp.zeros((nb, 1))], axis=1), index, axis=1)
+        jw_own = axis[None, :, None] * jtheta[:, None, :]
+        jv_own = jnp.einsum("ik,bkn->bin", plane, jc)
     jw = housing.jw + jw_own
     jv = housing.jv + jnp.cross(housing.jw, rho[:, :, None], axisa=1, axisb=1, axisc=1) + jv_own
     w = w_h + thetad[:, None] * axis

@@ -222,17 +222,31 @@ class Mechanism(AbstractScene):
         (p, r), (pd, rd) = jax.jvp(lambda q_, t_: self.poses(q_, t_), (q, t), (self.qdot(q, u), jnp.ones_like(t)))
         return pd, vee(jnp.einsum("bij,bkj->bik", rd, r))  # skew(omega) = R' R^T
 
-    def kinematics(self, q, u, t) -> "Frames":
+    def kinematics(self, q, u, t, columns=None) -> "Frames":
         """Every body's pose, twist Jacobians, twist and acceleration at $\\dot u = 0$, by
-        propagating frames down the chain (see `Frames`), in the order of `body_inertia`."""
+        propagating frames down the chain (see `Frames`), in the order of `body_inertia`.
+
+        `columns` (static, (nb, C) integers, or `None`: every speed in order): the speeds the
+        Jacobians' C columns stand for, body by body (`self.layout.size_u`: none, a zero
+        column). Every body a frame rides on must stand for the same speeds in every column as
+        the bodies riding on it (`KaneBlocks.columns`: the shared speeds, then a body's own)."""
         lay, g = self.layout, self.geometry
-        base = base_frame(self, q, u)
+        n = lay.size_u
+        base = base_frame(self, q, u, None if columns is None else columns[0])
         parts = [base]
         housing = offset(base, g.azimuth_position)
         # The joints' planar motion is independent of their housings: both in one batch.
         motions = self.each_joint(lambda joint, qj, uj: planar_motion(joint, qj, uj, t), ("q", q), ("u", u))
+        first = 1  # the joint's first gear body in `columns`
         for k, (motion, su) in enumerate(zip(motions, (lay.azimuth_u, lay.pitch_u))):
-            bodies = planar_frames(housing, motion, su, lay.size_u)
+            index = None
+            if columns is not None:
+                # Its gears' rows, then the link riding on its output (the output's speeds).
+                rows = np.asarray(columns)[first : first + motion[0].shape[0]]
+                inside = (rows >= su.start) & (rows < su.stop)
+                index = np.where(inside, rows - su.start, su.stop - su.start)  # the joint's coordinate, or none
+            first += motion[0].shape[0]
+            bodies = planar_frames(housing, motion, su, n, index)
             gears, out = take(bodies, slice(0, -1)), take(bodies, slice(-1, None))
             if k == 0:  # azimuth: link 1 and the pitch housing ride on its output
                 parts += [gears, offset(out, g.link1_centre)]
@@ -277,14 +291,18 @@ class Mechanism(AbstractScene):
         order = np.concatenate([shared, padded.ravel()])
         position = np.zeros(n, dtype=int)
         position[order[order < n]] = np.flatnonzero(order < n)
-        return KaneBlocks(np.array(shared, dtype=int), np.array(bodies, dtype=int), padded, position)
+        slots = np.full((len(columns), width), n)
+        slots[bodies] = padded
+        by_body = np.concatenate([np.broadcast_to(np.array(shared, dtype=int), (len(columns), len(shared))), slots], axis=1)
+        return KaneBlocks(np.array(shared, dtype=int), np.array(bodies, dtype=int), padded, position, by_body)
 
-    def _kane_terms(self, q, u, t):
-        """Per body: the stacked twist Jacobian (nb, 6, n) with the angular rows in body axes,
-        the weights (nb, 6) (mass, principal inertias) and the inertial terms $g$ (nb, 6)
-        ($m a^0$, $I\\alpha^0 + \\omega\\times I\\omega$): $M = \\sum J^TWJ$, $b = \\sum J^Tg$."""
+    def _kane_terms(self, q, u, t, columns=None):
+        """Per body: the stacked twist Jacobian (nb, 6, C) with the angular rows in body axes
+        (columns as `kinematics`), the weights (nb, 6) (mass, principal inertias) and the
+        inertial terms $g$ (nb, 6) ($m a^0$, $I\\alpha^0 + \\omega\\times I\\omega$):
+        $M = \\sum J^TWJ$, $b = \\sum J^Tg$."""
         masses, principal = self.body_inertia()
-        f = self.kinematics(q, u, t)
+        f = self.kinematics(q, u, t, columns)
         # Angular quantities in body axes, where the inertia is diagonal.
         jw = jnp.einsum("bji,bjn->bin", f.rot, f.jw)
         w, alpha = (jnp.einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
@@ -318,10 +336,10 @@ class Mechanism(AbstractScene):
             mass, bias = self.dynamics(q, u, t)
             # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
             return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force - bias)
-        jac, weights, g = self._kane_terms(q, u, t)
-        jac = jnp.concatenate([jac, jnp.zeros((*jac.shape[:2], 1))], axis=2)  # column n: the padding's zeros
-        j_s = jac[:, :, blocks.shared]  # (nb, 6, ns)
-        j_o = jnp.take_along_axis(jac[blocks.bodies], blocks.own[:, None, :], axis=2)  # (nk, 6, width)
+        # The Jacobians straight in the blocks' columns: the shared speeds, then each body's own.
+        jac, weights, g = self._kane_terms(q, u, t, blocks.columns)
+        ns = blocks.shared.size
+        j_s, j_o = jac[:, :, :ns], jac[blocks.bodies, :, ns:]  # (nb, 6, ns), (nk, 6, width)
         w_o = weights[blocks.bodies]
         m_ss = jnp.einsum("bkn,bk,bkm->nm", j_s, weights, j_s)
         m_so = jnp.einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
@@ -568,6 +586,7 @@ class KaneBlocks(NamedTuple):
     bodies: np.ndarray  # (nk,) bodies whose own speeds are eliminated first
     own: np.ndarray  # (nk, width) each such body's own speeds, padded with n (no speed)
     position: np.ndarray  # (n,) each speed's place in [shared, own.ravel()]
+    columns: np.ndarray  # (nb, ns + width) the speeds of each body's Jacobian columns: shared, own (n: none)
 
 
 def _small_spd_solve(a, b):
