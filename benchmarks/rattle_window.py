@@ -7,7 +7,10 @@ must-show scene), and of the step-size controller on every fidelity, in one run.
 A configuration is `SOLVER:CONTROLLER:RTOL`, or `SOLVER:CONTROLLER:RTOL:whole` for the
 mechanism's equations of motion solved with the whole mass matrix (`Mechanism(mass_solve=
 "whole")`, as before the block solve) instead of by blocks (the default): the before and
-after of the vector field's cost in one run.
+after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
+work-precision picture `results/rattle_window.png` (wall seconds per simulated second against
+the window's largest pointing difference from the reference and its RMS error, one line per
+solver, controller and way of solving the equations of motion, across rtol).
 
 **Work-precision** (`--configs`): `tolerax.antenna("dual", fidelity="planetary")` (free base,
 100 um clearances and backlash, 0.98 deg/s on both joints) from a steady start over
@@ -101,6 +104,34 @@ def window_outputs(result, warmup, cutoff):
     return float(metrics["pointing_rms"]), float(metrics["pointing_jitter"]), error
 
 
+def plot(curves, path):
+    """Work-precision picture of the main table's rows (see the module docstring)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for name, points in sorted(curves.items()):
+        points = sorted(points)
+        whole = name.endswith(":whole")
+        for ax, k in zip(axes, (2, 3)):
+            ax.plot([p[1] for p in points], [p[k] for p in points], "o--" if whole else "o-",
+                    mfc="none" if whole else None, label=name.replace(":whole", ", whole M (before)"))
+            for p in points:
+                ax.annotate(f"{p[0]:g}", (p[1], p[k]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    for ax, what in zip(axes, ("largest pointing difference over the window (arcsec)", "pointing RMS rel. error over the window")):
+        ax.set_xlabel("wall s per simulated s (one core)")
+        ax.set_ylabel(what)
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Full planetary dual antenna in developed rattle: work against error (labels: rtol)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--warmup", type=float, default=1.0, help="seconds before the window (s)")
@@ -122,6 +153,7 @@ def main():
     ref_wall, ref = timed_run(mech, duration, args.n_save, **reference.options())
     ref_rms, ref_jitter, ref_error = window_outputs(ref, args.warmup, args.jitter_cutoff)
     rows = []
+    curves = {}  # "SOLVER:CONTROLLER[:whole]" -> [(rtol, wall s per simulated s, max diff, RMS rel. error)]
     for config in configs:
         print(f"{config.label} ...", flush=True)
         wall_s, res = timed_run(config.scene(mech), duration, args.n_save, **config.options())
@@ -134,6 +166,8 @@ def main():
             f"{jitter:.3f}", f"{abs(jitter / ref_jitter - 1):.1e}", f"{np.max(np.abs(error - ref_error)):.1e}",
         ])
         print(rows[-1], flush=True)
+        curves.setdefault(f"{config.solver}:{config.controller}" + ("" if config.mass_solve == "blocks" else ":whole"), []).append(
+            (config.rtol, wall_s / duration, float(np.max(np.abs(error - ref_error))), abs(rms / ref_rms - 1)))
 
     scene_rows = []
     scenes = {
@@ -161,6 +195,7 @@ def main():
         ])
         print(scene_rows[-1], flush=True)
 
+    plot(curves, harness.results_dir() / "rattle_window.png")
     harness.write_table(
         "rattle_window",
         "Full planetary dual antenna in developed rattle: speed against error, and the step-size controller across scenes",
