@@ -455,8 +455,8 @@ class Mechanism(AbstractScene):
         return ud, contacts
 
     def _accelerations_and_mass(self, t, q, u, v):
-        """`accelerations` and the mass matrix they were solved with (an unused output costs
-        nothing under jit)."""
+        """`accelerations` and the whole mass matrix of the same equations (`dynamics`; an unused
+        output costs nothing under jit)."""
         lay = self.layout
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
         ud = self._solve(q, u, t, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]))
