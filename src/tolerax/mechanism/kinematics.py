@@ -97,9 +97,10 @@ def planar_motion(joint: AbstractJoint, qj, uj, t):
 
 def planar_frames(housing: Frames, motion, cols: slice, n: int, index=None) -> Frames:
     """The bodies of one joint (`planar_motion`) in the housing frame `housing` (one frame),
-    with the joint's speeds at columns `cols` of the `n` speeds; or, with `index` (static,
-    (nb, C)), each body's Jacobian columns the joint's coordinates `index` (its size: none,
-    zero), the housing's Jacobians in the same columns.
+    with the joint's speeds at columns `cols` of the `n` speeds. With `index` (static, (nb, C))
+    the Jacobians have C columns instead: column c of body b is the joint's coordinate
+    `index[b, c]` (the joint's size: no coordinate, a zero column), and the housing's Jacobians
+    stand for the same speeds column by column.
 
     A body at housing-plane centre $c(q_j, t)$ and angle $\\theta(q_j, t)$ has
     $\\rho = R_h c$, $\\omega = \\omega_h + \\dot\\theta R_h e_z$,

@@ -104,7 +104,8 @@ class Mechanism(AbstractScene):
 
     `mass_solve` (static): `"blocks"` (the default) solves the equations of motion by blocks
     (`kane_blocks`); `"whole"` forms the whole mass matrix and factorises it, as before the
-    blocks (the same equations to rounding; kept for the benchmarks that compare the two)."""
+    blocks (the same equations to rounding; kept for the benchmarks that compare the two). It
+    is static: build a new `Mechanism(...)` to change it (`eqx.tree_at` cannot)."""
 
     azimuth: AbstractJoint
     pitch: AbstractJoint
@@ -267,6 +268,13 @@ class Mechanism(AbstractScene):
             every = [housing + tuple(su.start + i for i in cols) for cols in joint.body_coordinates()]
             return every[:-1], every[-1]  # gears, output
 
+        for name, joint in self.named_joints():
+            count = int(jnp.shape(joint.body_inertia()[0])[0]) + 1
+            if len(joint.body_coordinates()) != count:
+                raise ValueError(
+                    f"The {name} joint's body_coordinates() has {len(joint.body_coordinates())} entries; it needs one per "
+                    f"body of its planar() and one for its output ({count})."
+                )
         azimuth_gears, azimuth_out = joint_bodies(self.azimuth, lay.azimuth_u, base)
         pitch_gears, pitch_out = joint_bodies(self.pitch, lay.pitch_u, azimuth_out)
         return (base, *azimuth_gears, azimuth_out, *pitch_gears, pitch_out, pitch_out)
@@ -316,9 +324,11 @@ class Mechanism(AbstractScene):
         $M\\dot u = Q - b$ (Kane's equations over the body Jacobians of `kinematics`), whole."""
         jac, weights, g = self._kane_terms(q, u, t)
         # One stacked Jacobian J (6 nb x n) and weights W: M = J^T W J and b = J^T g as two
-        # products (fewer, larger kernels than one pair per translation and rotation).
-        mass = jnp.einsum("bkn,bk,bkm->nm", jac, weights, jac)
-        bias = jnp.einsum("bkn,bk->n", jac, g)
+        # products (fewer, larger kernels than one pair per translation and rotation). The rows
+        # flattened first: XLA compiles this form faster than the per-body contraction, vmapped.
+        jac, weights, g = jac.reshape(-1, jac.shape[-1]), weights.reshape(-1), g.reshape(-1)
+        mass = jnp.einsum("kn,k,km->nm", jac, weights, jac)
+        bias = jnp.einsum("kn,k->n", jac, g)
         return self._with_added_inertia(mass), bias
 
     def _solve(self, q, u, t, force):
@@ -451,16 +461,14 @@ class Mechanism(AbstractScene):
 
     def accelerations(self, t, q, u, v):
         """`(udot, (azimuth contact forces, pitch contact forces))`."""
-        ud, contacts, _ = self._accelerations_and_mass(t, q, u, v)
-        return ud, contacts
-
-    def _accelerations_and_mass(self, t, q, u, v):
-        """`accelerations` and the whole mass matrix of the same equations (`dynamics`; an unused
-        output costs nothing under jit)."""
         lay = self.layout
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
-        ud = self._solve(q, u, t, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp]))
-        return ud, (ca, cp), self.dynamics(q, u, t)[0]
+        return self._solve(q, u, t, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp])), (ca, cp)
+
+    def _accelerations_and_mass(self, t, q, u, v):
+        """`accelerations` and the whole mass matrix of the same equations (`dynamics`)."""
+        ud, contacts = self.accelerations(t, q, u, v)
+        return ud, contacts, self.dynamics(q, u, t)[0]
 
     def vector_field(self, t, y, args):
         q, u, v = y
@@ -593,8 +601,11 @@ def _small_spd_solve(a, b):
     """$a^{-1}b$ for a stack of small symmetric positive definite matrices `a` (..., k, k) and
     right-hand sides `b` (..., k, m): Cholesky unrolled over the few `k` (one body's own speeds)
     in elementwise operations, which fuse into a handful of kernels (a batched LAPACK call
-    costs more than its arithmetic at these sizes)."""
+    costs more than its arithmetic at these sizes). Above 6 (a joint whose bodies have many own
+    coordinates) the unrolled program would grow as k^3: LAPACK's then."""
     k = a.shape[-1]
+    if k > 6:
+        return jax.vmap(lambda a_, b_: jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a_), b_))(a, b)
     low = [[None] * k for _ in range(k)]
     for j in range(k):
         low[j][j] = jnp.sqrt(a[..., j, j] - sum(low[j][p] ** 2 for p in range(j)))
