@@ -333,3 +333,11 @@ def cost_table(rows: list[dict]) -> tuple[list[str], list[tuple[str, ...]]]:
         for r in rows
     ]
     return columns, cells
+
+
+def with_mass_solve(mech, mass_solve: str):
+    """`mech` (a `tolerax.Mechanism`) with another `mass_solve` (`"blocks"` or `"whole"`): a static
+    field, so a new `Mechanism` (the benchmarks' before-and-after of the block solve)."""
+    import tolerax as tx
+
+    return tx.Mechanism(mech.azimuth, mech.pitch, mech.geometry, mech.inertias, mech.base, mass_solve=mass_solve)

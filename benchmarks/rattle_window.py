@@ -78,7 +78,7 @@ class Config:
 
     def scene(self, mech):
         """`mech` (a `tolerax.Mechanism`) with this row's `mass_solve`."""
-        return tx.Mechanism(mech.azimuth, mech.pitch, mech.geometry, mech.inertias, mech.base, mass_solve=self.mass_solve)
+        return harness.with_mass_solve(mech, self.mass_solve)
 
     def options(self) -> dict:
         pcoeff, icoeff = CONTROLLERS[self.controller]

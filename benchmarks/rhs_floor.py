@@ -114,7 +114,7 @@ def main():
     args = harness.parse_args(parser)
     start = time.perf_counter()
     mech = tx.antenna("dual", fidelity="planetary")
-    whole = tx.Mechanism(mech.azimuth, mech.pitch, mech.geometry, mech.inertias, mech.base, mass_solve="whole")
+    whole = harness.with_mass_solve(mech, "whole")
     res = tx.simulate(mech, 0.3, start="steady", n_save=2)
     q, u, v = (jnp.asarray(x[-1]) for x in res.states)
     t = jnp.asarray(0.3)

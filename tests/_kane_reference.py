@@ -61,3 +61,17 @@ class KaneByAutodiff(AbstractScene):
 
     def check_runnable(self):
         self.mechanism.check_runnable()
+
+
+def spring_ring_stage():
+    """The default stage with its ring on springs (radial and torsional, 1e8 N/m): the ring a
+    moving body of its own, which `tx.default_stage` does not offer."""
+    import equinox as eqx
+    import jax.numpy as jnp
+    import tolerax as tx
+    from tolerax.physics.stage import Support
+
+    return eqx.tree_at(
+        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(), (Support("spring", 1e8), jnp.asarray(1e8)),
+        is_leaf=lambda x: x is None,
+    )

@@ -146,17 +146,13 @@ def test_mass_scaling_adds_inertia_only_to_relative_motion():
 
 
 def _joints_for_the_pattern():
-    from tolerax.physics.stage import Support
+    from _kane_reference import spring_ring_stage
 
-    ring = eqx.tree_at(
-        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(), (Support("spring", 1e8), jnp.asarray(1e8)),
-        is_leaf=lambda x: x is None,
-    )
     stages = {
         "clearances": tx.default_stage(),
         "rigid supports": tx.default_stage(sun_support="rigid", carrier_support="rigid", planet_support="rigid"),
         "springs": tx.default_stage(sun_support="spring", carrier_support="spring", planet_support="spring"),
-        "spring ring": ring,
+        "spring ring": spring_ring_stage(),
     }
     joints = {f"planetary, {name}": tx.PlanetaryJoint(stage) for name, stage in stages.items()}
     joints["mass-scaled"] = tx.MassScaledPlanetaryJoint()

@@ -317,14 +317,9 @@ def test_block_solve_with_blocks_of_unequal_width_equals_reference():
     # joint's sun is rigid (its spin alone: width 1) and its planets float on their pins (spin
     # and translation: width 3), the pitch joint a spring-mounted ring (a body of its own), so
     # the padding's unit diagonal and the unequal blocks meet the LU solve of the whole M.
-    from _kane_reference import vector_field_by_autodiff
-    from tolerax.physics.stage import Support
+    from _kane_reference import spring_ring_stage, vector_field_by_autodiff
 
-    ring = eqx.tree_at(
-        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(), (Support("spring", 1e8), jnp.asarray(1e8)),
-        is_leaf=lambda x: x is None,
-    )
-    mech = tx.Mechanism(tx.PlanetaryJoint(tx.default_stage(sun_support="rigid")), tx.PlanetaryJoint(ring))
+    mech = tx.Mechanism(tx.PlanetaryJoint(tx.default_stage(sun_support="rigid")), tx.PlanetaryJoint(spring_ring_stage()))
     blocks = mech.kane_blocks()
     assert (blocks.own == mech.layout.size_u).any()  # padded
     new = eqx.filter_jit(lambda m, t, y: m.vector_field(t, y, None))
