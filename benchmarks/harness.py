@@ -22,6 +22,7 @@ header, and the writer of `benchmarks/results/<name>.md`, shared by every benchm
 """
 
 import argparse
+import contextlib
 import dataclasses
 import datetime
 import math
@@ -333,6 +334,61 @@ def cost_table(rows: list[dict]) -> tuple[list[str], list[tuple[str, ...]]]:
         for r in rows
     ]
     return columns, cells
+
+
+def _forward_jacobian_joint():
+    """`tx.PlanetaryJoint` whose stage forces take the deflections' Jacobian by forward-mode
+    autodiff (`stage_forces(projection="forward")`): the joint as it was before the closed form
+    (another class, so another compiled program and cache key)."""
+    import tolerax as tx
+    from tolerax.physics import planetary
+
+    class ForwardJacobianPlanetaryJoint(tx.PlanetaryJoint):
+        def forces(self, qj, uj, vj, t):
+            f = planetary.stage_forces(self.stage, qj, uj, vj, projection="forward")
+            return f.generalised + self.drive_forces(qj, uj, t), f.contact
+
+    return ForwardJacobianPlanetaryJoint
+
+
+ForwardJacobianPlanetaryJoint = None  # built on first use (imports tolerax)
+
+
+def with_forward_jacobian(mech):
+    """`mech` with each `tx.PlanetaryJoint` computing its deflections' Jacobian by forward mode,
+    as before the closed form (the benchmarks' before-and-after of it)."""
+    import tolerax as tx
+
+    global ForwardJacobianPlanetaryJoint
+    if ForwardJacobianPlanetaryJoint is None:
+        ForwardJacobianPlanetaryJoint = _forward_jacobian_joint()
+
+    def swap(j):
+        if type(j) is not tx.PlanetaryJoint:
+            return j
+        return ForwardJacobianPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque)
+
+    return tx.Mechanism(swap(mech.azimuth), swap(mech.pitch), mech.geometry, mech.inertias, mech.base, mass_solve=mech.mass_solve)
+
+
+EIGEN_THREADS = {"xla_cpu_multi_thread_eigen": True}
+"""The XLA option `tolerax.solve.CPU_COMPILER_OPTIONS` turned off: Eigen's products split over the CPU's threads."""
+
+
+@contextlib.contextmanager
+def eigen_threads():
+    """`tolerax.simulate` on a CPU compiled with Eigen's products over the CPU's threads (XLA's
+    default, and tolerax's before `CPU_COMPILER_OPTIONS` turned it off): the same traced program,
+    compiled with other options (JAX's compilation cache keys on them)."""
+    import tolerax.solve as solve
+    from tolerax.cache import exported_jit
+
+    saved = solve._solve_cpu
+    solve._solve_cpu = exported_jit(solve._solve, compiler_options={**solve.CPU_COMPILER_OPTIONS, **EIGEN_THREADS})
+    try:
+        yield
+    finally:
+        solve._solve_cpu = saved
 
 
 def with_mass_solve(mech, mass_solve: str):

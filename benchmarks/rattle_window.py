@@ -4,10 +4,13 @@ must-show scene), and of the step-size controller on every fidelity, in one run.
     python benchmarks/rattle_window.py [--warmup 1.0] [--window 1.0] [--n-save 2001]
         [--jitter-cutoff 20] [--configs ...] [--scenes ...] [--results DIR]
 
-A configuration is `SOLVER:CONTROLLER:RTOL`, or `SOLVER:CONTROLLER:RTOL:whole` for the
-mechanism's equations of motion solved with the whole mass matrix (`Mechanism(mass_solve=
-"whole")`, as before the block solve) instead of by blocks (the default): the before and
-after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
+A configuration is `SOLVER:CONTROLLER:RTOL`, or `SOLVER:CONTROLLER:RTOL:PROGRAM` for the
+right-hand side as it was before a change: `whole`, the mechanism's equations of motion solved
+with the whole mass matrix (`Mechanism(mass_solve="whole")`, as before the block solve) instead
+of by blocks; `forward`, the planetary joints' deflection Jacobian by forward-mode autodiff
+(`harness.with_forward_jacobian`) instead of in closed form, compiled with Eigen's products over
+the CPU's threads (`harness.eigen_threads`) as before `tolerax.solve.CPU_COMPILER_OPTIONS`
+turned that off: the before and after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
 work-precision picture `results/rattle_window.png` (wall seconds per simulated second against
 the window's largest pointing difference from the reference and its RMS error, one line per
 solver, controller and way of solving the equations of motion, across rtol).
@@ -38,6 +41,7 @@ largest over the saves, and of the RMS over the run's second half) of the pointi
 bench: the output angle error).
 """
 
+import contextlib
 import dataclasses
 import time
 
@@ -62,23 +66,29 @@ class Config:
     solver: str
     controller: str
     rtol: float
-    mass_solve: str = "blocks"
+    program: str = "now"  # "now", "whole" or "forward" (the module docstring)
 
     @classmethod
     def parse(cls, text: str) -> "Config":
         solver, controller, rtol, *rest = text.split(":")
-        if solver not in SOLVERS or controller not in CONTROLLERS or rest not in ([], ["whole"]):
-            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole] with SOLVER in {sorted(SOLVERS)}, CONTROLLER in "
-                             f"{sorted(CONTROLLERS)}")
+        if solver not in SOLVERS or controller not in CONTROLLERS or rest not in ([], ["whole"], ["forward"]):
+            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole|:forward] with SOLVER in {sorted(SOLVERS)}, "
+                             f"CONTROLLER in {sorted(CONTROLLERS)}")
         return cls(solver, controller, float(rtol), *rest)
 
     @property
     def label(self) -> str:
-        return f"{self.solver}:{self.controller}:{self.rtol:g}" + ("" if self.mass_solve == "blocks" else f":{self.mass_solve}")
+        return f"{self.solver}:{self.controller}:{self.rtol:g}" + ("" if self.program == "now" else f":{self.program}")
 
     def scene(self, mech):
-        """`mech` (a `tolerax.Mechanism`) with this row's `mass_solve`."""
-        return harness.with_mass_solve(mech, self.mass_solve)
+        """`mech` (a `tolerax.Mechanism`) with this row's right-hand side."""
+        if self.program == "whole":
+            return harness.with_mass_solve(mech, "whole")
+        return harness.with_forward_jacobian(mech) if self.program == "forward" else mech
+
+    def compiled(self):
+        """The context this row's runs are compiled in (Eigen's threads for `forward`)."""
+        return harness.eigen_threads() if self.program == "forward" else contextlib.nullcontext()
 
     def options(self) -> dict:
         pcoeff, icoeff = CONTROLLERS[self.controller]
@@ -114,10 +124,10 @@ def plot(curves, path):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for name, points in sorted(curves.items()):
         points = sorted(points)
-        whole = name.endswith(":whole")
+        before = name.endswith((":whole", ":forward"))
         for ax, k in zip(axes, (2, 3)):
-            ax.plot([p[1] for p in points], [p[k] for p in points], "o--" if whole else "o-",
-                    mfc="none" if whole else None, label=name.replace(":whole", ", whole M (before)"))
+            ax.plot([p[1] for p in points], [p[k] for p in points], "o--" if before else "o-", mfc="none" if before else None,
+                    label=name.replace(":whole", ", whole M (before the blocks)").replace(":forward", ", forward-mode Jacobian (before)"))
             for p in points:
                 ax.annotate(f"{p[0]:g}", (p[1], p[k]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for ax, what in zip(axes, ("largest pointing difference over the window (arcsec)", "pointing RMS rel. error over the window")):
@@ -153,20 +163,21 @@ def main():
     ref_wall, ref = timed_run(mech, duration, args.n_save, **reference.options())
     ref_rms, ref_jitter, ref_error = window_outputs(ref, args.warmup, args.jitter_cutoff)
     rows = []
-    curves = {}  # "SOLVER:CONTROLLER[:whole]" -> [(rtol, wall s per simulated s, max diff, RMS rel. error)]
+    curves = {}  # "SOLVER:CONTROLLER[:PROGRAM]" -> [(rtol, wall s per simulated s, max diff, RMS rel. error)]
     for config in configs:
         print(f"{config.label} ...", flush=True)
-        wall_s, res = timed_run(config.scene(mech), duration, args.n_save, **config.options())
+        with config.compiled():
+            wall_s, res = timed_run(config.scene(mech), duration, args.n_save, **config.options())
         rms, jitter, error = window_outputs(res, args.warmup, args.jitter_cutoff)
         accepted, rejected = int(res.num_steps), int(res.num_rejected)
         rows.append([
-            config.solver, config.controller, f"{config.rtol:g}", config.mass_solve, f"{wall_s:.1f}", f"{wall_s / duration:.2f}",
+            config.solver, config.controller, f"{config.rtol:g}", config.program, f"{wall_s:.1f}", f"{wall_s / duration:.2f}",
             f"{accepted} ({rejected})", str(config.evaluations_per_step() * (accepted + rejected)),
             f"{1e6 * wall_s / (accepted + rejected):.0f}", f"{rms:.2f}", f"{abs(rms / ref_rms - 1):.1e}",
             f"{jitter:.3f}", f"{abs(jitter / ref_jitter - 1):.1e}", f"{np.max(np.abs(error - ref_error)):.1e}",
         ])
         print(rows[-1], flush=True)
-        curves.setdefault(f"{config.solver}:{config.controller}" + ("" if config.mass_solve == "blocks" else ":whole"), []).append(
+        curves.setdefault(f"{config.solver}:{config.controller}" + ("" if config.program == "now" else f":{config.program}"), []).append(
             (config.rtol, wall_s / duration, float(np.max(np.abs(error - ref_error))), abs(rms / ref_rms - 1)))
 
     scene_rows = []
@@ -200,7 +211,7 @@ def main():
         "rattle_window",
         "Full planetary dual antenna in developed rattle: speed against error, and the step-size controller across scenes",
         harness.command(args),
-        ["solver", "controller", "rtol", "equations of motion solved", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
+        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
          "RHS evaluations", "µs per attempted step", "pointing RMS over the window (arcsec)", "RMS rel. error",
          "jitter (arcsec)", "jitter rel. error", "pointing max diff (arcsec)"],
         rows,

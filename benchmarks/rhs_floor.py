@@ -16,12 +16,16 @@ Each piece is compiled alone with the XLA options `tolerax.simulate` uses on a C
   best of 3.
 
 Pieces: the whole vector field (`Mechanism.vector_field`) as it is (the equations of motion
-solved by blocks, `Mechanism.kane_blocks`) and as it was before them (`mass_solve="whole"`: the
-whole mass matrix formed and factorised, the same equations), the accelerations by blocks
+solved by blocks, `Mechanism.kane_blocks`; the planetary joints' deflection Jacobian in closed
+form; Eigen's products on one thread, `CPU_COMPILER_OPTIONS`), as it was before the closed form
+(the Jacobian by forward mode, `harness.with_forward_jacobian`, compiled with Eigen's products
+over the CPU's threads, `harness.EIGEN_THREADS`), as it is but with Eigen's threads (the option's
+part alone), and as it was before the blocks (`mass_solve="whole"`: the whole mass matrix formed
+and factorised, the same equations; Eigen threaded), the accelerations by blocks
 (Kane's terms over the frames and the block solve), the whole mass matrix and bias terms
 (`Mechanism.dynamics`), the joints' forces (`Mechanism.joint_forces`: meshes, bearing contacts,
 servos), the Cholesky solve of the whole M x = f, the impact-rate rates. The whole vector field
-is also `vmap`ped over `--batches` states (what a Monte Carlo chunk pays per state), both ways.
+is also `vmap`ped over `--batches` states (what a Monte Carlo chunk pays per state), the three ways.
 
 **The core's ceiling**, measured in the same run: a float64 matrix product (512 x 512, the
 machine's best flop rate on one core) and 500 elementwise passes over 32 k doubles (256 kB:
@@ -46,10 +50,11 @@ from tolerax.solve import CPU_COMPILER_OPTIONS
 import harness
 
 
-def loop_program(fn, n):
-    """`n` calls of `fn(*args)` inside one compiled program (a scan at perturbed arguments)."""
+def loop_program(fn, n, options=None):
+    """`n` calls of `fn(*args)` inside one compiled program (a scan at perturbed arguments),
+    compiled with `CPU_COMPILER_OPTIONS` updated by `options`."""
 
-    @functools.partial(eqx.filter_jit, compiler_options=CPU_COMPILER_OPTIONS)
+    @functools.partial(eqx.filter_jit, compiler_options={**CPU_COMPILER_OPTIONS, **(options or {})})
     def loop(args):
         def body(c, k):
             a = jax.tree.map(lambda x: x + 1e-12 * k * c if eqx.is_inexact_array(x) else x, args)
@@ -61,8 +66,8 @@ def loop_program(fn, n):
     return loop
 
 
-def per_call_us(fn, args, n):
-    loop = loop_program(fn, n)
+def per_call_us(fn, args, n, options=None):
+    loop = loop_program(fn, n, options)
     jax.block_until_ready(loop(args))
     best = float("inf")
     for _ in range(3):
@@ -72,9 +77,9 @@ def per_call_us(fn, args, n):
     return best / n * 1e6
 
 
-def counts(fn, args):
+def counts(fn, args, options=None):
     """XLA's counts of one call of `fn(*args)`, compiled alone."""
-    compiled = jax.jit(fn, compiler_options=CPU_COMPILER_OPTIONS).lower(*args).compile()
+    compiled = jax.jit(fn, compiler_options={**CPU_COMPILER_OPTIONS, **(options or {})}).lower(*args).compile()
     cost = compiled.cost_analysis()
     cost = cost[0] if isinstance(cost, (list, tuple)) else cost
     text = compiled.as_text()
@@ -115,6 +120,8 @@ def main():
     start = time.perf_counter()
     mech = tx.antenna("dual", fidelity="planetary")
     whole = harness.with_mass_solve(mech, "whole")
+    forward = harness.with_forward_jacobian(mech)
+    threads = harness.EIGEN_THREADS
     res = tx.simulate(mech, 0.3, start="steady", n_save=2)
     q, u, v = (jnp.asarray(x[-1]) for x in res.states)
     t = jnp.asarray(0.3)
@@ -124,13 +131,18 @@ def main():
     _, ud, _ = mech.vector_field(t, (q, u, v), None)
     n_states = q.size + u.size + v.size
     pieces = {
-        "vector field (all), by blocks": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (mech, t, q, u, v)),
+        "vector field (all), now": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (mech, t, q, u, v)),
+        "vector field (all), before the closed-form Jacobian (forward mode, Eigen threaded)": (
+            lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (forward, t, q, u, v), threads),
+        "vector field (all), now but Eigen threaded": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None),
+                                                     (mech, t, q, u, v), threads),
         "vector field (all), whole M (before the blocks)": (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None),
-                                                            (whole, t, q, u, v)),
+                                                            (whole, t, q, u, v), threads),
         "accelerations by blocks: Kane's terms (frames) and the block solve": (lambda m, t_, q_, u_, f_: m._solve(q_, u_, t_, f_),
                                                                                 (mech, t, q, u, force + bias)),
         "dynamics: whole M and b (Kane, frames)": (lambda m, t_, q_, u_: m.dynamics(q_, u_, t_), (mech, t, q, u)),
         "joint forces (meshes, contacts, servos)": (lambda m, t_, q_, u_, v_: m.joint_forces(q_, u_, v_, t_), (mech, t, q, u, v)),
+        "joint forces, forward-mode Jacobian (before)": (lambda m, t_, q_, u_, v_: m.joint_forces(q_, u_, v_, t_), (forward, t, q, u, v)),
         "Cholesky solve of the whole M x = f": (lambda m_, f_: jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(m_), f_), (mass, force)),
         "impact-rate rates": (lambda m, q_, u_, ud_, v_: m.each_joint(lambda j, *x: j.impact_rate_rates(*x), ("q", q_), ("u", u_),
                                                                          ("u", ud_), ("v", v_)), (mech, q, u, ud, v)),
@@ -138,10 +150,10 @@ def main():
     peak, memory, bandwidth = ceiling()
     print(f"ceiling: {peak / 1e9:.2f} GFLOP/s, {memory / 1e9:.2f} GB/s memory, {bandwidth / 1e9:.2f} GB/s caches", flush=True)
     rows = []
-    for label, (fn, fargs) in pieces.items():
+    for label, (fn, fargs, *options) in pieces.items():
         arrays, static = eqx.partition(fargs, eqx.is_array)
-        c = counts(lambda a, f=fn, s=static: f(*eqx.combine(a, s)), (arrays,))
-        us = per_call_us(fn, fargs, args.calls)
+        c = counts(lambda a, f=fn, s=static: f(*eqx.combine(a, s)), (arrays,), *options)
+        us = per_call_us(fn, fargs, args.calls, *options)
         floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
         rows.append((label, f"{c['flops']:.0f}", f"{c['transcendentals']:.0f}", f"{c['bytes'] / 1e3:.1f}", str(c["instructions"]),
                      str(c["fusions"]), f"{us:.1f}", f"{floor_us:.2f}", f"{us / floor_us:.0f}"))
@@ -151,10 +163,11 @@ def main():
         states = jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape)) * (1 + 1e-9 * jnp.arange(b).reshape(-1, *[1] * x.ndim)),
                               (q, u, v))
         fn = jax.vmap(lambda m, t_, y: m.vector_field(t_, y, None), in_axes=(None, None, 0))
-        for solve, scene in (("blocks", mech), ("whole M (before)", whole)):
+        for solve, scene, options in (("now", mech, None), ("before the closed-form Jacobian (forward mode, Eigen threaded)", forward, threads),
+                                      ("whole M (before the blocks, Eigen threaded)", whole, threads)):
             arrays, static = eqx.partition((scene, t, states), eqx.is_array)
-            c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,))
-            us = per_call_us(fn, (scene, t, states), max(10, args.calls // b))
+            c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,), options)
+            us = per_call_us(fn, (scene, t, states), max(10, args.calls // b), options)
             floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
             batch_rows.append((str(b), solve, f"{us:.1f}", f"{us / b:.2f}", f"{c['flops'] / b:.0f}", f"{c['bytes'] / b / 1e3:.1f}",
                                str(c["fusions"]), f"{floor_us / b:.3f}", f"{us / floor_us:.0f}"))
@@ -172,7 +185,7 @@ def main():
                f"evaluation's data, {n_states} states and the scene's constants, stay in the caches). Total wall {time.perf_counter() - start:.0f} s, compilation included."),
         sections=[harness.Section(
             "The whole vector field vmapped over a batch of states",
-            ["batch", "equations of motion solved", "µs per batched call", "µs per state", "flops per state", "kB accessed per state", "fusions (kernels)",
+            ["batch", "right-hand side", "µs per batched call", "µs per state", "flops per state", "kB accessed per state", "fusions (kernels)",
              "floor µs per state", "time / floor"], batch_rows)],
     )
 

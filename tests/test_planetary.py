@@ -184,11 +184,12 @@ def test_generalised_forces_are_minus_the_potential_gradient():
         np.testing.assert_allclose(np.asarray(f.generalised), np.asarray(want), rtol=0, atol=1e-10 * scale)
 
 
-def test_force_projection_by_jacobian_equals_jvp_vjp():
-    """Both formulations of `stage_forces` (the deflections' Jacobian once, or a jvp and a vjp)
-    give the same forces to rounding, on the default nonlinear stage (backlash, dynamic
-    backlash, profile error, every bearing in clearance) at random states with impacts."""
-    stage = tx.default_stage()
+def test_force_projections_agree():
+    """The three formulations of `stage_forces` (the deflections' Jacobian in closed form, the
+    default; by forward-mode autodiff; a jvp and a vjp) give the same forces to rounding, on the
+    default nonlinear stage (backlash, dynamic backlash, profile error, every bearing in
+    clearance) at random states with impacts."""
+    stage = tx.default_stage(profile_error=5e-6)
     lay = stage.layout
     for k in range(3):
         kq, ku, kv = jax.random.split(jax.random.key(k), 3)
@@ -198,12 +199,50 @@ def test_force_projection_by_jacobian_equals_jvp_vjp():
         v = 0.1 * jax.random.normal(kv, (len(stage.contact_names),))
         a = P.stage_forces(stage, q, qd, v)
         b = P.stage_forces(stage, q, qd, v, projection="jvp-vjp")
+        c = P.stage_forces(stage, q, qd, v, projection="forward")
         assert float(jnp.abs(b.contact).max()) > 0.0 and float(jnp.abs(b.sun_mesh).max()) > 0.0
-        for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
+        for x, y, z in zip(jax.tree.leaves(a), jax.tree.leaves(b), jax.tree.leaves(c)):
             scale = float(jnp.abs(y).max(initial=0.0))
             np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=0, atol=1e-12 * scale)
+            np.testing.assert_allclose(np.asarray(z), np.asarray(y), rtol=0, atol=1e-12 * scale)
     with pytest.raises(ValueError, match="projection='adjoint' is unknown"):
         P.stage_forces(stage, q, qd, v, projection="adjoint")
+
+
+@pytest.mark.parametrize(
+    "variant",
+    ["default", "profile error", "rigid supports", "spring supports", "linear meshes", "static backlash", "spring ring",
+     "four planets"],
+)
+def test_closed_form_jacobian_equals_autodiff(variant):
+    """`deflections_and_jacobian`'s closed-form Jacobian equals the forward-mode Jacobian of the
+    deflections it returns, for every kind of support and mesh (blocks of coordinates present or
+    not, dynamic or fixed backlash, the ring on springs), at random large rotations and
+    displacements past the clearances."""
+    from _kane_reference import spring_ring_stage
+
+    stage = {
+        "default": lambda: tx.default_stage(),
+        "profile error": lambda: tx.default_stage(profile_error=5e-6),
+        "rigid supports": lambda: tx.default_stage(sun_support="rigid", carrier_support="rigid", planet_support="rigid"),
+        "spring supports": lambda: tx.default_stage(sun_support="spring", carrier_support="spring", planet_support="spring"),
+        "linear meshes": lambda: tx.default_stage(mesh="linear"),
+        "static backlash": lambda: tx.default_stage(dynamic_backlash=False, profile_error=3e-6),
+        "spring ring": spring_ring_stage,
+        "four planets": lambda: tx.default_stage(n_planets=4, sun_support="spring", profile_error=2e-6),
+    }[variant]()
+    lay = stage.layout
+    for k in range(3):
+        q = 2e-4 * jax.random.normal(jax.random.key(10 + k), (lay.size,))
+        q = q.at[lay.carrier_theta].set(1.7 * k - 0.6).at[lay.sun_theta].add(5.0 * k + 0.3)
+        if lay.ring_theta is not None:
+            q = q.at[lay.ring_theta].add(0.2 * k)
+        defl, jac = P.deflections_and_jacobian(stage, q)
+        want = jax.jacfwd(lambda q_: P.deflections(stage, q_))(q)
+        assert sorted(jac) == sorted(want) == sorted(defl)
+        for key in want:
+            assert jac[key].shape == want[key].shape, key
+            np.testing.assert_allclose(np.asarray(jac[key]), np.asarray(want[key]), rtol=0, atol=1e-13, err_msg=key)
 
 
 def test_dynamic_backlash_follows_planet_displacement():

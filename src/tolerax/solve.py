@@ -103,7 +103,10 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 # microseconds) that costs more than it saves: a single solve runs 12 % faster without them
 # (planetary and lumped dual-axis antenna, same steps and results; vmapped over 64 states they
 # pay, so Monte Carlo's batched programs keep the default). benchmarks/results/archive/rhs_anatomy.md.
-CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": ""}
+# Eigen's products on one thread: split over the CPU's threads, the right-hand side's 12 x 84 x 12
+# and smaller products pay the hand-over more than they save (0.6x their time on one thread,
+# the whole right-hand side 0.9x; benchmarks/results/rhs_floor.md).
+CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "", "xla_cpu_multi_thread_eigen": False}
 
 
 @contextlib.contextmanager

@@ -42,6 +42,7 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax.flatten_util import ravel_pytree
 from jaxtyping import Array
 from . import contact as _contact
@@ -153,18 +154,48 @@ def deflections(stage: PlanetaryStage, q: Array) -> dict:
     nonlinear meshes), `sun_e`, `carrier_e`, `ring_e` (2,), `planet_e` (N, 2) for translating
     supports, and `sun_u`, `carrier_u`, `ring_u` for torsional springs.
     """
+    return deflections_and_jacobian(stage, q)[0]
+
+
+def deflections_and_jacobian(stage: PlanetaryStage, q: Array) -> tuple[dict, dict]:
+    """The deflections (`deflections`, m) and their Jacobian $\\partial d/\\partial q$ in closed form:
+    each key's array with a last axis of the stage's coordinates (m/m or m/rad).
+
+    The deflections are linear in the coordinates resolved in carrier axes, so the Jacobian is
+    that linear map times the rotation into carrier axes and its derivative (on $\\theta_c$'s
+    column); the only other nonlinear pieces are elementwise, each differentiated where it is
+    evaluated (`jax.jvp` along its one argument): the profile error in the mesh phase, the
+    centre distance's norm and the dynamic backlash in it. Equal to the forward-mode Jacobian
+    to rounding (`tests/test_planetary.py`); about half its cost in the stage's forces
+    (`benchmarks/results/rhs_floor.md`): forward mode carries every coordinate's tangent through
+    every elementwise function, whose derivatives XLA:CPU then recomputes for each of them.
+    """
     lay = stage.layout
+    n_q, n = q.shape[-1], stage.n_planets
+    eye = np.eye(n_q)
+
+    def rows(sl, shape):  # the Jacobian of q[sl] (reshaped), zero for a coordinate block that does not exist
+        return np.zeros((*shape, n_q)) if sl is None else eye[sl].reshape(*shape, n_q)
+
     psi = stage.planet_angles
     th_s, th_c, th_r = q[lay.sun_theta], q[lay.carrier_theta], _ring_theta(q, lay)
     th_p = q[lay.planet_theta]
-    to_carrier = rot2(-th_c)
-    x_s = to_carrier @ _xy(q, lay.sun_xy)
-    x_r = to_carrier @ _xy(q, lay.ring_xy)
-    x_c = to_carrier @ _xy(q, lay.carrier_xy)
-    rel = _planet_xy(stage, q, lay)
+    d_s, d_c, d_p = eye[lay.sun_theta], eye[lay.carrier_theta], eye[lay.planet_theta]
+    d_r = np.zeros(n_q) if lay.ring_theta is None else eye[lay.ring_theta]
+    to_carrier, turn = jax.jvp(lambda a: rot2(-a), (th_c,), (jnp.ones_like(th_c),))
+
+    def in_carrier(sl):  # a housing-frame translation in carrier axes, and its Jacobian (2, n_q)
+        x = _xy(q, sl)
+        return to_carrier @ x, to_carrier @ rows(sl, (2,)) + (turn @ x)[:, None] * d_c
+
+    (x_s, j_s), (x_r, j_r), (x_c, j_c) = (in_carrier(sl) for sl in (lay.sun_xy, lay.ring_xy, lay.carrier_xy))
+    rel, j_rel = _planet_xy(stage, q, lay), rows(lay.planet_xy, (n, 2))
+    cos_psi, sin_psi = jnp.cos(psi)[:, None], jnp.sin(psi)[:, None]
     # Planet displacement from its nominal carrier-frame position, radial / tangential.
-    zeta = rel[:, 0] + x_c[0] * jnp.cos(psi) + x_c[1] * jnp.sin(psi)
-    eta = rel[:, 1] - x_c[0] * jnp.sin(psi) + x_c[1] * jnp.cos(psi)
+    zeta = rel[:, 0] + x_c[0] * cos_psi[:, 0] + x_c[1] * sin_psi[:, 0]
+    eta = rel[:, 1] - x_c[0] * sin_psi[:, 0] + x_c[1] * cos_psi[:, 0]
+    j_zeta = j_rel[:, 0] + cos_psi * j_c[0] + sin_psi * j_c[1]
+    j_eta = j_rel[:, 1] - sin_psi * j_c[0] + cos_psi * j_c[1]
     a_s, a_r = stage.sun_pressure_angle, stage.ring_pressure_angle
     rs, rp, rr, rc = (
         stage.sun_base_radius,
@@ -172,57 +203,76 @@ def deflections(stage: PlanetaryStage, q: Array) -> dict:
         stage.ring_base_radius,
         stage.carrier_radius,
     )
-    psi_s = psi - a_s
-    psi_r = psi + a_r
-    g_s = (
-        -x_s[0] * jnp.sin(psi_s)
-        + x_s[1] * jnp.cos(psi_s)
-        - zeta * jnp.sin(a_s)
-        - eta * jnp.cos(a_s)
-        + rs * th_s
-        + rp * th_p
-        - rc * jnp.cos(a_s) * th_c
-    )
-    g_r = (
-        -x_r[0] * jnp.sin(psi_r)
-        + x_r[1] * jnp.cos(psi_r)
-        + zeta * jnp.sin(a_r)
-        - eta * jnp.cos(a_r)
-        + rr * th_r
-        - rp * th_p
-        - rc * jnp.cos(a_r) * th_c
-    )
+
+    def line_of_action(x, j_x, psi_m, side, alpha, r_gear, th_gear, d_gear, planet_sign):
+        """$-\\tilde x\\sin\\psi_m + \\tilde y\\cos\\psi_m \\mp \\zeta\\sin\\alpha - \\eta\\cos\\alpha
+        + r\\theta \\pm r_p\\theta_n - r_c\\cos\\alpha\\,\\theta_c$ and its Jacobian."""
+        sin_m, cos_m = jnp.sin(psi_m)[:, None], jnp.cos(psi_m)[:, None]
+        g = (
+            -x[0] * sin_m[:, 0]
+            + x[1] * cos_m[:, 0]
+            + side * zeta * jnp.sin(alpha)
+            - eta * jnp.cos(alpha)
+            + r_gear * th_gear
+            + planet_sign * rp * th_p
+            - rc * jnp.cos(alpha) * th_c
+        )
+        j = (
+            -sin_m * j_x[0]
+            + cos_m * j_x[1]
+            + side * jnp.sin(alpha) * j_zeta
+            - jnp.cos(alpha) * j_eta
+            + r_gear * d_gear
+            + planet_sign * rp * d_p
+            - rc * jnp.cos(alpha) * d_c
+        )
+        return g, j
+
+    g_s, j_gs = line_of_action(x_s, j_s, psi - a_s, -1.0, a_s, rs, th_s, d_s, 1.0)
+    g_r, j_gr = line_of_action(x_r, j_r, psi + a_r, 1.0, a_r, rr, th_r, d_r, -1.0)
     out = {"sun_drive": g_s, "ring_drive": g_r}
+    jac = {"sun_drive": j_gs, "ring_drive": j_gr}
     phase_s, phase_r = mesh_phases(stage, q)
-    for name, mesh, g, phase, other, internal, alpha in (
-        ("sun", stage.sun_mesh, g_s, phase_s, x_s, False, a_s),
-        ("ring", stage.ring_mesh, g_r, phase_r, x_r, True, a_r),
+    d_phase = {"sun": stage.sun_teeth * (d_s - d_c), "ring": stage.ring_teeth * (d_c - d_r)}
+    for name, mesh, g, j_g, phase, other, j_other, internal, alpha in (
+        ("sun", stage.sun_mesh, g_s, j_gs, phase_s, x_s, j_s, False, a_s),
+        ("ring", stage.ring_mesh, g_r, j_gr, phase_r, x_r, j_r, True, a_r),
     ):
         if mesh.kind != "nonlinear":
             continue
-        error = _mesh.profile_error(mesh.profile_error, phase, mesh.profile_phase)
+        error, d_error = jax.jvp(
+            lambda ph, m=mesh: _mesh.profile_error(m.profile_error, ph, m.profile_phase), (phase,), (jnp.ones_like(phase),)
+        )
+        j_back = j_g + d_error[:, None] * d_phase[name]
         if mesh.dynamic_backlash:
             # Planet centre relative to the other gear's centre, in carrier axes.
-            planet = jnp.stack(
-                [
-                    (rc + zeta) * jnp.cos(psi) - eta * jnp.sin(psi),
-                    (rc + zeta) * jnp.sin(psi) + eta * jnp.cos(psi),
-                ],
-                axis=-1,
+            planet = jnp.stack([(rc + zeta) * cos_psi[:, 0] - eta * sin_psi[:, 0], (rc + zeta) * sin_psi[:, 0] + eta * cos_psi[:, 0]], axis=-1)
+            j_planet = jnp.stack([cos_psi * j_zeta - sin_psi * j_eta, sin_psi * j_zeta + cos_psi * j_eta], axis=1)
+            offset = planet - other
+            distance = _smooth.norm(offset, 0.0)
+            # d|v| = (v/|v|) . dv; 0 at v = 0, as `_smooth.norm`'s own derivative there.
+            unit = jnp.where(distance[:, None] > 0, offset / jnp.where(distance > 0, distance, 1.0)[:, None], 0.0)
+            j_distance = jnp.sum(unit[:, :, None] * (j_planet - j_other[None]), axis=1)
+            backlash, d_backlash = jax.jvp(
+                lambda a, m=mesh, i=internal, al=alpha, e=error: _mesh.dynamic_backlash(a, rc, al, m.backlash, i, e),
+                (distance,),
+                (jnp.ones_like(distance),),
             )
-            distance = _smooth.norm(planet - other, 0.0)
-            backlash = _mesh.dynamic_backlash(distance, rc, alpha, mesh.backlash, internal, error)
+            j_back = j_back + d_backlash[:, None] * j_distance
         else:
             backlash = mesh.backlash + error
         out[f"{name}_back"] = g + backlash
+        jac[f"{name}_back"] = j_back
     for name, support in stage.supports():
         if support.translates:
-            out[f"{name}_e"] = rel if name == "planet" else q[getattr(lay, f"{name}_xy")]
-    rotation = {"sun": rs * th_s, "carrier": rc * th_c, "ring": rr * th_r}
+            sl = getattr(lay, f"{name}_xy")
+            out[f"{name}_e"] = rel if name == "planet" else q[sl]
+            jac[f"{name}_e"] = j_rel if name == "planet" else eye[sl]
+    rotation = {"sun": (rs * th_s, rs * d_s), "carrier": (rc * th_c, rc * d_c), "ring": (rr * th_r, rr * d_r)}
     for name, k in stage.torsions():
         if k is not None and not (name == "ring" and lay.ring_theta is None):
-            out[f"{name}_u"] = rotation[name]
-    return out
+            out[f"{name}_u"], jac[f"{name}_u"] = rotation[name]
+    return out, jac
 
 
 def _mesh_damping(stage: PlanetaryStage, mesh: Mesh, stiffness, ring: bool):
@@ -286,18 +336,26 @@ class StageForces(eqx.Module):
 
 
 def stage_forces(
-    stage: PlanetaryStage, q: Array, qd: Array, impact_rates: Array, *, projection: str = "jacobian"
+    stage: PlanetaryStage, q: Array, qd: Array, impact_rates: Array, *, projection: str = "closed-form"
 ) -> StageForces:
     """Generalised forces of springs, meshes and contacts, $Q = -\\sum_k F_k\\,\\partial d_k/\\partial q$.
 
-    `projection="jacobian"`: the deflections' Jacobian $D$ (n_deflections x n_q) formed once by
-    forward mode over the stage's few coordinates, the rates $D\\dot q$ and the forces $-D^TF$ one
-    product each (the joints' forces in the antenna's right-hand side cost 0.6x the other way,
-    `benchmarks/results/archive/rhs_anatomy.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp` for the
-    projection (the formulation before; same values to rounding, kept for the equivalence test
-    and the benchmark)."""
+    `projection="closed-form"`: the deflections' Jacobian $D$ (n_deflections x n_q) in closed
+    form (`deflections_and_jacobian`), the rates $D\\dot q$ and the forces $-D^TF$ one product
+    each, $F$ as a row ($F^TD$): XLA:CPU fuses the producer of a matrix-vector product's operands
+    into the product's loop, and with the vector on the right it evaluated the force laws once
+    per coordinate. `"forward"`: the same with $D$ by forward-mode autodiff over the stage's
+    coordinates (the formulation before, 1.3x the closed form's cost in the antenna's right-hand
+    side, `benchmarks/results/rhs_floor.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp`
+    for the projection (the formulation before that). Same values to rounding; the other two
+    are kept for the equivalence test and the benchmarks."""
     width = stage.smoothing_width
-    if projection == "jacobian":
+    if projection == "closed-form":
+        defl, parts = deflections_and_jacobian(stage, q)
+        jac = jnp.concatenate([jnp.reshape(parts[k], (-1, q.shape[-1])) for k in sorted(parts)])  # ravel_pytree's order
+        defl_dot = ravel_pytree(defl)[1]((jac @ qd[:, None])[:, 0])
+        project = lambda cotangent: (ravel_pytree(cotangent)[0][None, :] @ jac)[0]  # noqa: E731
+    elif projection == "forward":
         def flat(q_):
             d = deflections(stage, q_)
             return ravel_pytree(d)[0], d
@@ -310,7 +368,7 @@ def stage_forces(
         defl_dot = jax.jvp(lambda q_: deflections(stage, q_), (q,), (qd,))[1]
         project = lambda cotangent: pullback(cotangent)[0]  # noqa: E731
     else:
-        raise ValueError(f"projection={projection!r} is unknown; use 'jacobian' or 'jvp-vjp'.")
+        raise ValueError(f"projection={projection!r} is unknown; use 'closed-form', 'forward' or 'jvp-vjp'.")
     phase_s, phase_r = mesh_phases(stage, q)
     forces = {}
     tooth = {}
