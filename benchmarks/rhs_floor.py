@@ -2,7 +2,7 @@
 compiled program counts (flops, bytes, instructions, fusions), what one evaluation costs, and
 how far that is from what this core can do (issue 41, step 1).
 
-    python benchmarks/rhs_floor.py [--calls 300] [--batches 1 8 64] [--results DIR]
+    python benchmarks/rhs_floor.py [--calls 300] [--batches 1 8 64] [--rounds 20] [--results DIR]
 
 Scene: `tolerax.antenna("dual", fidelity="planetary")` (free base, 100 um clearances and
 backlash, 83 states), at the state reached 0.3 s after a steady start (the rattle under way).
@@ -13,7 +13,8 @@ Each piece is compiled alone with the XLA options `tolerax.simulate` uses on a C
   HLO instructions in the optimised module, and of fusions (each a kernel launched);
 - **timed** inside one compiled program (a `lax.scan` of `--calls` evaluations at slightly
   perturbed states, so nothing is hoisted and Python never dispatches): microseconds per call,
-  best of 3.
+  the best of `--rounds` rounds in which every piece's program runs once in turn (interleaved:
+  on a noisy machine a slow spell falls on all pieces alike).
 
 Pieces: the whole vector field (`Mechanism.vector_field`) as it is (the equations of motion
 solved by blocks, `Mechanism.kane_blocks`; the planetary joints' deflection Jacobian in closed
@@ -66,15 +67,19 @@ def loop_program(fn, n, options=None):
     return loop
 
 
-def per_call_us(fn, args, n, options=None):
-    loop = loop_program(fn, n, options)
-    jax.block_until_ready(loop(args))
-    best = float("inf")
-    for _ in range(3):
-        start = time.perf_counter()
+def interleaved_us(programs, rounds):
+    """Microseconds per call of each `(loop, args, n)` of `programs` (a dict of `loop_program`s):
+    each run once (compiling), then `rounds` rounds in which every one runs once in turn; the
+    best round of each. Interleaved, a noisy machine's slow spells fall on all pieces alike."""
+    for loop, args, _ in programs.values():
         jax.block_until_ready(loop(args))
-        best = min(best, time.perf_counter() - start)
-    return best / n * 1e6
+    best = {name: float("inf") for name in programs}
+    for _ in range(rounds):
+        for name, (loop, args, n) in programs.items():
+            start = time.perf_counter()
+            jax.block_until_ready(loop(args))
+            best[name] = min(best[name], (time.perf_counter() - start) / n * 1e6)
+    return best
 
 
 def counts(fn, args, options=None):
@@ -116,6 +121,7 @@ def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--calls", type=int, default=300)
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 8, 64])
+    parser.add_argument("--rounds", type=int, default=20, help="interleaved timing rounds (the best of each piece)")
     args = harness.parse_args(parser)
     start = time.perf_counter()
     mech = tx.antenna("dual", fidelity="planetary")
@@ -149,16 +155,12 @@ def main():
     }
     peak, memory, bandwidth = ceiling()
     print(f"ceiling: {peak / 1e9:.2f} GFLOP/s, {memory / 1e9:.2f} GB/s memory, {bandwidth / 1e9:.2f} GB/s caches", flush=True)
-    rows = []
+    rows, batch_rows, programs = [], [], {}
     for label, (fn, fargs, *options) in pieces.items():
         arrays, static = eqx.partition(fargs, eqx.is_array)
         c = counts(lambda a, f=fn, s=static: f(*eqx.combine(a, s)), (arrays,), *options)
-        us = per_call_us(fn, fargs, args.calls, *options)
-        floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
-        rows.append((label, f"{c['flops']:.0f}", f"{c['transcendentals']:.0f}", f"{c['bytes'] / 1e3:.1f}", str(c["instructions"]),
-                     str(c["fusions"]), f"{us:.1f}", f"{floor_us:.2f}", f"{us / floor_us:.0f}"))
-        print(rows[-1], flush=True)
-    batch_rows = []
+        programs[label] = (loop_program(fn, args.calls, *options), fargs, args.calls)
+        rows.append((label, c))
     for b in args.batches:
         states = jax.tree.map(lambda x: jnp.broadcast_to(x, (b, *x.shape)) * (1 + 1e-9 * jnp.arange(b).reshape(-1, *[1] * x.ndim)),
                               (q, u, v))
@@ -167,11 +169,22 @@ def main():
                                       ("whole M (before the blocks, Eigen threaded)", whole, threads)):
             arrays, static = eqx.partition((scene, t, states), eqx.is_array)
             c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,), options)
-            us = per_call_us(fn, (scene, t, states), max(10, args.calls // b), options)
-            floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
-            batch_rows.append((str(b), solve, f"{us:.1f}", f"{us / b:.2f}", f"{c['flops'] / b:.0f}", f"{c['bytes'] / b / 1e3:.1f}",
-                               str(c["fusions"]), f"{floor_us / b:.3f}", f"{us / floor_us:.0f}"))
-            print(batch_rows[-1], flush=True)
+            calls = max(10, args.calls // b)
+            programs[(b, solve)] = (loop_program(fn, calls, options), (scene, t, states), calls)
+            batch_rows.append(((b, solve), c))
+    print(f"timing {len(programs)} programs over {args.rounds} interleaved rounds ...", flush=True)
+    us = interleaved_us(programs, args.rounds)
+    for k, (label, c) in enumerate(rows):
+        floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
+        rows[k] = (label, f"{c['flops']:.0f}", f"{c['transcendentals']:.0f}", f"{c['bytes'] / 1e3:.1f}", str(c["instructions"]),
+                   str(c["fusions"]), f"{us[label]:.1f}", f"{floor_us:.2f}", f"{us[label] / floor_us:.0f}")
+        print(rows[k], flush=True)
+    for k, ((b, solve), c) in enumerate(batch_rows):
+        floor_us = max(c["flops"] / peak, c["bytes"] / bandwidth) * 1e6
+        t_us = us[(b, solve)]
+        batch_rows[k] = (str(b), solve, f"{t_us:.1f}", f"{t_us / b:.2f}", f"{c['flops'] / b:.0f}", f"{c['bytes'] / b / 1e3:.1f}",
+                         str(c["fusions"]), f"{floor_us / b:.3f}", f"{t_us / floor_us:.0f}")
+        print(batch_rows[k], flush=True)
     harness.write_table(
         "rhs_floor", "One vector-field evaluation of the full planetary dual antenna: counted, timed, and its floor",
         harness.command(args),
@@ -179,7 +192,7 @@ def main():
          "µs per call", "floor µs (flops or bytes at the core's ceiling)", "time / floor"],
         rows,
         about=(f"`tolerax.antenna('dual', fidelity='planetary')`, {n_states} states, at 0.3 s after a steady start; compiled with "
-               f"`tolerax.solve.CPU_COMPILER_OPTIONS`; times inside one program of {args.calls} calls, best of 3. The core's "
+               f"`tolerax.solve.CPU_COMPILER_OPTIONS`; times inside one program of {args.calls} calls, the best of {args.rounds} rounds interleaved over all pieces. The core's "
                f"ceiling in this run: {peak / 1e9:.2f} GFLOP/s (float64 512^2 matrix product), {bandwidth / 1e9:.2f} GB/s "
                f"from the caches (500 elementwise passes over 256 kB; {memory / 1e9:.2f} GB/s from memory, over 64 MB: one "
                f"evaluation's data, {n_states} states and the scene's constants, stay in the caches). Total wall {time.perf_counter() - start:.0f} s, compilation included."),
