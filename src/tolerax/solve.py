@@ -104,8 +104,9 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 # (planetary and lumped dual-axis antenna, same steps and results; vmapped over 64 states they
 # pay, so Monte Carlo's batched programs keep the default). benchmarks/results/archive/rhs_anatomy.md.
 # Eigen's products on one thread: split over the CPU's threads, the right-hand side's 12 x 84 x 12
-# and smaller products pay the hand-over more than they save (0.6x their time on one thread,
-# the whole right-hand side 0.9x; benchmarks/results/rhs_floor.md).
+# and smaller products pay the hand-over more than they save (that product alone 0.6x its time
+# on one thread; the whole right-hand side 0.89-0.98x in interleaved races of one state and of
+# 16 vmapped, 1.03x, within the noise, in benchmarks/results/rhs_floor.md's run).
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "", "xla_cpu_multi_thread_eigen": False}
 
 
