@@ -4,11 +4,11 @@ against a tight solve of each (issue 41's Monte Carlo must-show).
     python benchmarks/monte_carlo_solvers.py [--n 16] [--band 5e-5] [--chunks 1 8]
         [--configs Tsit5:I:1e-6 Tsit5:PI:1e-6 Bosh3:PI:1e-4 Bosh3:PI:1e-5] [--results DIR]
 
-A configuration is `SOLVER:CONTROLLER:RTOL[:whole|:forward]` as in `rattle_window.py` (`:whole`:
-the mechanism's equations of motion solved with the whole mass matrix, as before the block
-solve; `:forward`: the planetary joints' deflection Jacobian by forward-mode autodiff, as before
-the closed form. Monte Carlo's batched programs are compiled with XLA's default options either
-way, so `:forward` changes only the Jacobian here).
+A configuration is `SOLVER:CONTROLLER:RTOL[:whole|:forward|:original]` as in `rattle_window.py`
+(`:whole`: the mechanism's equations of motion solved with the whole mass matrix, as before the
+block solve; `:forward`: the planetary joints' deflection Jacobian by forward-mode autodiff, as
+before the closed form; `:original`: both. Monte Carlo's batched programs are compiled with
+XLA's default options either way, so `:forward` changes only the Jacobian here).
 
 Scene: the built-in `scan-azimuth-planetary` (the azimuth scan at planetary fidelity, 0.6 s from
 steady motion, pointing window after 0.3 s), its tolerance zones widened to nominal +-`--band`
@@ -86,7 +86,7 @@ def main():
         "monte_carlo_solvers",
         "Full-stage Monte Carlo units per minute by solver and controller, against a tight solve of the same units",
         harness.command(args),
-        ["solver", "controller", "rtol", "right-hand side (now, or before: whole M, forward Jacobian)", "chunk", "succeeded", "wall (s)", "units per minute", "x first row",
+        ["solver", "controller", "rtol", "right-hand side (now, or before: whole M, forward Jacobian, original: both)", "chunk", "succeeded", "wall (s)", "units per minute", "x first row",
          "pointing RMS rel. error (median / max)", "peak rel. error (median / max)", "jitter rel. error (median / max)"],
         rows,
         about=(f"Scene `scan-azimuth-planetary` (0.6 s, window from 0.3 s), zones nominal +-{args.band * 1e6:g} um on its "

@@ -10,7 +10,8 @@ with the whole mass matrix (`Mechanism(mass_solve="whole")`, as before the block
 of by blocks; `forward`, the planetary joints' deflection Jacobian by forward-mode autodiff
 (`harness.with_forward_jacobian`) instead of in closed form, compiled with Eigen's products over
 the CPU's threads (`harness.eigen_threads`) as before `tolerax.solve.CPU_COMPILER_OPTIONS`
-turned that off: the before and after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
+turned that off; `original`, both (the program issue 41 started from, less what else changed
+since): the before and after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
 work-precision picture `results/rattle_window.png` (wall seconds per simulated second against
 the window's largest pointing difference from the reference and its RMS error, one line per
 solver, controller and way of solving the equations of motion, across rtol).
@@ -66,13 +67,13 @@ class Config:
     solver: str
     controller: str
     rtol: float
-    program: str = "now"  # "now", "whole" or "forward" (the module docstring)
+    program: str = "now"  # "now", "whole", "forward" or "original" (the module docstring)
 
     @classmethod
     def parse(cls, text: str) -> "Config":
         solver, controller, rtol, *rest = text.split(":")
-        if solver not in SOLVERS or controller not in CONTROLLERS or rest not in ([], ["whole"], ["forward"]):
-            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole|:forward] with SOLVER in {sorted(SOLVERS)}, "
+        if solver not in SOLVERS or controller not in CONTROLLERS or rest not in ([], ["whole"], ["forward"], ["original"]):
+            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole|:forward|:original] with SOLVER in {sorted(SOLVERS)}, "
                              f"CONTROLLER in {sorted(CONTROLLERS)}")
         return cls(solver, controller, float(rtol), *rest)
 
@@ -82,13 +83,13 @@ class Config:
 
     def scene(self, mech):
         """`mech` (a `tolerax.Mechanism`) with this row's right-hand side."""
-        if self.program == "whole":
-            return harness.with_mass_solve(mech, "whole")
-        return harness.with_forward_jacobian(mech) if self.program == "forward" else mech
+        if self.program in ("whole", "original"):
+            mech = harness.with_mass_solve(mech, "whole")
+        return harness.with_forward_jacobian(mech) if self.program in ("forward", "original") else mech
 
     def compiled(self):
-        """The context this row's runs are compiled in (Eigen's threads for `forward`)."""
-        return harness.eigen_threads() if self.program == "forward" else contextlib.nullcontext()
+        """The context this row's runs are compiled in (Eigen's threads for `forward`, `original`)."""
+        return harness.eigen_threads() if self.program in ("forward", "original") else contextlib.nullcontext()
 
     def options(self) -> dict:
         pcoeff, icoeff = CONTROLLERS[self.controller]
@@ -124,10 +125,11 @@ def plot(curves, path):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for name, points in sorted(curves.items()):
         points = sorted(points)
-        before = name.endswith((":whole", ":forward"))
+        before = name.endswith((":whole", ":forward", ":original"))
         for ax, k in zip(axes, (2, 3)):
             ax.plot([p[1] for p in points], [p[k] for p in points], "o--" if before else "o-", mfc="none" if before else None,
-                    label=name.replace(":whole", ", whole M (before the blocks)").replace(":forward", ", forward-mode Jacobian (before)"))
+                    label=name.replace(":whole", ", whole M (before the blocks)").replace(":forward", ", forward-mode Jacobian (before)")
+                    .replace(":original", ", whole M and forward-mode Jacobian (the start)"))
             for p in points:
                 ax.annotate(f"{p[0]:g}", (p[1], p[k]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for ax, what in zip(axes, ("largest pointing difference over the window (arcsec)", "pointing RMS rel. error over the window")):
@@ -211,7 +213,7 @@ def main():
         "rattle_window",
         "Full planetary dual antenna in developed rattle: speed against error, and the step-size controller across scenes",
         harness.command(args),
-        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
+        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian, original: both)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
          "RHS evaluations", "µs per attempted step", "pointing RMS over the window (arcsec)", "RMS rel. error",
          "jitter (arcsec)", "jitter rel. error", "pointing max diff (arcsec)"],
         rows,
