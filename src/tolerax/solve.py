@@ -25,7 +25,7 @@ PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "
 # 0.87-0.95x on the bench, the lumped antenna and the planetary scan; but no gain at rtol 1e-8 or
 # on rattling Monte Carlo units (0.97-1.04x), 4x farther from a tight solve on the one rattle
 # window's pointing RMS (6.5e-4 against 1.5e-4 relative; nearer on the other scenes)
-# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`), and the same solve compiled
+# (`benchmarks/results/archive/rattle_window_5242a25.md`, `archive/monte_carlo_solvers_5242a25.md`), and the same solve compiled
 # in two programs (a vmapped batch, a gradient) then differs by ~1e-8 instead of rounding
 # (tests/test_reliability.py). Tried as the default and reverted: it is an option, not the default.
 DEFAULT_PID = (0.0, 1.0)
@@ -35,7 +35,7 @@ DEFAULT_PID = (0.0, 1.0)
 # 1.7x (rattling Monte Carlo units) faster than Tsit5 at rtol 1e-6; against a tight solve
 # its pointing RMS errs 1.1-1.3x as much as Tsit5's with the I-controller on the Monte Carlo units
 # (2.3x on the rattle window), its peak 1.6x, its jitter up to 3.4x on the worst of 16 units
-# (`benchmarks/results/rattle_window.md`, `monte_carlo_solvers.md`).
+# (`benchmarks/results/archive/rattle_window_5242a25.md`, `archive/monte_carlo_solvers_5242a25.md`).
 DEFAULT_SOLVER = "Tsit5"
 SOLVERS = {"Tsit5": diffrax.Tsit5, "Bosh3": diffrax.Bosh3, "Dopri5": diffrax.Dopri5, "Dopri8": diffrax.Dopri8}
 
