@@ -12,7 +12,7 @@ import pytest
 import tolerax as tx
 from tolerax import contact as C, planetary as P
 from tolerax.physics import modes as _modes
-from tolerax.physics.rigid import world_inertia
+from tolerax.physics.rigid import small_matmul, world_inertia
 
 
 def _momentum_scale(mech, res):
@@ -267,6 +267,20 @@ def _random_state(mech, key):
         q = q.at[:3].multiply(0.3).at[3:7].set(jax.random.normal(kb, (4,)))  # unnormalised: drift
     v = 1e-3 * jax.random.normal(kv, (lay.size_v,))
     return q, u, v
+
+
+@pytest.mark.parametrize(
+    "a_shape, b_shape",
+    [((2, 2), (2,)), ((3, 2), (2, 2)), ((2, 2), (2, 15)), ((4, 3, 3), (3,)), ((4, 3, 3), (3, 3)), ((1, 3, 3), (5, 3, 3)), ((6, 2), (2, 3))],
+)
+def test_small_matmul_is_matmul(a_shape, b_shape):
+    """The frames' rotations are written as sums of products (`small_matmul`, so that XLA fuses
+    them); it must be `@` to rounding for every shape it is given, batch axes broadcast."""
+    rng = np.random.default_rng(len(a_shape) * 10 + len(b_shape))
+    a, b = rng.normal(size=a_shape), rng.normal(size=b_shape)
+    out = small_matmul(jnp.asarray(a), jnp.asarray(b))
+    assert out.shape == (a @ b).shape
+    np.testing.assert_allclose(out, a @ b, rtol=1e-13, atol=1e-14)
 
 
 @pytest.mark.parametrize("fidelity", ["ideal", "lumped", "planetary"])

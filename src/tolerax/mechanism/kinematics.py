@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array
 
-from ..physics.rigid import rz
+from ..physics.rigid import rz, small_matmul
 from .joints import AbstractJoint
 
 if TYPE_CHECKING:
@@ -61,8 +61,8 @@ def offset(frame: Frames, offset, turn=None) -> Frames:
     """Frames rigidly attached to `frame` at `offset` (its axes, m), turned by the constant
     rotation `turn`: $v' = v + \\omega\\times\\rho$, $a' = a + \\alpha\\times\\rho +
     \\omega\\times(\\omega\\times\\rho)$ with $\\rho = R\\,$`offset`."""
-    rho = jnp.einsum("bij,j->bi", frame.rot, offset)
-    rot = frame.rot if turn is None else frame.rot @ jnp.asarray(turn)
+    rho = small_matmul(frame.rot, offset)
+    rot = frame.rot if turn is None else small_matmul(frame.rot, turn)
     w = frame.w
     return Frames(
         frame.pos + rho,
@@ -112,8 +112,8 @@ def planar_frames(housing: Frames, motion, cols: slice, n: int, index=None) -> F
     nb = c.shape[0]
     r_h = housing.rot[0]
     plane, axis = r_h[:, :2], r_h[:, 2]
-    rho = c @ plane.T
-    rho_dot = cd @ plane.T  # R_h c'
+    rho = small_matmul(c, plane.T)
+    rho_dot = small_matmul(cd, plane.T)  # R_h c'
     w_h, alpha_h = housing.w[0], housing.alpha[0]
     if index is None:
         jw_own = jnp.zeros((nb, 3, n)).at[:, :, cols].set(axis[None, :, None] * jtheta[:, None, :])
@@ -134,6 +134,6 @@ def planar_frames(housing: Frames, motion, cols: slice, n: int, index=None) -> F
         + jnp.cross(alpha_h, rho)
         + jnp.cross(w_h, jnp.cross(w_h, rho))
         + 2.0 * jnp.cross(w_h, rho_dot)
-        + cdd @ plane.T
+        + small_matmul(cdd, plane.T)
     )
     return Frames(housing.pos + rho, r_h @ rz(theta), jv, jw, v, w, a, alpha)

@@ -48,7 +48,7 @@ from jaxtyping import Array
 from . import contact as _contact
 from . import mesh as _mesh
 from . import smooth as _smooth
-from .rigid import rot2
+from .rigid import rot2, small_matmul
 from .stage import Mesh, PlanetaryStage, as_float
 
 def _xy(q, sl):
@@ -88,7 +88,7 @@ def body_positions(stage: PlanetaryStage, q: Array):
     p_c = _xy(q, lay.carrier_xy)
     zeta_eta = _planet_xy(stage, q, lay)
     local = (stage.carrier_radius + zeta_eta[:, :1]) * e_r + zeta_eta[:, 1:] * e_t
-    planets = p_c + local @ rot2(q[lay.carrier_theta]).T
+    planets = p_c + small_matmul(local, rot2(q[lay.carrier_theta]).T)
     centres = [_xy(q, lay.sun_xy)[None], p_c[None], planets]
     angles = [q[:1], q[1:2], q[lay.planet_theta]]
     if lay.ring_theta is not None:
@@ -186,7 +186,7 @@ def deflections_and_jacobian(stage: PlanetaryStage, q: Array) -> tuple[dict, dic
 
     def in_carrier(sl):  # a housing-frame translation in carrier axes, and its Jacobian (2, n_q)
         x = _xy(q, sl)
-        return to_carrier @ x, to_carrier @ rows(sl, (2,)) + (turn @ x)[:, None] * d_c
+        return small_matmul(to_carrier, x), small_matmul(to_carrier, rows(sl, (2,))) + small_matmul(turn, x)[:, None] * d_c
 
     (x_s, j_s), (x_r, j_r), (x_c, j_c) = (in_carrier(sl) for sl in (lay.sun_xy, lay.ring_xy, lay.carrier_xy))
     rel, j_rel = _planet_xy(stage, q, lay), rows(lay.planet_xy, (n, 2))
