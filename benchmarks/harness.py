@@ -371,6 +371,40 @@ def with_forward_jacobian(mech):
     return tx.Mechanism(swap(mech.azimuth), swap(mech.pitch), mech.geometry, mech.inertias, mech.base, mass_solve=mech.mass_solve)
 
 
+def tolerax_at(rev: str):
+    """The tolerax package as it was at git revision `rev` (this checkout's history), imported
+    beside today's as a module of its own, `tolerax_at_<commit>`: `git archive` of `src/tolerax`
+    into a temporary folder with the package's name in its own source replaced. A benchmark then
+    times an earlier program against today's in the same process and the same run, the scene
+    built by that module's `antenna` and solved by its `simulate` (`rattle_window.py`'s `:@REV`
+    rows, `rhs_floor.py --against REV`). Raises where `rev` is not a commit of this checkout."""
+    import importlib
+    import re
+    import tarfile
+    import tempfile
+
+    sha = _git("rev-parse", "--short", f"{rev}^{{commit}}")
+    if sha is None:
+        raise ValueError(f"{rev!r} is not a git revision of {ROOT}: name a commit of this checkout (git log --oneline)")
+    name = f"tolerax_at_{sha}"
+    if name in sys.modules:
+        return sys.modules[name]
+    folder = pathlib.Path(tempfile.mkdtemp(prefix=f"{name}_"))
+    archive = subprocess.run(["git", "archive", sha, "src/tolerax"], capture_output=True, check=True, cwd=ROOT).stdout
+    with tarfile.open(fileobj=__import__("io").BytesIO(archive)) as tar:
+        tar.extractall(folder, filter="data")
+    package = folder / "src" / "tolerax"
+    for path in package.rglob("*"):
+        if path.is_file() and path.suffix == ".py":
+            path.write_text(re.sub(r"\btolerax\b", name, path.read_text()))
+    package.rename(folder / name)
+    sys.path.insert(0, str(folder))
+    try:
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(folder))
+
+
 EIGEN_THREADS = {"xla_cpu_multi_thread_eigen": True}
 """The XLA option `tolerax.solve.CPU_COMPILER_OPTIONS` turned off: Eigen's products split over the CPU's threads."""
 

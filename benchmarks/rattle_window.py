@@ -11,7 +11,9 @@ of by blocks; `forward`, the planetary joints' deflection Jacobian by forward-mo
 (`harness.with_forward_jacobian`) instead of in closed form, compiled with Eigen's products over
 the CPU's threads (`harness.eigen_threads`) as before `tolerax.solve.CPU_COMPILER_OPTIONS`
 turned that off; `original`, both (the program issue 41 started from, less what else changed
-since): the before and after of the vector field's cost in one run. Writes `results/rattle_window.md` and the
+since); `@REV`, the whole of tolerax as it was at git revision REV (`harness.tolerax_at`: the
+scene built by that version's `antenna`, solved by its `simulate`): the before and after of the
+vector field's cost in one run. Writes `results/rattle_window.md` and the
 work-precision picture `results/rattle_window.png` (wall seconds per simulated second against
 the window's largest pointing difference from the reference and its RMS error, one line per
 solver, controller and way of solving the equations of motion, across rtol).
@@ -67,13 +69,14 @@ class Config:
     solver: str
     controller: str
     rtol: float
-    program: str = "now"  # "now", "whole", "forward" or "original" (the module docstring)
+    program: str = "now"  # "now", "whole", "forward", "original" or "@REV" (the module docstring)
 
     @classmethod
     def parse(cls, text: str) -> "Config":
         solver, controller, rtol, *rest = text.split(":")
-        if solver not in SOLVERS or controller not in CONTROLLERS or rest not in ([], ["whole"], ["forward"], ["original"]):
-            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole|:forward|:original] with SOLVER in {sorted(SOLVERS)}, "
+        at_rev = len(rest) == 1 and rest[0].startswith("@") and len(rest[0]) > 1
+        if solver not in SOLVERS or controller not in CONTROLLERS or not (at_rev or rest in ([], ["whole"], ["forward"], ["original"])):
+            raise ValueError(f"{text!r}: use SOLVER:CONTROLLER:RTOL[:whole|:forward|:original|:@REV] with SOLVER in {sorted(SOLVERS)}, "
                              f"CONTROLLER in {sorted(CONTROLLERS)}")
         return cls(solver, controller, float(rtol), *rest)
 
@@ -81,8 +84,16 @@ class Config:
     def label(self) -> str:
         return f"{self.solver}:{self.controller}:{self.rtol:g}" + ("" if self.program == "now" else f":{self.program}")
 
+    @property
+    def package(self):
+        """The tolerax this row runs: today's, or the one at `@REV` (`harness.tolerax_at`)."""
+        return harness.tolerax_at(self.program[1:]) if self.program.startswith("@") else tx
+
     def scene(self, mech):
-        """`mech` (a `tolerax.Mechanism`) with this row's right-hand side."""
+        """`mech` (a `tolerax.Mechanism`) with this row's right-hand side (for `@REV`, the same
+        scene built by that version)."""
+        if self.program.startswith("@"):
+            return self.package.antenna("dual", fidelity="planetary")
         if self.program in ("whole", "original"):
             mech = harness.with_mass_solve(mech, "whole")
         return harness.with_forward_jacobian(mech) if self.program in ("forward", "original") else mech
@@ -100,9 +111,10 @@ class Config:
         return len(tableau.b_sol) - (1 if tableau.fsal else 0)
 
 
-def timed_run(scene, duration, n_save, start="steady", **options):
-    """(wall s of the timed run, result): compiled first by a 0.01 s run of the same program."""
-    run = lambda seconds: tx.simulate(scene, seconds, start=start, n_save=n_save, max_steps=20_000_000, **options)  # noqa: E731
+def timed_run(scene, duration, n_save, start="steady", package=tx, **options):
+    """(wall s of the timed run, result): compiled first by a 0.01 s run of the same program;
+    `package`'s `simulate` (today's tolerax, or an earlier one's, `Config.package`)."""
+    run = lambda seconds: package.simulate(scene, seconds, start=start, n_save=n_save, max_steps=20_000_000, **options)  # noqa: E731
     run(0.01)
     return harness.wall(run, duration)
 
@@ -169,7 +181,7 @@ def main():
     for config in configs:
         print(f"{config.label} ...", flush=True)
         with config.compiled():
-            wall_s, res = timed_run(config.scene(mech), duration, args.n_save, **config.options())
+            wall_s, res = timed_run(config.scene(mech), duration, args.n_save, package=config.package, **config.options())
         rms, jitter, error = window_outputs(res, args.warmup, args.jitter_cutoff)
         accepted, rejected = int(res.num_steps), int(res.num_rejected)
         rows.append([
@@ -213,7 +225,7 @@ def main():
         "rattle_window",
         "Full planetary dual antenna in developed rattle: speed against error, and the step-size controller across scenes",
         harness.command(args),
-        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian, original: both)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
+        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian, original: both; @REV: tolerax at that git revision)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
          "RHS evaluations", "µs per attempted step", "pointing RMS over the window (arcsec)", "RMS rel. error",
          "jitter (arcsec)", "jitter rel. error", "pointing max diff (arcsec)"],
         rows,

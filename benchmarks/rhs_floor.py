@@ -2,7 +2,7 @@
 compiled program counts (flops, bytes, instructions, fusions), what one evaluation costs, and
 how far that is from what this core can do (issue 41, step 1).
 
-    python benchmarks/rhs_floor.py [--calls 300] [--batches 1 8 64] [--rounds 20] [--results DIR]
+    python benchmarks/rhs_floor.py [--calls 300] [--batches 1 8 64] [--rounds 20] [--against REV ...] [--results DIR]
 
 Scene: `tolerax.antenna("dual", fidelity="planetary")` (free base, 100 um clearances and
 backlash, 83 states), at the state reached 0.3 s after a steady start (the rattle under way).
@@ -27,6 +27,8 @@ and factorised, the same equations; Eigen threaded), the accelerations by blocks
 (`Mechanism.dynamics`), the joints' forces (`Mechanism.joint_forces`: meshes, bearing contacts,
 servos), the Cholesky solve of the whole M x = f, the impact-rate rates. The whole vector field
 is also `vmap`ped over `--batches` states (what a Monte Carlo chunk pays per state), the three ways.
+`--against REV`: the whole vector field as it was at each git revision REV too (the scene built
+by that version of tolerax, `harness.tolerax_at`), alone and vmapped, timed in the same rounds.
 
 **The core's ceiling**, measured in the same run: a float64 matrix product (512 x 512, the
 machine's best flop rate on one core) and 500 elementwise passes over 32 k doubles (256 kB:
@@ -122,6 +124,7 @@ def main():
     parser.add_argument("--calls", type=int, default=300)
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 8, 64])
     parser.add_argument("--rounds", type=int, default=20, help="interleaved timing rounds (the best of each piece)")
+    parser.add_argument("--against", nargs="*", default=[], help="git revisions whose vector field is timed too")
     args = harness.parse_args(parser)
     start = time.perf_counter()
     mech = tx.antenna("dual", fidelity="planetary")
@@ -153,6 +156,9 @@ def main():
         "impact-rate rates": (lambda m, q_, u_, ud_, v_: m.each_joint(lambda j, *x: j.impact_rate_rates(*x), ("q", q_), ("u", u_),
                                                                          ("u", ud_), ("v", v_)), (mech, q, u, ud, v)),
     }
+    earlier = {rev: harness.tolerax_at(rev).antenna("dual", fidelity="planetary") for rev in args.against}
+    for rev, scene in earlier.items():
+        pieces[f"vector field (all), at {rev}"] = (lambda m, t_, q_, u_, v_: m.vector_field(t_, (q_, u_, v_), None), (scene, t, q, u, v))
     peak, memory, bandwidth = ceiling()
     print(f"ceiling: {peak / 1e9:.2f} GFLOP/s, {memory / 1e9:.2f} GB/s memory, {bandwidth / 1e9:.2f} GB/s caches", flush=True)
     rows, batch_rows, programs = [], [], {}
@@ -166,7 +172,8 @@ def main():
                               (q, u, v))
         fn = jax.vmap(lambda m, t_, y: m.vector_field(t_, y, None), in_axes=(None, None, 0))
         for solve, scene, options in (("now", mech, None), ("before the closed-form Jacobian (forward mode, Eigen threaded)", forward, threads),
-                                      ("whole M (before the blocks, Eigen threaded)", whole, threads)):
+                                      ("whole M (before the blocks, Eigen threaded)", whole, threads),
+                                      *((f"at {rev}", scene, None) for rev, scene in earlier.items())):
             arrays, static = eqx.partition((scene, t, states), eqx.is_array)
             c = counts(lambda a, s=static: fn(*eqx.combine(a, s)), (arrays,), options)
             calls = max(10, args.calls // b)
