@@ -2,7 +2,7 @@
 must-show scene), and of the step-size controller on every fidelity, in one run.
 
     python benchmarks/rattle_window.py [--warmup 1.0] [--window 1.0] [--n-save 2001]
-        [--jitter-cutoff 20] [--configs ...] [--scenes ...] [--results DIR]
+        [--jitter-cutoff 20] [--configs ...] [--rounds 1] [--scenes ...] [--results DIR]
 
 A configuration is `SOLVER:CONTROLLER:RTOL`, or `SOLVER:CONTROLLER:RTOL:PROGRAM` for the
 right-hand side as it was before a change: `whole`, the mechanism's equations of motion solved
@@ -24,7 +24,8 @@ solver, controller and way of solving the equations of motion, across rtol).
 (solver, rtol, the controller's (pcoeff, icoeff); atol = rtol / 1000; solvers by their names in
 `tolerax.solve.SOLVERS`). Each row's program is
 compiled first by a 0.01 s call of the same structure (the duration is a value), then the whole
-run is timed once: **wall seconds per simulated second** over the run, accepted and rejected
+run is timed once per round (`--rounds`: every row once in each, the fastest kept, and the
+slowest over the fastest as the machine's noise): **wall seconds per simulated second** over the run, accepted and rejected
 steps, right-hand-side evaluations (stages per attempted step). Outputs over the window
 `[warmup, warmup + window]` (the rattle developed, `fast_modes.md`): the pointing RMS and its
 jitter (the RMS of the pointing error high-passed above `--jitter-cutoff` Hz: the project's
@@ -164,6 +165,8 @@ def main():
     parser.add_argument("--jitter-cutoff", type=float, default=20.0, help="jitter high-pass (Hz)")
     parser.add_argument("--configs", nargs="+", default=list(DEFAULT_CONFIGS), help="SOLVER:CONTROLLER:RTOL rows")
     parser.add_argument("--reference", default=REFERENCE, help="the reference row, SOLVER:CONTROLLER:RTOL")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="timed runs of every configuration, in interleaved rounds, the fastest of each (a noisy machine: 3)")
     parser.add_argument("--scenes", nargs="*", default=["bench", "dual-lumped", "scan-planetary"],
                         help="scenes for the I/PI comparison (none: skip)")
     args = harness.parse_args(parser)
@@ -178,14 +181,21 @@ def main():
     ref_rms, ref_jitter, ref_error = window_outputs(ref, args.warmup, args.jitter_cutoff)
     rows = []
     curves = {}  # "SOLVER:CONTROLLER[:PROGRAM]" -> [(rtol, wall s per simulated s, max diff, RMS rel. error)]
+    walls, results = {}, {}
+    for round_ in range(args.rounds):  # every configuration once per round: a slow spell falls on all alike
+        for config in configs:
+            print(f"{config.label} (round {round_ + 1} of {args.rounds}) ...", flush=True)
+            with config.compiled():
+                wall_s, res = timed_run(config.scene(mech), duration, args.n_save, package=config.package, **config.options())
+            walls.setdefault(config.label, []).append(wall_s)
+            results.setdefault(config.label, res)  # the same steps every round: the first one's outputs
     for config in configs:
-        print(f"{config.label} ...", flush=True)
-        with config.compiled():
-            wall_s, res = timed_run(config.scene(mech), duration, args.n_save, package=config.package, **config.options())
+        wall_s, res = min(walls[config.label]), results[config.label]
         rms, jitter, error = window_outputs(res, args.warmup, args.jitter_cutoff)
         accepted, rejected = int(res.num_steps), int(res.num_rejected)
         rows.append([
-            config.solver, config.controller, f"{config.rtol:g}", config.program, f"{wall_s:.1f}", f"{wall_s / duration:.2f}",
+            config.solver, config.controller, f"{config.rtol:g}", config.program, f"{wall_s:.1f}", f"{max(walls[config.label]) / wall_s:.2f}",
+            f"{wall_s / duration:.2f}",
             f"{accepted} ({rejected})", str(config.evaluations_per_step() * (accepted + rejected)),
             f"{1e6 * wall_s / (accepted + rejected):.0f}", f"{rms:.2f}", f"{abs(rms / ref_rms - 1):.1e}",
             f"{jitter:.3f}", f"{abs(jitter / ref_jitter - 1):.1e}", f"{np.max(np.abs(error - ref_error)):.1e}",
@@ -225,7 +235,8 @@ def main():
         "rattle_window",
         "Full planetary dual antenna in developed rattle: speed against error, and the step-size controller across scenes",
         harness.command(args),
-        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian, original: both; @REV: tolerax at that git revision)", "wall (s)", "wall s per simulated s", "accepted (rejected) steps",
+        ["solver", "controller", "rtol", "right-hand side (now, or as before: whole M, forward Jacobian, original: both; @REV: tolerax at that git revision)", "wall (s)",
+         "slowest / fastest round", "wall s per simulated s", "accepted (rejected) steps",
          "RHS evaluations", "µs per attempted step", "pointing RMS over the window (arcsec)", "RMS rel. error",
          "jitter (arcsec)", "jitter rel. error", "pointing max diff (arcsec)"],
         rows,
@@ -234,7 +245,7 @@ def main():
                f"(0, 1), diffrax's and tolerax's default; PI = (0.3, 0.3); atol = rtol / 1000. Reference {reference.label}: "
                f"{ref_wall:.1f} s, {int(ref.num_steps)} accepted ({int(ref.num_rejected)} rejected) steps, pointing RMS "
                f"{ref_rms:.3f} arcsec and jitter {ref_jitter:.4f} arcsec over the window. Each row compiled by a 0.01 s run first, "
-               f"then timed once. Total wall {time.perf_counter() - start_all:.0f} s."),
+               f"then timed once in each of {args.rounds} interleaved rounds, the fastest kept. Total wall {time.perf_counter() - start_all:.0f} s."),
         sections=[harness.Section(
             "The I- and the PI controller on the other scenes (Tsit5, rtol 1e-6, atol 1e-9)",
             ["scene", "output", "simulated s", "I: wall (s)", "I: accepted (rejected)", "PI: wall (s)", "PI: accepted (rejected)",

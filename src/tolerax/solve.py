@@ -106,7 +106,8 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 # Eigen's products on one thread: split over the CPU's threads, the right-hand side's 12 x 84 x 12
 # and smaller products pay the hand-over more than they save (that product alone 0.6x its time
 # on one thread; the whole right-hand side 0.89-0.98x in interleaved races of one state and of
-# 16 vmapped, 1.03x, within the noise, in benchmarks/results/rhs_floor.md's run).
+# 16 vmapped, 1.03x, within the noise, in benchmarks/results/archive/rhs_floor_5a45657.md's run,
+# 0.93x in rhs_floor.md's).
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "", "xla_cpu_multi_thread_eigen": False}
 
 

@@ -167,7 +167,7 @@ def deflections_and_jacobian(stage: PlanetaryStage, q: Array) -> tuple[dict, dic
     evaluated (`jax.jvp` along its one argument): the profile error in the mesh phase, the
     centre distance's norm and the dynamic backlash in it. Equal to the forward-mode Jacobian
     to rounding (`tests/test_planetary.py`); the joints' forces cost 0.6x what they did with it
-    (`benchmarks/results/rhs_floor.md`): forward mode carries every coordinate's tangent through
+    (`benchmarks/results/archive/rhs_floor_5a45657.md`): forward mode carries every coordinate's tangent through
     every elementwise function, whose derivatives XLA:CPU then recomputes for each of them.
     """
     lay = stage.layout
@@ -346,7 +346,7 @@ def stage_forces(
     into the product's loop, and with the vector on the right it evaluated the force laws once
     per coordinate. `"forward"`: the same with $D$ by forward-mode autodiff over the stage's
     coordinates (the formulation before: the antenna's joint forces cost 1.7x the closed form's,
-    `benchmarks/results/rhs_floor.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp`
+    `benchmarks/results/archive/rhs_floor_5a45657.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp`
     for the projection (the formulation before that). Same values to rounding; the other two
     are kept for the equivalence test and the benchmarks."""
     width = stage.smoothing_width
