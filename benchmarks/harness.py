@@ -25,6 +25,7 @@ import argparse
 import contextlib
 import dataclasses
 import datetime
+import functools
 import math
 import os
 import pathlib
@@ -336,6 +337,7 @@ def cost_table(rows: list[dict]) -> tuple[list[str], list[tuple[str, ...]]]:
     return columns, cells
 
 
+@functools.cache
 def _forward_jacobian_joint():
     """`tx.PlanetaryJoint` whose stage forces take the deflections' Jacobian by forward-mode
     autodiff (`stage_forces(projection="forward")`): the joint as it was before the closed form
@@ -351,22 +353,15 @@ def _forward_jacobian_joint():
     return ForwardJacobianPlanetaryJoint
 
 
-ForwardJacobianPlanetaryJoint = None  # built on first use (imports tolerax)
-
-
 def with_forward_jacobian(mech):
     """`mech` with each `tx.PlanetaryJoint` computing its deflections' Jacobian by forward mode,
     as before the closed form (the benchmarks' before-and-after of it)."""
     import tolerax as tx
 
-    global ForwardJacobianPlanetaryJoint
-    if ForwardJacobianPlanetaryJoint is None:
-        ForwardJacobianPlanetaryJoint = _forward_jacobian_joint()
-
     def swap(j):
         if type(j) is not tx.PlanetaryJoint:
             return j
-        return ForwardJacobianPlanetaryJoint(j.stage, j.drive, j.motor_inertia, j.drag_torque)
+        return _forward_jacobian_joint()(j.stage, j.drive, j.motor_inertia, j.drag_torque)
 
     return tx.Mechanism(swap(mech.azimuth), swap(mech.pitch), mech.geometry, mech.inertias, mech.base, mass_solve=mech.mass_solve)
 
