@@ -352,10 +352,7 @@ class Mechanism(AbstractScene):
         j_s, j_o = jac[:, :, :ns], jac[blocks.bodies, :, ns:]  # (nb, 6, ns), (nk, 6, width)
         w_o = weights[blocks.bodies]
         m_ss = jnp.einsum("bkn,bk,bkm->nm", j_s, weights, j_s)
-        # M_so as a sum of products, not a batched dot: XLA:CPU's batched (8 x 12 x 6 by 6 x 3)
-        # library call cost more than the rest of the block solve (a one-state evaluation 0.89x
-        # without it in same-process races; vmapped over 16 0.99x: neutral there).
-        m_so = jnp.sum(j_s[blocks.bodies][:, :, :, None] * (w_o[:, :, None] * j_o)[:, :, None, :], axis=1)
+        m_so = jnp.einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
         # The padding's rows and columns are zero: a unit diagonal there (its force is zero too).
         m_oo = jnp.einsum("bkn,bk,bkm->bnm", j_o, w_o, j_o) + np.stack([np.diag(row == len(blocks.position)) for row in blocks.own])
         force = jnp.append(force, 0.0)
