@@ -374,6 +374,7 @@ def tolerax_at(rev: str):
     built by that module's `antenna` and solved by its `simulate` (`rattle_window.py`'s `:@REV`
     rows, `rhs_floor.py --against REV`). Raises where `rev` is not a commit of this checkout."""
     import importlib
+    import io
     import re
     import tarfile
     import tempfile
@@ -386,7 +387,7 @@ def tolerax_at(rev: str):
         return sys.modules[name]
     folder = pathlib.Path(tempfile.mkdtemp(prefix=f"{name}_"))
     archive = subprocess.run(["git", "archive", sha, "src/tolerax"], capture_output=True, check=True, cwd=ROOT).stdout
-    with tarfile.open(fileobj=__import__("io").BytesIO(archive)) as tar:
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
     package = folder / "src" / "tolerax"
     for path in package.rglob("*"):
