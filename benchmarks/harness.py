@@ -366,16 +366,21 @@ def with_forward_jacobian(mech):
     return tx.Mechanism(swap(mech.azimuth), swap(mech.pitch), mech.geometry, mech.inertias, mech.base, mass_solve=mech.mass_solve)
 
 
+@functools.cache
 def tolerax_at(rev: str):
     """The tolerax package as it was at git revision `rev` (this checkout's history), imported
     beside today's as a module of its own, `tolerax_at_<commit>`: `git archive` of `src/tolerax`
     into a temporary folder with the package's name in its own source replaced. A benchmark then
     times an earlier program against today's in the same process and the same run, the scene
     built by that module's `antenna` and solved by its `simulate` (`rattle_window.py`'s `:@REV`
-    rows, `rhs_floor.py --against REV`). Raises where `rev` is not a commit of this checkout."""
+    rows, `rhs_floor.py --against REV`). Raises where `rev` is not a commit of this checkout.
+    Cached by `rev`; the folder stays while the process runs (the package reads its submodules
+    and scene files from it) and is removed at exit."""
+    import atexit
     import importlib
     import io
     import re
+    import shutil
     import tarfile
     import tempfile
 
@@ -386,6 +391,7 @@ def tolerax_at(rev: str):
     if name in sys.modules:
         return sys.modules[name]
     folder = pathlib.Path(tempfile.mkdtemp(prefix=f"{name}_"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
     archive = subprocess.run(["git", "archive", sha, "src/tolerax"], capture_output=True, check=True, cwd=ROOT).stdout
     with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
