@@ -6,6 +6,7 @@ scalar outputs and a `success` flag).
 
 import abc
 import dataclasses
+import inspect
 from typing import ClassVar
 
 import diffrax
@@ -20,6 +21,7 @@ from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
 from ..solve import DEFAULT_PID, DEFAULT_SOLVER, SOLVERS
 
+_SIMULATE = inspect.signature(simulate).parameters  # the run settings' defaults
 EOL = "_eol"
 """The suffix of an output's end-of-life twin (`PointingObjective(life=...)`)."""
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms", "pointing_jitter")
@@ -77,7 +79,8 @@ class PointingObjective(eqx.Module):
     recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
     step-size controller's coefficients (`simulate`; default its I-controller); `solver` the
     name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`; a name, not a
-    solver object: run settings are static and hashable).
+    solver object: run settings are static and hashable). `dt0`, `dtmax`, `dtmin`, `fixed_step`
+    (s): the steps' limits as in `simulate` (its defaults).
 
     `life` (optional, a `MissionLife`): the clearances worn over the mission's life
     (`tolerax.design.life`); every output then has an end-of-life twin named `<output>_eol`
@@ -110,6 +113,11 @@ class PointingObjective(eqx.Module):
     metrics: tuple[AbstractMetric, ...] = ()
     life: MissionLife | None = None
     solver: str = eqx.field(static=True, default=DEFAULT_SOLVER)
+    # The step limits of `simulate` (s; a scene file's `[run]` dt0, dtmax, dtmin, fixed_step).
+    dt0: float = eqx.field(static=True, default=_SIMULATE["dt0"].default)
+    dtmax: float = eqx.field(static=True, default=_SIMULATE["dtmax"].default)
+    dtmin: float = eqx.field(static=True, default=_SIMULATE["dtmin"].default)
+    fixed_step: float | None = eqx.field(static=True, default=_SIMULATE["fixed_step"].default)
 
     def __check_init__(self):
         if self.solver not in SOLVERS:
@@ -150,7 +158,8 @@ class PointingObjective(eqx.Module):
         """`scene`'s result with this objective's run settings (`throw=False`)."""
         return simulate(
             scene, self.duration, start=self.start, n_save=self.n_save, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
-            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint, solver=self.solver,
+            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint, solver=self.solver, dt0=self.dt0,
+            dtmax=self.dtmax, dtmin=self.dtmin, fixed_step=self.fixed_step,
         )
 
     def jitter_window(self) -> np.ndarray:

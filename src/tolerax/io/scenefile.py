@@ -112,7 +112,8 @@ class SceneFile:
         run = self.run
         opts = dict(duration=run["duration"], settle=run["settle"], start=run["start"], n_save=run["n_save"],
                     rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"], pcoeff=run["pcoeff"], icoeff=run["icoeff"],
-                    solver=run["solver"], life=self.life)
+                    solver=run["solver"], dt0=run["dt0"], dtmax=run["dtmax"], dtmin=run["dtmin"], fixed_step=run["fixed_step"],
+                    life=self.life)
         return PointingObjective(self.build(), **{**opts, **kwargs})
 
     @property
