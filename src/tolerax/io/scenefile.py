@@ -109,11 +109,9 @@ class SceneFile:
         keyword arguments override them."""
         from ..design.objectives import PointingObjective
 
-        run = self.run
-        opts = dict(duration=run["duration"], settle=run["settle"], start=run["start"], n_save=run["n_save"],
-                    rtol=run["rtol"], atol=run["atol"], max_steps=run["max_steps"], pcoeff=run["pcoeff"], icoeff=run["icoeff"],
-                    solver=run["solver"], dt0=run["dt0"], dtmax=run["dtmax"], dtmin=run["dtmin"], fixed_step=run["fixed_step"],
-                    life=self.life)
+        # Every `[run]` key is a `PointingObjective` field of the same name (tests/test_scenefile.py
+        # checks it), so the whole table passes through and a new key cannot be dropped here.
+        opts = dict(self.run, life=self.life)
         return PointingObjective(self.build(), **{**opts, **kwargs})
 
     @property
