@@ -70,7 +70,7 @@ from .. import _validate as V
 from .drives import SpeedServo
 from .joints import AbstractJoint
 from .stage_joints import PlanetaryJoint
-from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, vee, world_inertia
+from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, small_einsum, vee, world_inertia
 from .structure import Geometry, Inertias
 from .kinematics import Frames, base_frame, offset, planar_frames, planar_motion, take
 from .scene import AbstractScene
@@ -312,8 +312,10 @@ class Mechanism(AbstractScene):
         masses, principal = self.body_inertia()
         f = self.kinematics(q, u, t, columns)
         # Angular quantities in body axes, where the inertia is diagonal.
-        jw = jnp.einsum("bji,bjn->bin", f.rot, f.jw)
-        w, alpha = (jnp.einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
+        # Small batched contractions as fused sums (`small_einsum`): XLA:CPU would call a
+        # library kernel per body for each.
+        jw = small_einsum("bji,bjn->bin", f.rot, f.jw)
+        w, alpha = (small_einsum("bji,bj->bi", f.rot, x) for x in (f.w, f.alpha))
         rot_term = principal * alpha + jnp.cross(w, principal * w)
         jac = jnp.concatenate([f.jv, jw], axis=1)
         weights = jnp.concatenate([jnp.broadcast_to(masses[:, None], f.a.shape), principal], axis=1)
@@ -352,17 +354,19 @@ class Mechanism(AbstractScene):
         j_s, j_o = jac[:, :, :ns], jac[blocks.bodies, :, ns:]  # (nb, 6, ns), (nk, 6, width)
         w_o = weights[blocks.bodies]
         m_ss = jnp.einsum("bkn,bk,bkm->nm", j_s, weights, j_s)
-        m_so = jnp.einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
+        # The per-body (batched) contractions as fused sums (`small_einsum`: a batched dot is a
+        # library call per body on XLA:CPU); the sums over all bodies stay dots.
+        m_so = small_einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
         # The padding's rows and columns are zero: a unit diagonal there (its force is zero too).
-        m_oo = jnp.einsum("bkn,bk,bkm->bnm", j_o, w_o, j_o) + np.stack([np.diag(row == len(blocks.position)) for row in blocks.own])
+        m_oo = small_einsum("bkn,bk,bkm->bnm", j_o, w_o, j_o) + np.stack([np.diag(row == len(blocks.position)) for row in blocks.own])
         force = jnp.append(force, 0.0)
         f_s = force[blocks.shared] - jnp.einsum("bkn,bk->n", j_s, g)
-        f_o = force[blocks.own] - jnp.einsum("bkn,bk->bn", j_o, g[blocks.bodies])
+        f_o = force[blocks.own] - small_einsum("bkn,bk->bn", j_o, g[blocks.bodies])
         x = _small_spd_solve(m_oo, jnp.concatenate([jnp.swapaxes(m_so, 1, 2), f_o[:, :, None]], axis=2))
         x_so, x_o = x[:, :, :-1], x[:, :, -1]
-        schur = m_ss - jnp.einsum("bni,bim->nm", m_so, x_so)
+        schur = m_ss - small_einsum("bni,bim->nm", m_so, x_so)
         ud_s = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(schur), f_s - jnp.einsum("bni,bi->n", m_so, x_o))
-        ud_o = x_o - jnp.einsum("bin,n->bi", x_so, ud_s)
+        ud_o = x_o - small_einsum("bin,n->bi", x_so, ud_s)
         return jnp.concatenate([ud_s, ud_o.ravel()])[blocks.position]
 
     def _with_added_inertia(self, mass):

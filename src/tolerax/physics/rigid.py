@@ -22,6 +22,45 @@ def small_matmul(a, b):
     return jnp.sum(a[..., :, :, None] * b[..., None, :, :], axis=-2)
 
 
+def small_einsum(subscripts: str, *operands):
+    """`jnp.einsum(subscripts, *operands)` for small operands as one broadcast product summed
+    over the contracted indices (explicit `->` form only, no repeated index within an operand).
+    The same reason as `small_matmul`: XLA:CPU runs a contraction as a library call of its own,
+    and a *batched* one (`"bkn,bkm->bnm"`) as one call per batch entry, each costing more than
+    its few dozen products; the sum fuses with its neighbours. Use it where the broadcast
+    product is small (a few thousand terms)."""
+    inputs, output = subscripts.replace(" ", "").split("->")
+    inputs = inputs.split(",")
+    letters = list(dict.fromkeys("".join(inputs)))
+    product = None
+    for names, x in zip(inputs, operands, strict=True):
+        x = jnp.asarray(x)
+        if len(set(names)) != len(names) or x.ndim != len(names):
+            raise ValueError(f"small_einsum: operand subscripts {names!r} do not fit an operand of shape {x.shape}")
+        present = [c for c in letters if c in names]
+        x = jnp.transpose(x, [names.index(c) for c in present])
+        x = x.reshape([x.shape[present.index(c)] if c in names else 1 for c in letters])
+        product = x if product is None else product * x
+    total = jnp.sum(product, axis=tuple(i for i, c in enumerate(letters) if c not in output))
+    kept = [c for c in letters if c in output]
+    return jnp.transpose(total, [kept.index(c) for c in output])
+
+
+# The permutation (Levi-Civita) symbol: (a x b)_i = eps_ijk a_j b_k.
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
+
+
+def cross(a, b, axis: int = -1):
+    """`jnp.cross(a, b, axis=axis)` of 3-vectors (batch axes broadcast) as the sum
+    $\varepsilon_{ijk}a_jb_k$: `jnp.cross` slices out the components and stacks them back,
+    several small kernels on XLA:CPU per product; this sum fuses into its neighbours."""
+    a, b = jnp.moveaxis(jnp.asarray(a), axis, -1), jnp.moveaxis(jnp.asarray(b), axis, -1)
+    c = jnp.sum(_LEVI_CIVITA * a[..., None, :, None] * b[..., None, None, :], axis=(-2, -1))
+    return jnp.moveaxis(c, -1, axis)
+
+
 def rot2(angle):
     """Planar rotation matrix (2, 2) of `angle` (rad)."""
     c, s = jnp.cos(angle), jnp.sin(angle)
