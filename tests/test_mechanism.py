@@ -12,7 +12,7 @@ import pytest
 import tolerax as tx
 from tolerax import contact as C, planetary as P
 from tolerax.physics import modes as _modes
-from tolerax.physics.rigid import small_matmul, world_inertia
+from tolerax.physics.rigid import small_einsum, small_matmul, world_inertia
 
 
 def _momentum_scale(mech, res):
@@ -281,6 +281,26 @@ def test_small_matmul_is_matmul(a_shape, b_shape):
     out = small_matmul(jnp.asarray(a), jnp.asarray(b))
     assert out.shape == (a @ b).shape
     np.testing.assert_allclose(out, a @ b, rtol=1e-13, atol=1e-14)
+
+
+@pytest.mark.parametrize(
+    "subscripts, shapes",
+    [
+        ("bkn,bk,bkm->bnm", [(8, 6, 12), (8, 6), (8, 6, 3)]),  # the block solve's M_so
+        ("bni,bim->nm", [(8, 12, 3), (8, 3, 12)]),  # its Schur complement's sum over bodies
+        ("bin,n->bi", [(8, 3, 12), (12,)]),
+        ("bji,bjn->bin", [(14, 3, 3), (14, 3, 15)]),  # the Kane terms' rotation into body axes
+        ("ij,jk->ki", [(2, 3), (3, 4)]),  # an output in another order than the letters' first use
+    ],
+)
+def test_small_einsum_is_einsum(subscripts, shapes):
+    """The block solve's per-body contractions are fused sums (`small_einsum`); they must be
+    `jnp.einsum` to rounding, and a malformed operand is refused."""
+    rng = np.random.default_rng(len(subscripts))
+    operands = [rng.normal(size=shape) for shape in shapes]
+    np.testing.assert_allclose(small_einsum(subscripts, *operands), np.einsum(subscripts, *operands), rtol=1e-12, atol=1e-13)
+    with pytest.raises(ValueError, match="do not fit"):
+        small_einsum(subscripts, operands[0][..., None], *operands[1:])
 
 
 @pytest.mark.parametrize("fidelity", ["ideal", "lumped", "planetary"])
