@@ -107,7 +107,7 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 # and smaller products pay the hand-over more than they save (that product alone 0.6x its time
 # on one thread; the whole right-hand side 0.89-0.98x in interleaved races of one state and of
 # 16 vmapped, 1.03x, within the noise, in benchmarks/results/archive/rhs_floor_5a45657.md's run,
-# 0.93x in rhs_floor.md's).
+# 0.93x in archive/rhs_floor_b12243a.md's).
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "", "xla_cpu_multi_thread_eigen": False}
 
 

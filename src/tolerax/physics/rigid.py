@@ -14,7 +14,7 @@ def small_matmul(a, b):
     runs every dot as a library call of its own, a kernel with its own overhead that nothing
     fuses into, while a sum of products fuses with the elementwise work beside it: the full
     planetary antenna's vector field ~10 % faster with its rotations written this way
-    (`benchmarks/results/rhs_floor.md`). For products of a few hundred terms and more keep `@`:
+    (`benchmarks/results/archive/rhs_floor_b12243a.md`). For products of a few hundred terms and more keep `@`:
     a fused sum recomputes its operands per output element."""
     a, b = jnp.asarray(a), jnp.asarray(b)
     if b.ndim == 1:
