@@ -14,8 +14,8 @@ def small_matmul(a, b):
     runs every dot as a library call of its own, a kernel with its own overhead that nothing
     fuses into, while a sum of products fuses with the elementwise work beside it: the full
     planetary antenna's vector field ~10 % faster with its rotations written this way
-    (`benchmarks/results/archive/rhs_floor_b12243a.md`). For products of a few hundred terms and more keep `@`:
-    a fused sum recomputes its operands per output element."""
+    (`benchmarks/results/archive/rhs_floor_b12243a.md`). For products of a few hundred terms
+    and more keep `@`: a fused sum recomputes its operands per output element."""
     a, b = jnp.asarray(a), jnp.asarray(b)
     if b.ndim == 1:
         return jnp.sum(a * b, axis=-1)
@@ -44,21 +44,6 @@ def small_einsum(subscripts: str, *operands):
     total = jnp.sum(product, axis=tuple(i for i, c in enumerate(letters) if c not in output))
     kept = [c for c in letters if c in output]
     return jnp.transpose(total, [kept.index(c) for c in output])
-
-
-# The permutation (Levi-Civita) symbol: (a x b)_i = eps_ijk a_j b_k.
-_LEVI_CIVITA = np.zeros((3, 3, 3))
-for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
-
-
-def cross(a, b, axis: int = -1):
-    """`jnp.cross(a, b, axis=axis)` of 3-vectors (batch axes broadcast) as the sum
-    $\varepsilon_{ijk}a_jb_k$: `jnp.cross` slices out the components and stacks them back,
-    several small kernels on XLA:CPU per product; this sum fuses into its neighbours."""
-    a, b = jnp.moveaxis(jnp.asarray(a), axis, -1), jnp.moveaxis(jnp.asarray(b), axis, -1)
-    c = jnp.sum(_LEVI_CIVITA * a[..., None, :, None] * b[..., None, None, :], axis=(-2, -1))
-    return jnp.moveaxis(c, -1, axis)
 
 
 def rot2(angle):
