@@ -57,7 +57,7 @@ from tolerax.solve import SOLVERS
 
 import harness
 
-CONTROLLERS = {"I": (0.0, 1.0), "PI": (0.3, 0.3)}
+CONTROLLERS = {"I": (0.0, 1.0), "PI": (0.3, 0.3), "PI2": (0.2, 0.2)}
 DEFAULT_CONFIGS = (
     "Tsit5:I:1e-6", "Tsit5:PI:1e-6", "Tsit5:I:1e-8", "Tsit5:PI:1e-8", "Tsit5:PI:1e-4", "Dopri5:PI:1e-6",
     "Bosh3:I:1e-4", "Bosh3:PI:1e-3", "Bosh3:PI:1e-4", "Bosh3:PI:1e-5",
@@ -242,7 +242,7 @@ def main():
         rows,
         about=(f"`tolerax.antenna('dual', fidelity='planetary')`, steady start, {duration:g} s ({args.n_save} saves); the window "
                f"is {args.warmup:g}-{duration:g} s; jitter above {args.jitter_cutoff:g} Hz. Controller I = (pcoeff, icoeff) "
-               f"(0, 1), diffrax's and tolerax's default; PI = (0.3, 0.3); atol = rtol / 1000. Reference {reference.label}: "
+               f"(0, 1), diffrax's and tolerax's default; PI = (0.3, 0.3); PI2 = (0.2, 0.2); atol = rtol / 1000. Reference {reference.label}: "
                f"{ref_wall:.1f} s, {int(ref.num_steps)} accepted ({int(ref.num_rejected)} rejected) steps, pointing RMS "
                f"{ref_rms:.3f} arcsec and jitter {ref_jitter:.4f} arcsec over the window. Each row compiled by a 0.01 s run first, "
                f"then timed once in each of {args.rounds} interleaved rounds, the fastest kept. Total wall {time.perf_counter() - start_all:.0f} s."),
