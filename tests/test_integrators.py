@@ -1,0 +1,101 @@
+"""SRK53, the explicit Runge-Kutta method fitted to the full planetary stage's lightly damped fast
+modes (`tolerax.solve.SRK53`): its order (conditions and observed), its stability polynomial
+and region (the claim that it is stable where Bosh3 is not, checked by integrating a damped mode
+with diffrax at fixed steps), and its error estimate."""
+
+import diffrax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from tolerax.solve import SOLVERS, SRK53, solver_named
+
+
+def _tableau(solver):
+    """(A, b) over the stages that a step pays for (the FSAL stage left out), and b_error."""
+    tab = solver.tableau
+    s = len(tab.b_sol) - 1
+    a = np.zeros((s, s))
+    for i, row in enumerate(tab.a_lower[: s - 1]):
+        a[i + 1, : len(row)] = row
+    return a, np.asarray(tab.b_sol[:s]), np.asarray(tab.b_error)
+
+
+def test_order_conditions_and_stability_polynomial():
+    a, b, _ = _tableau(SRK53())
+    c = a.sum(1)
+    assert np.allclose(c, np.r_[0.0, SRK53.tableau.c[:4]], rtol=0, atol=1e-15)  # c = A 1
+    # 3rd order: the four conditions, to rounding.
+    assert abs(b.sum() - 1) < 1e-14 and abs(b @ c - 1 / 2) < 1e-14
+    assert abs(b @ c**2 - 1 / 3) < 1e-14 and abs(b @ a @ c - 1 / 6) < 1e-14
+    # Not 4th order: g4 = b A^2 c is the documented 0.029692, not 1/24; the other 4th-order terms vanish.
+    assert b @ a @ a @ c == pytest.approx(0.029692474797, abs=1e-10)
+    assert b @ a @ a @ a @ c == pytest.approx(0.005773972463, abs=1e-10)
+    assert abs(b @ c**3 - 1 / 4) < 1e-8 and abs(b @ (c * (a @ c)) - 1 / 8) < 1e-8 and abs(b @ a @ c**2 - 1 / 12) < 1e-8
+    # The stability polynomial from the tableau, R(z) = 1 + z b (I - zA)^-1 1, against its coefficients.
+    g = [1, 1, 1 / 2, 1 / 6, b @ a @ a @ c, b @ a @ a @ a @ c]
+    for z in (0.3 + 2j, -1.5 + 3.1j, -0.2 + 4.0j):
+        r = 1 + z * b @ np.linalg.solve(np.eye(5) - z * a, np.ones(5))
+        assert abs(r - np.polyval(g[::-1], z)) < 1e-12
+
+
+def test_error_estimate_is_second_order_and_scaled_like_bosh3():
+    """b_error sums to 0 and is orthogonal to c (an O(h^3) estimate), and its leading term on
+    y' = lambda y is Bosh3's, -z^3/48: a tolerance means about the same for both."""
+    tab = SRK53.tableau
+    a6 = np.zeros((6, 6))
+    for i, row in enumerate(tab.a_lower):
+        a6[i + 1, : len(row)] = row
+    c6, be = a6.sum(1), np.asarray(tab.b_error)
+    assert abs(be.sum()) < 1e-14 and abs(be @ c6) < 1e-14
+    bosh = diffrax.Bosh3.tableau
+    a4 = np.zeros((4, 4))
+    for i, row in enumerate(bosh.a_lower):
+        a4[i + 1, : len(row)] = row
+    assert be @ a6 @ c6 == pytest.approx(-1 / 48, rel=1e-12)
+    assert np.asarray(bosh.b_error) @ a4 @ a4.sum(1) == pytest.approx(-1 / 48, rel=1e-12)
+
+
+def _forced(t, y, args):
+    return jnp.array([y[1], -jnp.sin(y[0]) - 0.1 * y[1] * y[0] ** 2 + jnp.cos(t)])
+
+
+def test_observed_order_three_on_a_nonlinear_oscillator():
+    """Fixed steps halved: the error falls 8x (3rd order), and below Bosh3's at the same steps
+    (three of its four 4th-order error terms are zero)."""
+    y0 = jnp.array([1.0, 0.0])
+    ref = diffrax.diffeqsolve(diffrax.ODETerm(_forced), diffrax.Dopri8(), 0.0, 5.0, 1e-3, y0,
+                              stepsize_controller=diffrax.PIDController(rtol=1e-13, atol=1e-13), max_steps=100_000).ys[-1]
+    err = {}
+    for name, solver in (("SRK53", SRK53()), ("Bosh3", diffrax.Bosh3())):
+        err[name] = np.array([float(jnp.max(jnp.abs(diffrax.diffeqsolve(diffrax.ODETerm(_forced), solver, 0.0, 5.0, h, y0).ys[-1] - ref)))
+                              for h in (0.05, 0.025, 0.0125)])
+    ratios = err["SRK53"][:-1] / err["SRK53"][1:]
+    assert np.all((ratios > 7.0) & (ratios < 9.0)), ratios
+    assert np.all(err["SRK53"] < err["Bosh3"])
+
+
+@pytest.mark.parametrize("zeta", [0.04, 0.06, 0.1])
+def test_stable_where_bosh3_is_not_on_a_damped_mode(zeta):
+    """A mode of 16 kHz at `zeta` of critical damping, integrated with fixed steps h = 3.9/omega
+    (inside SRK53's region on these rays, twice Bosh3's limit there): SRK53 decays, Bosh3 grows."""
+    omega = 2 * np.pi * 16e3
+    f = lambda t, y, args: jnp.array([y[1], -(omega**2) * y[0] - 2 * zeta * omega * y[1]])  # noqa: E731
+    y0, h = jnp.array([1e-6, 0.0]), 3.9 / omega
+    end = {}
+    for name, solver in (("SRK53", SRK53()), ("Bosh3", diffrax.Bosh3())):
+        y = diffrax.diffeqsolve(diffrax.ODETerm(f), solver, 0.0, 2000 * h, h, y0, max_steps=4000).ys[-1]
+        end[name] = float(jnp.abs(y[0]))
+    assert end["SRK53"] < 1e-6  # decayed (the exact solution's is ~1e-6 * exp(-zeta * 7800))
+    assert not end["Bosh3"] < 1e-3  # grown (or overflowed to inf/nan)
+
+
+def test_adaptive_solve_and_names():
+    """Under diffrax's PID controller it meets a tight tolerance on an oscillator with a known
+    solution; `solver_named("SRK53")` gives it, as scene files and `simulate` name it."""
+    assert isinstance(solver_named("SRK53"), SRK53) and SOLVERS["SRK53"] is SRK53
+    f = lambda t, y, args: jnp.array([y[1], -y[0]])  # noqa: E731
+    sol = diffrax.diffeqsolve(diffrax.ODETerm(f), SRK53(), 0.0, 10.0, 0.1, jnp.array([1.0, 0.0]),
+                              stepsize_controller=diffrax.PIDController(rtol=1e-9, atol=1e-12), max_steps=100_000)
+    assert abs(float(sol.ys[-1][0]) - np.cos(10.0)) < 1e-7
+    assert bool(jnp.all(jnp.isfinite(sol.ys)))
