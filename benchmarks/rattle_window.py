@@ -22,7 +22,8 @@ solver, controller and way of solving the equations of motion, across rtol).
 100 um clearances and backlash, 0.98 deg/s on both joints) from a steady start over
 `warmup + window` seconds through the public `tolerax.simulate`, one configuration per row
 (solver, rtol, the controller's (pcoeff, icoeff); atol = rtol / 1000; solvers by their names in
-`tolerax.solve.SOLVERS`). Each row's program is
+`tolerax.solve.SOLVERS`, SRK53 among them; controllers `I` = (pcoeff, icoeff) (0, 1), `PI` = (0.3, 0.3),
+`PI2` = (0.2, 0.2)). Each row's program is
 compiled first by a 0.01 s call of the same structure (the duration is a value), then the whole
 run is timed once per round (`--rounds`: every row once in each, the fastest kept, and the
 slowest over the fastest as the machine's noise): **wall seconds per simulated second** over the run, accepted and rejected

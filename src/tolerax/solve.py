@@ -38,6 +38,12 @@ DEFAULT_PID = (0.0, 1.0)
 # its pointing RMS errs 1.1-1.3x as much as Tsit5's with the I-controller on the Monte Carlo units
 # (2.3x on the rattle window), its peak 1.6x, its jitter up to 3.4x on the worst of 16 units
 # (`benchmarks/results/archive/rattle_window_5242a25.md`, `archive/monte_carlo_solvers_5242a25.md`).
+# SRK53 (3rd order, 5 evaluations, its stability region fitted to the full stage's damped mesh
+# modes) at rtol 1e-3 with pcoeff = icoeff = 0.2 runs the full planetary antenna in developed
+# rattle at 0.78x Bosh3 + PI (0.3, 0.3) at 1e-3 and 0.45x Tsit5 at the default setting, its
+# pointing and jitter errors against a tight solve inside the default's own
+# (`benchmarks/results/rattle_window.md`, `stability_region.md`); on scenes whose fast modes are
+# undamped it is slower than Bosh3 (`SRK53`).
 DEFAULT_SOLVER = "Tsit5"
 
 

@@ -357,7 +357,8 @@ def _check_run(chk: Checker, run: dict):
                             "(0.3, 0.3) a PI controller).", table, key)
     if value["solver"] not in SOLVERS:
         raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)} (Tsit5, the default; "
-                        "Bosh3 with rtol 1e-4 and pcoeff = icoeff = 0.3 for the full planetary stage, docs/scene_files.md).", table, "solver")
+                        "SRK53 with rtol 1e-3 and pcoeff = icoeff = 0.2 for the full planetary stage in developed rattle, "
+                        "docs/scene_files.md).", table, "solver")
     if value["start"] not in STARTS:
         raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
     if value["n_save"] < 2:
