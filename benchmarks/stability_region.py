@@ -198,7 +198,7 @@ def plot(methods, lams, path):
         ax.plot(scaled.real, scaled.imag, ".", ms=3, color=colour, label=f"{name}: spectrum at h |lambda|max = {lim:.2f}")
     ax.set_xlabel("Re(h lambda)")
     ax.set_ylabel("Im(h lambda)")
-    ax.set_title("Stability regions (|R| = 1) and the planetary antenna's fast spectrum at each method's limit")
+    ax.set_title("Stability regions (|R| = 1) and the planetary antenna's\nfast spectrum at each method's limit", fontsize=10)
     ax.legend(fontsize=8, loc="upper left")
     ax.set_aspect("equal")
     fig.tight_layout()

@@ -50,7 +50,8 @@ DEFAULT_SOLVER = "Tsit5"
 class SRK53(diffrax.AbstractERK):
     """An explicit Runge-Kutta method of 3rd order in 5 evaluations a step (FSAL) whose stability
     region is fitted to lightly damped fast modes: the full planetary stage's mesh and bearing
-    modes, 7-19 kHz at 4.5-8 % of critical damping (`benchmarks/results/stability_region.md`).
+    modes, 7-19 kHz at 3.3-8 % of critical damping in the developing rattle (the slower ones,
+    1-7 kHz, down to 0.5 %) (`benchmarks/results/stability_region.md`).
 
     Its stability polynomial is `1 + z + z^2/2 + z^3/6 + g4 z^4 + g5 z^5` with `(g4, g5) =
     (0.029692, 0.005774)`, chosen to reach farthest along the rays of 3.5-12 % damping (and the
