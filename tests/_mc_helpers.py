@@ -54,7 +54,12 @@ class Ishigami(eqx.Module):
 
 class Affinity(eqx.Module):
     """Where the evaluating process runs: its process id, how many cores it may use and the first
-    of them, read when the process traces the model (so, per worker, at its first chunk)."""
+    of them, read when the process traces the model (so, per worker, at its first chunk).
+    `run` (static) names the run: a program traced in one run is kept in the test run's
+    compilation cache (`tolerax.cache.exported_jit`), so two runs that must trace afresh (pinned,
+    free) need different names."""
+
+    run: str = eqx.field(static=True, default="")
 
     def __call__(self, x):
         cores = sorted(os.sched_getaffinity(0))

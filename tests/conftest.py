@@ -1,23 +1,55 @@
 import gc
 import os
+import shutil
+import tempfile
 
 import jax
 import pytest
 
-# Hermetic tests: the command line's persistent compilation cache stays off here (it would
-# write under ~/.cache and make a test's compile depend on an earlier run); tests/test_cache.py
-# turns it on in processes of its own.
-os.environ["TOLERAX_CACHE"] = "off"
+# One compilation cache for the whole test run, shared by pytest-xdist's workers and the
+# command-line subprocesses the tests start: the controller makes a fresh folder before the
+# workers start (they inherit the environment) and removes it at the end, so the run stays
+# hermetic (nothing read from or left in ~/.cache) while a program one module compiled is read
+# back, not compiled again, by every other module and worker. `TOLERAX_TEST_CACHE=off` runs
+# without it (every process compiles its own); tests/test_cache.py sets its own folders.
+_OWNER = "TOLERAX_TEST_CACHE_OWNER"
+if os.environ.get("TOLERAX_TEST_CACHE", "").strip().lower() in ("0", "off", "no", "false"):
+    os.environ["TOLERAX_CACHE"] = "off"
+elif "TOLERAX_CACHE_DIR" not in os.environ or os.environ.get(_OWNER) != os.environ.get("TOLERAX_CACHE_DIR"):
+    # This process is the run's first (the controller, or the only one with `-n 0`): a folder of
+    # its own; workers find it in the environment with the owner mark and keep it.
+    os.environ["TOLERAX_CACHE_DIR"] = os.environ[_OWNER] = tempfile.mkdtemp(prefix="tolerax-test-cache-")
+    os.environ.pop("TOLERAX_CACHE", None)
+    _MADE_HERE = True
+else:
+    _MADE_HERE = False
 
 jax.config.update("jax_enable_x64", True)
+
+import tolerax  # noqa: E402  (after the environment above: it reads the cache settings)
+
+tolerax.enable_compilation_cache()
+
+
+def pytest_configure(config):
+    if os.environ.get("TOLERAX_TEST_PROFILE"):  # where the time goes: tests/_compile_profile.py
+        import _compile_profile
+
+        _compile_profile.register(config)
+
+
+def pytest_unconfigure(config):
+    if _MADE_HERE:
+        shutil.rmtree(os.environ[_OWNER], ignore_errors=True)
 
 
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
-    """After each test module, drop JAX's compiled programs: an xdist worker runs ~220 tests and
+    """After each test module, drop JAX's in-memory programs: an xdist worker runs ~220 tests and
     otherwise keeps every program it compiled (several GB by the end, beside notebook kernels and
-    command-line subprocesses on a 24 GB machine). CI once aborted inside an XLA compile at 97 %;
-    programs are rarely shared between modules, so this costs little recompilation."""
+    command-line subprocesses on a 24 GB machine). CI once aborted inside an XLA compile at 97 %.
+    A program another module needs again is read back from the run's compilation cache above,
+    not compiled again."""
     yield
     jax.clear_caches()
     gc.collect()
@@ -27,6 +59,6 @@ def _release_compiled_programs():
 def life_scan():
     """The azimuth scan at planetary fidelity (its stage wears): `test_life.py`,
     `test_life_flanks.py`."""
-    import tolerax as tx  # here, not at the top: the cache setting above comes first
+    import tolerax as tx
 
     return tx.scan("azimuth", fidelity=("planetary", "ideal"))

@@ -326,7 +326,7 @@ def test_processes_backend_and_killed_worker_resume(tmp_path):
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
                     reason="pinning needs Linux and two cores")
 def test_processes_backend_pins_each_worker_to_a_core_of_its_own():
-    model = helpers.Affinity()
+    model = helpers.Affinity("pinned")
     cores = sorted(os.sched_getaffinity(0))
     pinned = monte_carlo(model, TOLERANCES, 16, KEY, chunk_size=2, backend="processes", workers=2, **QUIET).dataset
     assert set(pinned["n_cores"].values) == {1.0}
@@ -336,7 +336,7 @@ def test_processes_backend_pins_each_worker_to_a_core_of_its_own():
     assert all(len(c) == 1 for c in by_worker.values())  # a worker stays on its core
     firsts = [c.pop() for c in by_worker.values()]
     assert len(set(firsts)) == len(firsts) and set(firsts) <= set(cores[:2])  # no two workers share one
-    free = monte_carlo(model, TOLERANCES, 4, KEY, chunk_size=2, backend="processes", workers=2,
+    free = monte_carlo(helpers.Affinity("free"), TOLERANCES, 4, KEY, chunk_size=2, backend="processes", workers=2,
                        pin_workers=False, **QUIET).dataset
     assert set(free["n_cores"].values) == {float(len(cores))}
     with pytest.raises(ValueError, match="a core per worker"):
