@@ -66,7 +66,11 @@ from .design.features import (
     tolerances_of as tolerances_of,
     with_design as with_design,
 )
-from .design.objectives import AbstractMetric as AbstractMetric, PointingObjective as PointingObjective
+from .design.objectives import (
+    AbstractMetric as AbstractMetric,
+    AbstractObjective as AbstractObjective,
+    PointingObjective as PointingObjective,
+)
 from .design.propose import DesignReport as DesignReport, JitterRequirement as JitterRequirement, propose_design as propose_design
 from .design.report import RequirementOutcome as RequirementOutcome
 from .design.requirements import Requirement as Requirement

@@ -51,7 +51,65 @@ class AbstractMetric(eqx.Module):
         raise NotImplementedError
 
 
-class PointingObjective(eqx.Module):
+class AbstractObjective(eqx.Module):
+    """What the design and Monte Carlo layers ask of a model of one manufactured unit: its
+    outputs as a function of the unit's design values, on the design features of `scene`.
+
+    `PointingObjective` is the one that simulates. Another is a closed-form model of the same
+    outputs: a calibrated stack-up, a response surface fitted to a test campaign, or a test's
+    known function that exercises the design's orchestration (checks, re-solves, rounds) without
+    a simulation. `propose_design`, `design_problem`, `LinearisedYield`, `yield_check` and
+    `monte_carlo` take any of them.
+
+    Write a final subclass with:
+
+    - `scene`: the scene whose design features the values are (`design_names(scene)` order,
+      m): it supplies the features' names, starting values, sizes for the cost model and the
+      joints' fidelities. Building a scene runs nothing.
+    - `outputs` (property): the names of the scalar outputs; `units` (property, optional):
+      output -> unit (default arcsec).
+    - `__call__(values, smoothing_width=None) -> dict`: each output (a scalar array) and
+      `success` (bool array: a failed unit's numbers are never used), differentiable in
+      `values` where the design uses tangents (`jax.jacfwd`).
+    - Optionally `uncertain_inputs` and `uncertain_box()` (inputs a unit draws after its design
+      values, e.g. a wear-rate factor; default none), `jitter_cutoff` (Hz, where
+      `pointing_jitter` is an output) and `forward_mode()` (this objective set up for forward-mode
+      derivatives; default itself).
+    """
+
+    scene: eqx.AbstractVar[eqx.Module]
+
+    @property
+    @abc.abstractmethod
+    def outputs(self) -> tuple[str, ...]:
+        """The scalar outputs this objective computes."""
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of each output (default arcsec)."""
+        return {name: UNITS.get(name, "arcsec") for name in self.outputs}
+
+    @abc.abstractmethod
+    def __call__(self, values: Float[Array, " n_features"], smoothing_width=None) -> dict[str, Array]:
+        """The outputs and `success` of the unit with design `values` (m), at `smoothing_width`
+        (m, the contacts' smoothing; `None`: the scene's own)."""
+
+    @property
+    def uncertain_inputs(self) -> tuple[str, ...]:
+        """Names of the inputs a unit carries after its design values (default none)."""
+        return ()
+
+    def uncertain_box(self):
+        """`(middle, half-width)` arrays of the bands `uncertain_inputs` spread over, or `None`."""
+        return None
+
+    def forward_mode(self) -> "AbstractObjective":
+        """This objective with its derivatives in forward mode (`jax.jacfwd` through it); default
+        itself (a closed form has no solve to set up)."""
+        return self
+
+
+class PointingObjective(AbstractObjective):
     """Pointing statistics of `scene` over the window `[settle, duration]` (s), as a function of
     its design vector (clearances and backlash, m, in `design_names(scene)` order).
 
@@ -162,6 +220,10 @@ class PointingObjective(eqx.Module):
             dtmax=self.dtmax, dtmin=self.dtmin, fixed_step=self.fixed_step,
         )
 
+    def forward_mode(self) -> "PointingObjective":
+        """This objective whose solves carry forward-mode tangents (`diffrax.ForwardMode`)."""
+        return dataclasses.replace(self, adjoint=diffrax.ForwardMode())
+
     def jitter_window(self) -> np.ndarray:
         """The saves in `[settle, duration]` (bool per save, NumPy: the jitter's FFT length must be
         known in Python), checked against `jitter_cutoff` (`ValueError` if too sparse)."""
@@ -258,7 +320,7 @@ class PointingObjective(eqx.Module):
         return out
 
 
-def unit_output(values, pointing: PointingObjective, output: str | tuple[str, ...], width):
+def unit_output(values, pointing: AbstractObjective, output: str | tuple[str, ...], width):
     """One manufactured unit's `output` at design `values` (m), NaN if its solve failed; a tuple
     of outputs: a vector of them, from the one solve."""
     out = pointing(values, width)
@@ -267,10 +329,10 @@ def unit_output(values, pointing: PointingObjective, output: str | tuple[str, ..
     return jnp.where(out["success"], out[output], jnp.nan)
 
 
-def value_and_jacobian(values, pointing: PointingObjective, output: str, width):
+def value_and_jacobian(values, pointing: AbstractObjective, output: str, width):
     """`(unit_output, its Jacobian over values)` from one solve carrying one forward-mode
     tangent per feature (`diffrax.ForwardMode`)."""
-    forward = dataclasses.replace(pointing, adjoint=diffrax.ForwardMode())
+    forward = pointing.forward_mode()
     jac, value = jax.jacfwd(lambda v: (lambda y: (y, y))(unit_output(v, forward, output, width)), has_aux=True)(values)
     return value, jac
 

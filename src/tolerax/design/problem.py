@@ -15,7 +15,7 @@ from jaxtyping import Array
 
 from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
-from .objectives import PointingObjective, unit_output, value_and_jacobian
+from .objectives import AbstractObjective, unit_output, value_and_jacobian
 from .reliability import LinearisedYield, fit_surface, secant_gradient_noise, yield_draws
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
@@ -87,7 +87,7 @@ class RobustPointing(eqx.Module):
     not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
     mode). benchmarks/results/gradient_methods.md measures both."""
 
-    pointing: PointingObjective
+    pointing: AbstractObjective
     output: str = eqx.field(static=True, default="pointing_rms")
     statistic: str = eqx.field(static=True, default="mean+kstd")
     k: float = eqx.field(static=True, default=1.0)
@@ -158,7 +158,7 @@ class DesignProblem:
 
 
 def design_problem(
-    pointing: PointingObjective,
+    pointing: AbstractObjective,
     *,
     band: float = 10e-6,
     min_clearance=5e-6,
@@ -187,8 +187,8 @@ def design_problem(
 
     **Arguments:**
 
-    - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
-      is the starting nominal.
+    - `pointing`: the `PointingObjective` (scene, horizon, window), or any `AbstractObjective`;
+      its scene's current design is the starting nominal.
     - `band`: starting tolerance half-width (m) of every feature; the starting lower limit is
       the current nominal minus `band` (at least `min_clearance`).
     - `start` (optional): the starting zones instead, a `Tolerances` with a zone for every

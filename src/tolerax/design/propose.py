@@ -20,7 +20,7 @@ import optax
 from ..cache import exported_jit
 from .cost import grade_of
 from .features import design_names, lost_motion_weights
-from .objectives import PointingObjective
+from .objectives import AbstractObjective
 from .drawable import round_to_grades
 from .fidelity import check_fidelity
 from .outcome import MODEL_OFF, diagnose
@@ -85,7 +85,7 @@ def _objective_value(objective, x, draws, width):
 
 
 def propose_design(
-    pointing: PointingObjective,
+    pointing: AbstractObjective,
     requirement: float,
     *,
     widths=(1e-6, 1e-7),
@@ -116,8 +116,8 @@ def propose_design(
 
     **Arguments:**
 
-    - `pointing`: the `PointingObjective` (scene, horizon, window); its scene's current design
-      is the starting nominal.
+    - `pointing`: the `PointingObjective` (scene, horizon, window), or any `AbstractObjective`
+      (a closed-form model of the outputs); its scene's current design is the starting nominal.
     - `requirement`: what the design must meet: a number (the limit of `output`, by default
       the RMS pointing error, arcsec), a `Requirement` (an output and its limit), or a
       sequence of them (each met on its own at the problem's statistic or yield; e.g.
@@ -265,7 +265,7 @@ def propose_design(
         baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(problem.cost_model.total(x0.band, features.size_mm)),
                   first.baseline),
         result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
-        fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, pointing.jitter_cutoff),
+        fixed=tuple(problem_fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(jitter_outcome, getattr(pointing, "jitter_cutoff", None)),
         solved_for=first.target if method == "sequential" else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
         noise_band=None if twin_costs is None else twin_costs[:2], notes=notes, cost_unit=problem.cost_model.unit,
         grade_range=problem.cost_model.grade_range, drawable=drawable,

@@ -35,7 +35,7 @@ import numpy as np
 import scipy.stats
 from jaxtyping import Array
 
-from .objectives import PointingObjective, unit_output, value_and_jacobian
+from .objectives import AbstractObjective, unit_output, value_and_jacobian
 from .types import Design, realise, robust
 from ..uncertainty.results import wilson_interval
 from ..uncertainty.sampling import unit_draws
@@ -316,7 +316,7 @@ class LinearisedYield(eqx.Module):
     m)` with `scatter`), so the residual scatter is what neither the features nor the inputs
     explain. `design_problem` refuses such an objective without secants and scatter."""
 
-    pointing: PointingObjective
+    pointing: AbstractObjective
     output: str | tuple[str, ...] = eqx.field(static=True, default="pointing_rms")
     q: float = eqx.field(static=True, default=0.99)
     slope_width: float | None = eqx.field(static=True, default=None)
