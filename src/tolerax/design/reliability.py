@@ -455,6 +455,12 @@ class YieldCheck:
 
 
 @eqx.filter_jit
+def _model(objective, x, width):
+    """`objective.model(x, width)`, one program per objective structure for every check."""
+    return objective.model(x, width)
+
+
+@eqx.filter_jit
 def _simulate_units(pointing, output, values, width):
     return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
 
@@ -591,7 +597,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     draws = unit_draws(key, int(n), x.nominal.shape[0] + _uncertain_count(objective.pointing))
     values = realise(x, draws[:, : x.nominal.shape[0]])
     drawn = _with_uncertain(objective.pointing, values, draws)  # each unit's wear rate drawn too (a life's spread)
-    f, s, sigma, t = eqx.filter_jit(lambda o, x_, w: o.model(x_, w))(objective, x, width)
+    f, s, sigma, t = _model(objective, x, width)
     linear = jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T
     if t is not None:  # each unit's own drawn inputs (a wear rate) through the line
         linear = linear + _uncertain_columns(objective.pointing, drawn[:, x.nominal.shape[0] :]) @ jnp.atleast_2d(t).T
