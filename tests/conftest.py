@@ -62,3 +62,29 @@ def life_scan():
     import tolerax as tx
 
     return tx.scan("azimuth", fidelity=("planetary", "ideal"))
+
+
+@pytest.fixture(scope="session")
+def scan_pointing():
+    """The design layer's real scene: the lumped azimuth scan (both flanks and the pins engage
+    after its reversal at 0.25 s) over 0.6 s from a steady start, 61 saves, the jitter above 20
+    Hz among its outputs. One definition for every module (test_design, test_reliability,
+    test_requirements, ...), so that a program one of them compiles is read back by the others
+    from the run's compilation cache."""
+    import tolerax as tx
+
+    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    return tx.PointingObjective(scene, duration=0.6, settle=0.0, start="steady", n_save=61, jitter_cutoff=20.0)
+
+
+@pytest.fixture(scope="session")
+def scan_unit(scan_pointing):
+    """One unit of `scan_pointing`: `scan_unit(values, width=1e-6)` (m, m; `None`: the scene's own
+    width) -> its outputs, one compiled program for every test that evaluates single units of
+    the scan."""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    run = eqx.filter_jit(lambda pointing, values, width: pointing(values, width))
+    return lambda values, width=1e-6: run(scan_pointing, jnp.asarray(values, dtype=float),
+                                          None if width is None else jnp.asarray(width, dtype=float))

@@ -238,10 +238,21 @@ def test_sharded_run_takes_a_model_pinned_to_one_device():
     assert out.stdout.strip().endswith("ok")
 
 
-def test_sharded_physical_scan_objective_equals_one_device(tmp_path):
-    """The project's own objective (the lumped azimuth scan through diffrax) sharded over 4
-    forced CPU devices equals one device (issue 32: it failed inside the solve's loop with JAX's
-    varying-manual-axes check), to rounding carried through the adaptive solve (below)."""
+@pytest.fixture(scope="module")
+def scan_units():
+    """The project's own objective (scan-azimuth, the lumped azimuth scan through diffrax, over
+    its first reversal: 0.3 s) on 8 units of its tolerances: `(scene, one chunk of 8, four
+    chunks of 2)`, the two programs every test below compares against."""
+    scene = tx.load_scene("scan-azimuth").replace(duration=0.3, settle=0.0)
+    eights = monte_carlo(scene.objective(), scene.tolerances(), 8, jax.random.key(7), chunk_size=8, **QUIET).dataset
+    pairs = monte_carlo(scene.objective(), scene.tolerances(), 8, jax.random.key(7), chunk_size=2, **QUIET).dataset
+    return scene, eights, pairs
+
+
+def test_sharded_physical_scan_objective_equals_one_device(tmp_path, scan_units):
+    """The project's own objective sharded over 4 forced CPU devices equals one device (issue
+    32: it failed inside the solve's loop with JAX's varying-manual-axes check), to rounding
+    carried through the adaptive solve (below)."""
     script = textwrap.dedent(
         f"""
         import jax
@@ -256,9 +267,7 @@ def test_sharded_physical_scan_objective_equals_one_device(tmp_path):
                PYTHONPATH=os.pathsep.join(sys.path))
     subprocess.run([sys.executable, "-c", script], env=env, check=True, timeout=600)
     sharded = MonteCarloResult.load(tmp_path / "sharded.nc").dataset
-    scene = tx.load_scene("scan-azimuth").replace(duration=0.3, settle=0.0)
-    one = monte_carlo(scene.objective(), scene.tolerances(), 8, jax.random.key(7), chunk_size=8, **QUIET).dataset
-    pairs = monte_carlo(scene.objective(), scene.tolerances(), 8, jax.random.key(7), chunk_size=2, **QUIET).dataset
+    _, one, pairs = scan_units
     assert bool(sharded["success"].all()) and bool(one["success"].all())
     for name in ("pointing_rms", "pointing_peak"):
         assert np.ptp(one[name].values) > 1.0  # the units differ (arcsec): the comparison sees each
@@ -270,7 +279,7 @@ def test_sharded_physical_scan_objective_equals_one_device(tmp_path):
         np.testing.assert_allclose(sharded[name].values, pairs[name].values, rtol=1e-9)
 
 
-def test_chunk_size_keeps_the_units_and_changes_outputs_within_the_solvers_error():
+def test_chunk_size_keeps_the_units_and_changes_outputs_within_the_solvers_error(scan_units):
     """What "same key, same result" guarantees across chunk sizes on the project's own objective
     (the lumped azimuth scan through diffrax, over its first reversal): the same units, bitwise,
     and outputs that differ by less than the solver's own error. A vmapped batch is another
@@ -281,20 +290,19 @@ def test_chunk_size_keeps_the_units_and_changes_outputs_within_the_solvers_error
     chunk 1 1.5e-6 relative, against 1.7e-5 between rtol 1e-6 and 1e-9). Across backends, devices
     of one program, resumes and extensions at one chunk size the outputs are bitwise equal
     (the tests above and below)."""
-    scene = tx.load_scene("scan-azimuth").replace(duration=0.3, settle=0.0)
-    pointing, tolerances, key = scene.objective(), scene.tolerances(), jax.random.key(11)
-    ones = monte_carlo(pointing, tolerances, 4, key, chunk_size=1, **QUIET).dataset
-    fours = monte_carlo(pointing, tolerances, 4, key, chunk_size=4, **QUIET).dataset
-    reference = monte_carlo(scene.objective(rtol=1e-9, atol=1e-12), tolerances, 4, key, chunk_size=4, **QUIET).dataset
+    scene, eights, pairs = scan_units
+    tolerances = scene.tolerances()
+    reference = monte_carlo(scene.objective(rtol=1e-9, atol=1e-12), tolerances, 8, jax.random.key(7), chunk_size=8, **QUIET).dataset
     for name in tolerances.names:
-        np.testing.assert_array_equal(ones[name].values, fours[name].values)
-    assert bool(ones["success"].all() and fours["success"].all() and reference["success"].all())
+        np.testing.assert_array_equal(pairs[name].values, eights[name].values)
+    assert bool(pairs["success"].all() and eights["success"].all() and reference["success"].all())
     for name in ("pointing_rms", "pointing_peak", "tracking_speed_rms"):
-        across_chunks = np.max(np.abs(fours[name].values / ones[name].values - 1.0))
-        solver_error = np.max(np.abs(ones[name].values / reference[name].values - 1.0))
-        # Measured here: 2.7e-9 to 3.2e-9 across chunk sizes against 3.6e-6 to 3.9e-6 solver
-        # error. Two runs each within the solver's error may differ by up to twice it; at the fast
-        # setting (rtol 1e-3) the throughput benchmark measured 1.5e-2 against 1.0e-2.
+        across_chunks = np.max(np.abs(eights[name].values / pairs[name].values - 1.0))
+        solver_error = np.max(np.abs(pairs[name].values / reference[name].values - 1.0))
+        # Measured (chunks 1 and 4 of 4 units): 2.7e-9 to 3.2e-9 across chunk sizes against
+        # 3.6e-6 to 3.9e-6 solver error. Two runs each within the solver's error may differ by up
+        # to twice it; at the fast setting (rtol 1e-3) the throughput benchmark measured 1.5e-2
+        # against 1.0e-2.
         assert across_chunks <= solver_error, (name, across_chunks, solver_error)
 
 

@@ -126,35 +126,42 @@ def test_two_sets_of_secant_units_that_disagree_make_a_noise_limited_answer():
     assert status == "noise-limited" and "16 secant units give designs of cost 2.086 (this one) and 1.219" in text
 
 
-def test_a_stalled_tangent_design_is_finished_on_secant_slopes(monkeypatch):
-    """`propose_design` where the tangent-slope solve stalls (forced here: the first solve's
-    result is marked stalled): the last width is solved again from the stalled design with
-    the slopes fitted by secants over max(16, 2n + 2) units, its history continues the first
-    one's, and the report says what was done."""
-    import equinox as eqx
+def test_a_stalled_tangent_design_is_finished_on_secant_slopes():
+    """`propose_design` where the tangent-slope solve stalls, on a closed-form response
+    (tests/_responses.py) whose unit-to-unit scatter (100 arcsec, independent per unit) its
+    tangents cannot see: the linear model never predicts a step, the trust region collapses.
+    The last width is solved again from the stalled design with the slopes fitted by secants
+    over max(16, 2n + 2) units of the zone, and the report says so. Reproduced with the public
+    solver and the same settings: the tangent solve alone stalls after the gradients the note
+    counts; the secant solve from its design is what the report keeps (its history continuing
+    the first) or not, as the note says."""
     import tolerax as tx
     from tolerax.design import propose as P
+    from tolerax.design.features import lost_motion_weights
 
-    calls, real = [], P._solve_and_check
+    import _responses as R
 
-    def spy(problem, *args, **kwargs):
-        problem, result, checked, notes = real(problem, *args, **kwargs)
-        calls.append((problem.objective.objective.secant_units, kwargs.get("x0"), result))
-        if len(calls) == 1:
-            result = eqx.tree_at(lambda r: r.stalled, result, jnp.asarray(True), is_leaf=lambda v: v is None)
-        return problem, result, checked, notes
-
-    monkeypatch.setattr(P, "_solve_and_check", spy)
-    pointing = tx.load_scene("scan-azimuth").objective(duration=0.3, settle=0.1, n_save=31)
-    problem = P.design_problem(pointing, yield_=0.99)
-    baseline = float(P._objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(1e-6)))
-    report = tx.propose_design(pointing, 0.9 * baseline, yield_=0.99, widths=(1e-6,), max_outer=4, check_units=0)
-    assert [c[0] for c in calls] == [None, 16]  # tangents, then secants over 16 units (4 features)
-    first = calls[0][2]
-    np.testing.assert_array_equal(np.asarray(calls[1][1].nominal), np.asarray(first.x.nominal))  # from the stalled design
-    assert len(report.notes) == 1 and "secant slopes over 16 units" in report.notes[0]
-    assert report.notes[0] in report.table()
-    kept = report.notes[0].endswith("The tangent design is kept.")
-    gradients = [int(np.asarray(r.history.steps)[-1]) for r in (first, calls[1][2])]
-    assert int(np.asarray(report.result.history.steps)[-1]) == (gradients[0] if kept else sum(gradients))
-
+    scene = R.scan_scene()
+    line = R.Line(scene, 600.0, 0.5 * np.asarray(lost_motion_weights(scene)), 60e-6, sigma=[100.0])
+    problem = P.design_problem(line, yield_=0.99)
+    requirement = 0.9 * float(P._objective_value(problem.objective, problem.x0, problem.draws, 1e-6))
+    report = tx.propose_design(line, requirement, yield_=0.99, widths=(1e-6,), max_outer=20, check_units=0)
+    common = dict(requirement=requirement, draws=problem.draws, cost_model=problem.cost_model, width=1e-6, max_iterations=20,
+                  tol=(0.01,))
+    tangent = sequential_design(problem.objective, problem.features, lower=problem.lower, upper=problem.upper, x0=problem.x0,
+                                trust_region=0.5, **common)
+    assert bool(tangent.stalled) and not bool(tangent.converged)
+    steps = int(np.asarray(tangent.history.steps)[-1])
+    secant = P.design_problem(line, yield_=0.99, secant_units=16)  # 16 = max(16, 2 x 4 features + 2)
+    again = sequential_design(secant.objective, secant.features, lower=secant.lower, upper=secant.upper, x0=tangent.x,
+                              trust_region=0.1, gradient_noise=secant.gradient_noise, **common)
+    assert len(report.notes) == 1 and report.notes[0] in report.table()
+    note = report.notes[0]
+    assert f"stalled at the 1e-06 m width after {steps} gradients" in note and "secant slopes over 16 units" in note
+    assert f"({'converged' if bool(again.converged) else 'not converged'})" in note
+    if note.endswith("The tangent design is kept."):
+        assert not bool(again.converged) and float(report.result.cost) == float(tangent.cost)
+        assert int(np.asarray(report.result.history.steps)[-1]) == steps
+    else:
+        assert float(report.result.cost) == pytest.approx(float(again.cost), rel=1e-12)
+        assert int(np.asarray(report.result.history.steps)[-1]) == steps + int(np.asarray(again.history.steps)[-1])
