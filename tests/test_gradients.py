@@ -28,6 +28,8 @@ $(4 D(h/2) - D(h))/3$) from three steps and require the two extrapolations to ag
 """
 
 
+import dataclasses
+
 import diffrax
 import equinox as eqx
 import jax
@@ -38,10 +40,12 @@ import pytest
 import tolerax as tx
 
 
-# Behind `pytest -m slow`: each reverse-mode gradient program at rtol 1e-10 compiles for minutes on
-# CI's 2 cores (one point took 500 s wall here). The default run keeps one gradient check on
-# physics, tests/test_design.py::test_scan_gradients_against_finite_differences.
-pytestmark = pytest.mark.slow
+# Two tiers. The default run checks each property once, cheaply: a forward-mode directional
+# derivative (one tangent through the solve) against central differences along the same
+# direction, at a point of contact onset, on the lumped scan and on the planetary bench; and
+# the batching identities on the bench over a short horizon. The `slow` tests enlarge them: the
+# full gradient (every feature, reverse mode on the scan) at every design point, each a program
+# that compiles for minutes on CI's 2 cores (one point took 500 s wall there).
 
 WIDTH = 1e-6  # m: the optimiser's continuation width at which pointing gradients are meaningful
 RTOL, ATOL = 1e-10, 1e-13
@@ -168,12 +172,39 @@ LUMPED_DEFAULT = ["both at onset"]
 LUMPED_SLOW = ["bearing at onset", "back flank at onset", "both in contact", "baseline bearing, tight meshes"]
 
 
-@pytest.mark.parametrize(
-    "name", LUMPED_DEFAULT + [pytest.param(n, marks=pytest.mark.slow) for n in LUMPED_SLOW]
-)
+def _directional(f, jvp, p, d, steps):
+    """`(jvp, central differences along d at each of steps)`: the derivative of `f` at `p` along
+    the direction `d` by the tangent, and by differences."""
+    tangent = float(jvp(p, d))
+    return tangent, [(float(f(p + h * d)) - float(f(p - h * d))) / (2 * h) for h in steps]
+
+
+def test_lumped_scan_directional_derivative_at_contact_onset(lumped):
+    """At the point where both the output bearing and the back flank first close 20 ms before
+    the end of the horizon ("both at onset", module docstring): the forward-mode derivative of
+    the scan's RMS pointing error along a random direction of the four features against central
+    differences along it at 20 and 10 nm (which agree to `FD_SPREAD`), to `AD_VS_FD`. The
+    same point, every feature, reverse mode: `test_lumped_scan_gradients_against_finite_differences`
+    (slow)."""
+    p = _lumped_point(lumped, "both at onset")
+    d = jnp.asarray(np.random.default_rng(3).normal(size=4))
+    d = d / jnp.linalg.norm(d)
+    forward = dataclasses.replace(lumped.pointing, adjoint=diffrax.ForwardMode())
+    jvp = eqx.filter_jit(lambda p_, d_: jax.jvp(lambda u: forward(u, WIDTH)["pointing_rms"], (p_,), (d_,))[1])
+    tangent, (coarse, fine) = _directional(lumped.f, jvp, p, d, STEPS)
+    print(f"\n  jvp {tangent:.6e}, differences {coarse:.6e} {fine:.6e}")
+    assert abs(coarse - fine) < FD_SPREAD * abs(fine)
+    assert abs(tangent - fine) < AD_VS_FD * abs(fine)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", LUMPED_DEFAULT + LUMPED_SLOW)
 def test_lumped_scan_gradients_against_finite_differences(lumped, name):
     """Reverse-mode gradient of the RMS pointing error over 0.3 s of the scan against central
-    differences, at a design point (see the module docstring for the onset points)."""
+    differences, at a design point (see the module docstring for the onset points). Enlarges
+    `test_lumped_scan_directional_derivative_at_contact_onset` (every feature, reverse mode,
+    five points) and tests/test_design.py::test_scan_gradients_against_finite_differences (the
+    solver tightened to 1e-10: the tolerance 1e-4 instead of 2e-3)."""
     p = _lumped_point(lumped, name)
     ad, fd = _check_against_differences(lumped.f, lumped.grad, p)
     # Every derivative is non-trivial at these points: both contacts carry load within the
@@ -187,7 +218,9 @@ def test_lumped_scan_gradients_against_finite_differences(lumped, name):
 def test_lumped_vmap_of_grad_equals_grad_of_vmap(lumped):
     """Batching commutes with differentiation through the adaptive solve: each sample of a
     vmapped solve takes its own steps, so `vmap(grad f)`, `grad(sum(vmap f))` and the per-point
-    gradients are the same numbers up to rounding."""
+    gradients are the same numbers up to rounding. Enlarges
+    `test_bench_vmap_of_jvp_equals_jvp_of_vmap` (reverse mode, the lumped scan over 0.3 s, three
+    points)."""
     batch = jnp.stack([_lumped_point(lumped, name) for name in ("both in contact", "baseline bearing, tight meshes")])
     batch = jnp.concatenate([batch, batch[:1] * 1.3])
     rms = lambda p: lumped.pointing(p, WIDTH)["pointing_rms"]  # noqa: E731
@@ -220,6 +253,8 @@ class _Bench:
         # Forward mode (the optimiser's default, `RobustPointing(gradient="forward")`): five
         # tangents through one solve, 4.8x a forward solve here against ~10x for reverse mode.
         self.grad = eqx.filter_jit(jax.jacfwd(lambda p: self.rms(p, diffrax.ForwardMode())))
+        # One tangent (a direction `d` of the five features) through one solve.
+        self.jvp = eqx.filter_jit(lambda p, d: jax.jvp(lambda u: self.rms(u, diffrax.ForwardMode()), (p,), (d,))[1])
         self.ts = np.linspace(0.0, BENCH_HORIZON, 41)
         lay = bench.stage.layout
 
@@ -266,13 +301,55 @@ def _bench_point(bench, name):
     }[name]
 
 
+def test_bench_directional_derivative_at_contact_onset(bench):
+    """The planetary stage on its bench, at the point where the carrier first touches its
+    bearing 4 ms before the end of the start-up: the forward-mode derivative of the RMS output
+    angle error along a random direction of the five features against Richardson-extrapolated
+    central differences along it (from 5, 2.5 and 1.25 nm; the two extrapolations agree to
+    `RICHARDSON_SPREAD`), to `AD_VS_FD`. Every feature at five points:
+    `test_bench_gradients_against_finite_differences` (slow)."""
+    p = _bench_point(bench, "carrier bearing at onset")
+    d = jnp.asarray(np.random.default_rng(4).normal(size=5))
+    d = d / jnp.linalg.norm(d)
+    tangent, plain = _directional(bench.f, bench.jvp, p, d, RICHARDSON_STEPS)
+    coarse, fine = ((4 * b - a) / 3 for a, b in zip(plain, plain[1:]))
+    print(f"\n  jvp {tangent:.6e}, differences {plain}, extrapolated {coarse:.6e} {fine:.6e}")
+    assert abs(coarse - fine) < RICHARDSON_SPREAD * abs(fine)
+    assert abs(tangent - fine) < AD_VS_FD * abs(fine)
+
+
+def test_bench_vmap_of_jvp_equals_jvp_of_vmap(bench):
+    """Batching commutes with differentiation through the adaptive solve, on the planetary bench's
+    start-up: each sample of a vmapped solve takes its own steps, so the forward-mode
+    derivatives of a batch of units (two design points, each along its own direction) are the
+    same numbers whether the batch is differentiated (`jvp` of the vmapped solve) or each
+    derivative batched (`vmap` of `jvp`), and they equal the per-point derivatives of
+    `test_bench_directional_derivative_at_contact_onset`'s program to the solver's tolerance
+    (batched and unbatched kernels round differently, and an adaptive solve can take another
+    step sequence from a rounding-level difference: then the two differ by the integration
+    error at rtol 1e-10, not by rounding). Reverse mode, the lumped scan:
+    `test_lumped_vmap_of_grad_equals_grad_of_vmap` (slow)."""
+    batch = jnp.stack([_bench_point(bench, "mixed"), _bench_point(bench, "5 um everywhere")])
+    directions = jnp.asarray(np.random.default_rng(5).normal(size=(2, 5)))
+    directions = directions / jnp.linalg.norm(directions, axis=1, keepdims=True)
+    forward = lambda p: bench.rms(p, diffrax.ForwardMode())  # noqa: E731
+    vmap_of_jvp = np.asarray(eqx.filter_jit(jax.vmap(lambda p, d: jax.jvp(forward, (p,), (d,))[1]))(batch, directions))
+    jvp_of_vmap = np.asarray(eqx.filter_jit(lambda b, d: jax.jvp(jax.vmap(forward), (b,), (d,))[1])(batch, directions))
+    per_point = np.array([float(bench.jvp(p, d)) for p, d in zip(batch, directions)])
+    print(f"\n  vmap(jvp) {vmap_of_jvp}, jvp(vmap) {jvp_of_vmap}, per point {per_point}")
+    assert np.all(np.abs(per_point) > 0)
+    np.testing.assert_array_equal(vmap_of_jvp, jvp_of_vmap)
+    np.testing.assert_allclose(vmap_of_jvp, per_point, rtol=1e-6)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["5 um everywhere", "mixed", "loose pins", "sun bearing at onset", "carrier bearing at onset"])
 def test_bench_gradients_against_finite_differences(bench, name):
     """Forward-mode gradient of the bench's RMS output angle error over its start-up (20 ms from
     rest: impacts close the backlash and push every member into its bearing) against
     extrapolated central differences, at a design point with all five clearances and backlashes
-    of the planetary stage."""
+    of the planetary stage. Enlarges `test_bench_directional_derivative_at_contact_onset` (every
+    feature, each on its own, at five points)."""
     p = _bench_point(bench, name)
     ad, fd = _check_against_extrapolated_differences(bench.f, bench.grad, p)
     # Every feature moves the objective and each derivative is right on its own, not only in
