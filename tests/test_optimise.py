@@ -256,45 +256,61 @@ def test_bad_features_and_statistics():
         Design(jnp.zeros(3), jnp.zeros(2))
 
 
+def _jumps(levels):
+    """An optax transformation (what `optimise_design` takes as its optimiser) that moves every
+    box coordinate from the scripted level it is nearest to the next one: started at
+    `levels[0]`, outer iteration k ends at `levels[k + 1]` (one inner step each)."""
+    here, after = jnp.asarray(levels[:-1]), jnp.asarray(levels[1:])
+
+    def update(updates, state, params=None, **extra):
+        def move(z):
+            return jnp.full_like(z, after[jnp.argmin(jnp.abs(here - jnp.mean(z)))]) - z
+
+        return jax.tree.map(move, params), state
+
+    return optax.GradientTransformationExtraArgs(lambda params: optax.EmptyState(), update)
+
+
 @pytest.mark.parametrize(
     "continuation, script, chosen",
     [
-        # (objective, cost) per outer iteration against R = 400: the cheapest feasible iterate
-        # (cost 2.5) wins over the earlier feasible one (3.0) and over the cheaper infeasible ones.
-        (0.0, [(300.0, 3.0), (450.0, 2.0), (350.0, 2.5), (500.0, 1.0)], 2),
+        # (box level of the bands, objective) per outer iteration against R = 400; wider bands
+        # cost less. The cheapest feasible iterate (0.2) wins over the earlier feasible one (0.1)
+        # and over the cheaper infeasible ones (0.3, 0.4).
+        (0.0, [(0.1, 300.0), (0.3, 450.0), (0.2, 350.0), (0.4, 500.0)], 2),
         # The cheapest feasible iterate was at another smoothing width (continuation value): it
         # does not count; the last iterate is infeasible, so the one feasible at the final width wins.
-        (lambda i: 1.0 if i == 0 else 0.0, [(300.0, 1.0), (350.0, 2.5), (450.0, 2.0)], 1),
+        (lambda i: 1.0 if i == 0 else 0.0, [(0.4, 300.0), (0.1, 350.0), (0.3, 450.0)], 1),
         # No feasible iterate: the last one.
-        (0.0, [(450.0, 2.0), (420.0, 3.0)], 1),
+        (0.0, [(0.1, 450.0), (0.2, 420.0)], 1),
         # The last iterate is feasible and cheapest: the last one.
-        (0.0, [(300.0, 3.0), (390.0, 2.0)], 1),
+        (0.0, [(0.1, 300.0), (0.2, 390.0)], 1),
     ],
 )
-def test_result_is_the_cheapest_iterate_that_met_the_requirement(monkeypatch, continuation, script, chosen):
+def test_result_is_the_cheapest_iterate_that_met_the_requirement(continuation, script, chosen):
     """The augmented Lagrangian's iterates oscillate about the requirement when the objective is
     rough (the pointing scenes); `optimise_design` returns the cheapest iterate that met the
-    requirement at the final continuation value. The outer iteration is scripted here."""
-    from tolerax.design import optimise as _optimise
-
-    calls = iter(range(len(script)))
-
-    def scripted(z, multiplier, penalty, problem, draws, continuation, objective, cost_model, optimiser, steps):
-        k = next(calls)
-        f, cost = script[k]
-        z = Design(jnp.full(3, 0.1 * (k + 1)), jnp.full(3, 0.1 * (k + 1)))  # tells the iterates apart
-        grads = Design(jnp.full(3, float(k)), jnp.zeros(3))
-        return z, jnp.asarray(0.0), jnp.asarray(1.0), jnp.asarray(f), jnp.full(3, cost / 3), grads, grads
-
-    monkeypatch.setattr(_optimise, "_outer_iteration", scripted)
+    requirement at the final continuation value. The iterates are scripted through what
+    `optimise_design` takes: an optimiser that jumps the bands to given levels of their box and
+    an objective that reads the level (its value at each level given)."""
     lower, upper = _box(60 * UM, 100 * UM, 1 * UM, 50 * UM)
-    result = optimise_design(_linear_budget, FEATURES, requirement=400.0, lower=lower, upper=upper,
-                             cost_model=RECIPROCAL, continuation=continuation, max_outer=len(script))
+    levels, values = np.array([s[0] for s in script]), np.array([s[1] for s in script])
+    order = np.argsort(levels)
+
+    def objective(x, draws, c):
+        level = jnp.mean((x.band - lower.band) / (upper.band - lower.band))
+        return jnp.interp(level, jnp.asarray(levels[order]), jnp.asarray(values[order]))
+
+    start = 0.05
+    x0 = jax.tree.map(lambda lo, hi: lo + start * (hi - lo), lower, upper)
+    result = optimise_design(objective, FEATURES, requirement=400.0, lower=lower, upper=upper, x0=x0, cost_model=RECIPROCAL,
+                             continuation=continuation, max_outer=len(script), inner_steps=1, optimiser=_jumps([start, *levels]))
+    np.testing.assert_allclose(result.history.objective, values, rtol=1e-12)  # the script was followed
+    band = lower.band + (upper.band - lower.band) * levels[chosen]
     assert int(result.iteration) == chosen
-    assert float(result.objective) == script[chosen][0]
-    np.testing.assert_allclose(float(result.cost), script[chosen][1], rtol=1e-14)
-    np.testing.assert_allclose(result.x.band, lower.band + (upper.band - lower.band) * 0.1 * (chosen + 1), rtol=1e-14)
-    np.testing.assert_array_equal(result.sensitivity.nominal, jnp.full(3, float(chosen)))
+    assert float(result.objective) == pytest.approx(values[chosen], rel=1e-12)
+    np.testing.assert_allclose(float(result.cost), float(RECIPROCAL.total(band, FEATURES.size_mm)), rtol=1e-12)
+    np.testing.assert_allclose(result.x.band, band, rtol=1e-12)
     assert len(result.history.cost) == len(script)
 
 
