@@ -1,13 +1,17 @@
 """The end-of-life gradient through the tooth flanks' wear alone against central differences
-(`tolerax.design.life`, `tolerax.physics.wear`): a file of its own, so that pytest-xdist
-(`--dist loadfile`) runs it beside test_life.py's journal gradient test, the suite's two
-longest, instead of after it."""
+(`tolerax.design.life`, `tolerax.physics.wear`), behind `pytest -m slow` (~190 s: 20 evaluations
+of three solves at rtol 1e-10): a file of its own, so that pytest-xdist (`--dist loadfile`) runs
+it beside test_life.py's slow journal gradient test instead of after it. The default run checks
+the same chain in test_life.py: the flanks' rates' derivative on one trajectory
+(test_window_wear_rates_derivative_on_one_trajectory) and the end-of-life derivative through the
+growth along one direction (test_end_of_life_directional_derivative)."""
 
 import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from tolerax.design.life import MissionLife
 from tolerax.physics.wear import ArchardWear
@@ -15,8 +19,12 @@ from tolerax.physics.wear import ArchardWear
 from _life_helpers import life_objective as _objective
 
 
+@pytest.mark.slow
 def test_flank_wear_gradient(life_scan):
-    """The end-of-life gradient through the flanks' wear alone (journals at k = 0, flanks at the
+    """Slow: enlarges test_life.py's test_window_wear_rates_derivative_on_one_trajectory (the
+    flanks' rates on a fixed trajectory) and test_end_of_life_directional_derivative (one
+    direction through the growth, the sun journal) to the flanks' end-of-life gradient through the
+    solves, every feature. The end-of-life gradient through the flanks' wear alone (journals at k = 0, flanks at the
     MoS2 median): the backlash grows by k|F||w_a - w_b|/(4 z b) per mesh. Measured over
     test_life.py's start-up, the forward-mode gradient agrees with central differences at 10 and 5 nm
     to within 2e-3 for every feature (its differences are flat to that level from 40 nm down:

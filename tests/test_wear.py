@@ -1,5 +1,7 @@
 """Archard wear of the stage's clearances and tooth flanks (`tolerax.physics.wear`): the closed
-forms, the sliding speeds against rigid rolling, integration over a run, and refused input."""
+forms, the sliding speeds against rigid rolling, integration over a run, and refused input. The
+wear over a real run and the rates' derivative on one saved trajectory are in tests/test_life.py,
+beside the life tests' start-up run (one solve compiled for both)."""
 
 import types
 
@@ -104,33 +106,10 @@ def test_wear_over_run_constant_series():
     assert W.wear_over_run(mech, result, {"pitch": W.ArchardWear(k)}) == {}
 
 
-def test_wear_over_run_real_run():
-    """A short planetary run: finite, non-negative depths, zero where a contact never carried
-    force, and the same as an independent trapezoid over the run's own states and forces."""
-    scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
-    result = tx.simulate(scene, 0.05, start="steady", n_save=51)
-    model = W.ArchardWear.from_lubricant("MoS2 sputtered film, vacuum")
-    out = W.wear_over_run(scene, result, model)
-    assert list(out) == ["azimuth"]  # the pitch joint is ideal
-    stage = scene.azimuth.stage
-    depth = np.array([out["azimuth"][c] for c in stage.contact_names])
-    assert np.all(np.isfinite(depth)) and np.all(depth >= 0.0)
-    forces = np.asarray(result.azimuth_contact)
-    np.testing.assert_array_equal(depth[np.all(forces <= 0.0, axis=0)], 0.0)
-
-    def independent(forces):
-        u = np.asarray(result.states[1])[:, scene.layout.azimuth_u]
-        omega = np.abs(np.stack([u[:, 0], u[:, 1], *(u[:, 2 + n] - u[:, 1] for n in range(3))], axis=1))
-        rate = model.rate * np.maximum(forces, 0) * omega / (2 * 8e-3)
-        return np.trapezoid(rate, np.asarray(result.ts), axis=0)
-
-    np.testing.assert_allclose(depth, independent(forces), rtol=1e-12, atol=0)
-    # With a load on every contact (the run's own speeds), every depth is positive and matches.
-    loaded = jnp.full_like(result.azimuth_contact, 5.0)
-    out = W.wear_over_run(scene, eqx.tree_at(lambda r: r.azimuth_contact, result, loaded), model)
-    depth = np.array([out["azimuth"][c] for c in stage.contact_names])
-    assert np.all(depth > 0.0)
-    np.testing.assert_allclose(depth, independent(np.asarray(loaded)), rtol=1e-12)
+# The stage's tooth forces and the flank rates, compiled once each (op by op they cost ~15 s of
+# small compiles: the rates vmap the whole force law).
+_stage_forces = eqx.filter_jit(P.stage_forces)
+_flank_rates = eqx.filter_jit(W.flank_backlash_rates)
 
 
 def test_flank_wear_closed_form():
@@ -148,7 +127,7 @@ def test_flank_wear_closed_form():
     u = rigid_rolling_speeds(stage, omega_c)
     q = jnp.zeros(lay.size).at[lay.sun_theta].set(0.03).at[lay.planet_theta].set(0.02)  # both meshes past their backlash
     v = jnp.zeros(len(stage.contact_names))
-    forces = P.stage_forces(stage, q, u, v)
+    forces = _stage_forces(stage, q, u, v)
     f_s, f_r = np.abs(np.asarray(forces.sun_mesh)), np.abs(np.asarray(forces.ring_mesh))
     assert np.all(f_s > 1.0) and np.all(f_r > 1.0)
     vol_s = k * f_s * abs(omega_c) * (zr / zs + zr / zp) / 4
@@ -156,10 +135,10 @@ def test_flank_wear_closed_form():
     t_sun, t_ring, t_planet = vol_s.sum() / (zs * b), vol_r.sum() / (zr * b), (vol_s + vol_r) / (zp * b)
     want = np.concatenate([t_sun + t_planet, t_ring + t_planet])
     model = W.ArchardWear(k)
-    np.testing.assert_allclose(W.flank_backlash_rates(stage, q, u, v, model), want, rtol=1e-12)
+    np.testing.assert_allclose(_flank_rates(stage, q, u, v, model), want, rtol=1e-12)
     # Batched leading axes kept; another face width and flank rate scale as 1/b and k.
-    both = W.flank_backlash_rates(stage, jnp.stack([q, q]), jnp.stack([u, u]), jnp.stack([v, v]),
-                                  W.ArchardWear(k, flank_rate=2 * k, face_width=2 * b))
+    both = _flank_rates(stage, jnp.stack([q, q]), jnp.stack([u, u]), jnp.stack([v, v]),
+                        W.ArchardWear(k, flank_rate=2 * k, face_width=2 * b))
     np.testing.assert_allclose(both, np.stack([want, want]), rtol=1e-12)
     assert W.wear_names(stage, model) == stage.contact_names + tuple(f"{m}_mesh{i}" for m in ("sun", "ring") for i in range(n))
     assert W.flank_names(stage, W.ArchardWear(k, flanks=False)) == ()
@@ -171,7 +150,7 @@ def test_flank_wear_closed_form():
     result = types.SimpleNamespace(ts=ts, states=(tile(q), tile(u), tile(v)), azimuth_contact=jnp.zeros((ts.shape[0], 5)),
                                    azimuth_contact_names=stage.contact_names, pitch_contact=jnp.zeros((ts.shape[0], 0)),
                                    pitch_contact_names=())
-    out = W.wear_over_run(mech, result, model)["azimuth"]
+    out = W.wear_over_run(mech, result, model)["azimuth"]  # eager: the entries' order is wear_names' (a compiled call sorts them)
     assert tuple(out) == W.wear_names(stage, model)
     np.testing.assert_allclose([out[f"{m}_mesh{i}"] for m in ("sun", "ring") for i in range(n)], want * 1.3, rtol=1e-12)
     # The worn scene: clearances and each planet's backlash grown.
