@@ -63,15 +63,29 @@ class KaneByAutodiff(AbstractScene):
         self.mechanism.check_runnable()
 
 
-def spring_ring_stage():
-    """The default stage with its ring on springs (radial and torsional, 1e8 N/m): the ring a
-    moving body of its own, which `tx.default_stage` does not offer."""
+def momentum_rates(mech: Mechanism, q, u, ud, t):
+    """Each body's rate of change of linear momentum $m a$ (nb, 3) and of angular momentum about
+    the world origin $p \\times m a + I\\alpha + \\omega \\times I\\omega$ (nb, 3) when the speeds
+    change at `ud`: the accelerations by a `jvp` of `twists` over $(q, u, t)$ along
+    $(\\dot q, \\dot u, 1)$, independent of the frames that `Mechanism.dynamics` propagates."""
+    masses, principal = mech.body_inertia()
+    pos, rot = mech.poses(q, t)
+    inertia = world_inertia(rot, principal)
+    (_, w), (a, alpha) = jax.jvp(lambda q_, u_, t_: mech.twists(q_, u_, t_), (q, u, t), (mech.qdot(q, u), ud, jnp.ones_like(t)))
+    lin = masses[:, None] * a
+    ang = jnp.cross(pos, lin) + jnp.einsum("bij,bj->bi", inertia, alpha) + jnp.cross(w, jnp.einsum("bij,bj->bi", inertia, w))
+    return lin, ang
+
+
+def spring_ring_stage(**options):
+    """`tx.default_stage(**options)` with its ring on springs (radial and torsional, 1e8 N/m):
+    the ring a moving body of its own, which `tx.default_stage` does not offer."""
     import equinox as eqx
     import jax.numpy as jnp
     import tolerax as tx
     from tolerax.physics.stage import Support
 
     return eqx.tree_at(
-        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(), (Support("spring", 1e8), jnp.asarray(1e8)),
+        lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(**options), (Support("spring", 1e8), jnp.asarray(1e8)),
         is_leaf=lambda x: x is None,
     )

@@ -4,9 +4,11 @@ each written from what the page says, run through `tx.simulate` and checked agai
 form. If these tests need a change to `src/` to pass, the page is wrong. The line counts the page
 quotes are those of the two classes below (`class` line to last line, docstring included)."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from jaxtyping import Array, Float
 
 import tolerax as tx
@@ -123,23 +125,54 @@ def test_fourth_fidelity_in_the_antenna_settles_to_torque_over_stiffness():
     np.testing.assert_allclose(np.asarray(res.joint_angle)[late, 0], theta_c, rtol=0, atol=1e-15)
 
 
-def test_fourth_fidelity_equals_lumped_on_a_clearance_free_stage():
-    # On linear meshes with rigid supports the library's LumpedJoint models exactly this joint
-    # (no backlash, pin play or output bearing left), so the azimuth scan gives the same motion:
-    # to the solver's tolerance, as the two write the same forces in a different order and the
-    # adaptive steps follow the rounding (measured: 1e-8 of the peak pointing error, 1.4e-6 of the
-    # peak tracking speed error).
+def _new_and_lumped():
     stage = tx.default_stage(**LINEAR_STAGE)
     drive, held = tx.ScanServo(np.radians(0.5), 1.0, 2.0, 40.0), tx.IdealJoint(stage, tx.SpeedServo(0.0))
-    new, ref = (
-        tx.simulate(tx.Mechanism(cls(stage, drive), held, base="fixed"), 0.3, n_save=31) for cls in (TorsionalJoint, tx.LumpedJoint)
-    )
+    return stage, [tx.Mechanism(cls(stage, drive), held, base="fixed") for cls in (TorsionalJoint, tx.LumpedJoint)]
+
+
+@eqx.filter_jit
+def _field(mech, t, y):
+    return mech.vector_field(t, y, None)
+
+
+def test_fourth_fidelity_equals_lumped_on_a_clearance_free_stage():
+    # On linear meshes with rigid supports the library's LumpedJoint models exactly this joint
+    # (no backlash, pin play or output bearing left): the same vector field, to rounding (the
+    # two write the same forces in a different order), at random states of the azimuth scan
+    # (motor and output anywhere, twisted against each other by up to 1 mrad, speeds of order
+    # 1 rad/s). The recipe's joint in a run: the test above; this one over the scan beside the
+    # lumped joint: the slow `test_fourth_fidelity_run_equals_lumped`.
+    stage, (new, ref) = _new_and_lumped()
+    lay = ref.layout
+    assert new.layout == lay
+    i = float(stage.ratio)
+    for k, t in enumerate((0.0, 0.3, 0.8)):
+        kq, ku, kt = jax.random.split(jax.random.key(k), 3)
+        theta_c = jax.random.uniform(kt, minval=-3.0, maxval=3.0)
+        twist = 1e-3 * jax.random.uniform(kq, (), minval=-1.0, maxval=1.0)
+        q = jnp.zeros(lay.size_q).at[lay.azimuth_q].set(jnp.stack([i * (theta_c + twist), theta_c]))
+        y = (q, jax.random.normal(ku, (lay.size_u,)), jnp.zeros(lay.size_v))
+        got, want = _field(new, jnp.asarray(t), y), _field(ref, jnp.asarray(t), y)
+        assert float(jnp.abs(want[1]).max()) > 1.0  # the mesh torque accelerates the gears
+        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * float(jnp.abs(b).max(initial=0.0)))
+    # Nothing the new joint models can be toleranced: it lists no design features.
+    assert tx.design_names(new) == ()
+
+
+@pytest.mark.slow
+def test_fourth_fidelity_run_equals_lumped():
+    """Enlarges `test_fourth_fidelity_equals_lumped_on_a_clearance_free_stage` (the vector field
+    at random states) to the azimuth scan: the same motion to the solver's tolerance, as the two
+    write the same forces in a different order and the adaptive steps follow the rounding
+    (measured: 1e-8 of the peak pointing error, 1.4e-6 of the peak tracking speed error)."""
+    _, mechs = _new_and_lumped()
+    new, ref = (tx.simulate(mech, 0.3, n_save=31) for mech in mechs)
     assert new.success and ref.success and float(np.max(np.asarray(ref.pointing_error))) > 0.0
     for name in ("pointing_error", "joint_angle", "tracking_speed_error"):
         a, b = np.asarray(getattr(new, name)), np.asarray(getattr(ref, name))
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-5 * np.abs(b).max())
-    # Nothing the new joint models can be toleranced: it lists no design features.
-    assert tx.design_names(tx.Mechanism(TorsionalJoint(stage, drive), held, base="fixed")) == ()
 
 
 def test_registered_fidelity_is_a_name_for_the_builders(monkeypatch):

@@ -52,13 +52,46 @@ class TorsionSpringJoint(tx.AbstractJoint):
         return self.drive_forces(qj, uj, t) + jnp.stack([-torque / i, torque]), jnp.zeros(0)
 
 
-def test_a_fourth_fidelity_is_one_class_and_matches_the_lumped_joint():
+@eqx.filter_jit
+def _field(mech, t, y):
+    return mech.vector_field(t, y, None)
+
+
+def _toy_and_lumped():
     stage = tx.default_stage(mesh="linear", sun_support="rigid", carrier_support="rigid", planet_support="rigid")
-    drive = tx.ScanServo(math.radians(0.2), 0.5)  # reverses twice in the run
-    runs = {}
-    for name, cls in (("toy", TorsionSpringJoint), ("lumped", tx.LumpedJoint)):
-        mech = tx.Mechanism(cls(stage, drive), tx.IdealJoint(stage, tx.SpeedServo(0.0)), base="fixed")
-        runs[name] = tx.simulate(mech, 0.5, n_save=101, rtol=1e-10, atol=1e-13)
+    drive = tx.ScanServo(math.radians(0.2), 0.5)  # reverses twice in 0.5 s
+    return {
+        name: tx.Mechanism(cls(stage, drive), tx.IdealJoint(stage, tx.SpeedServo(0.0)), base="fixed")
+        for name, cls in (("toy", TorsionSpringJoint), ("lumped", tx.LumpedJoint))
+    }
+
+
+def test_a_fourth_fidelity_is_one_class_and_matches_the_lumped_joint():
+    # The same equations written twice: equal vector fields to rounding at random states (the
+    # motor and output anywhere, twisted against each other by up to 1 mrad, speeds of order
+    # 1 rad/s, times across the scan's reversals). The run: the slow
+    # `test_a_fourth_fidelity_run_matches_the_lumped_joint`, and `tests/test_extending.py`'s
+    # recipe joint against the lumped one over a scan.
+    mechs = _toy_and_lumped()
+    lay, i = mechs["lumped"].layout, float(mechs["lumped"].azimuth.stage.ratio)
+    assert mechs["toy"].layout == lay
+    for k, t in enumerate((0.0, 0.13, 0.41)):
+        kq, ku, kt = jax.random.split(jax.random.key(k), 3)
+        theta_c = jax.random.uniform(kt, minval=-3.0, maxval=3.0)
+        twist = 1e-3 * jax.random.uniform(kq, (), minval=-1.0, maxval=1.0)
+        q = jnp.zeros(lay.size_q).at[lay.azimuth_q].set(jnp.stack([i * (theta_c + twist), theta_c]))
+        y = (q, jax.random.normal(ku, (lay.size_u,)), jnp.zeros(lay.size_v))
+        got, want = (_field(mechs[name], jnp.asarray(t), y) for name in ("toy", "lumped"))
+        assert float(jnp.abs(want[1]).max()) > 1.0  # the mesh torque accelerates the gears
+        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * float(jnp.abs(b).max(initial=0.0)))
+
+
+@pytest.mark.slow
+def test_a_fourth_fidelity_run_matches_the_lumped_joint():
+    """Enlarges `test_a_fourth_fidelity_is_one_class_and_matches_the_lumped_joint` (the vector
+    field at random states) to a scan that reverses twice."""
+    runs = {name: tx.simulate(mech, 0.5, n_save=101, rtol=1e-10, atol=1e-13) for name, mech in _toy_and_lumped().items()}
     toy, lumped = runs["toy"], runs["lumped"]
     assert toy.success and lumped.success
     # The scan moved the joint (the ~1 Hz servo lags the 2 Hz scan: more than a quarter of the
@@ -91,6 +124,15 @@ def test_fidelity_registry_names_the_classes():
         tx.antenna("dual", fidelity="planetary-scaled", mass_scaling=0.5)
 
 
+@eqx.filter_jit
+def _mass_terms(mech, t, y, us):
+    """The kinetic energy at (q, u) for each row u of `us`, the mass matrix at q and the vector
+    field at `y` (q from `y`): one program per joint class."""
+    q = y[0]
+    energy = jax.vmap(lambda u_: mech.kinetic_energy(q, u_, t))(us)
+    return energy, mech.dynamics(q, y[1], t)[0], mech.vector_field(t, y, None)
+
+
 def test_mass_scaling_adds_inertia_only_to_relative_motion():
     # Closed forms of `MassScaledPlanetaryJoint`'s added inertia (every family), through the
     # whole mechanism's mass matrix and kinetic energy: (1) rigid rolling at the servo's rate
@@ -115,27 +157,32 @@ def test_mass_scaling_adds_inertia_only_to_relative_motion():
     q, u, v = scaled.initial_state("steady")
     t = jnp.asarray(0.0)
     assert float(jnp.abs(u).max()) > 0.0
-    np.testing.assert_allclose(float(scaled.kinetic_energy(q, u, t)), float(full.kinetic_energy(q, u, t)), rtol=1e-14)
     joint, lay = scaled.azimuth, scaled.layout
     stage, jl = joint.stage, joint.stage.layout
-    for index, inertia in (
+    cases = (
         (jl.sun_xy.start, stage.sun_mass),
         (jl.carrier_xy.start, stage.carrier_mass + stage.n_planets * stage.planet_mass),  # planets ride along
         (jl.planet_xy.start, stage.planet_mass),
         (jl.planet_theta.start, stage.planet_inertia),
         (jl.sun_theta, stage.sun_inertia + joint.motor_inertia),
-    ):
-        du = jnp.zeros(lay.size_u).at[lay.azimuth_u.start + index].set(1.0)
-        mass, _ = scaled.dynamics(q, du, t)
-        own = float(full.kinetic_energy(q, du, t))
-        want = own + 0.5 * (s - 1.0) * float(inertia)
-        np.testing.assert_allclose(float(scaled.kinetic_energy(q, du, t)), want, rtol=1e-12)
-        np.testing.assert_allclose(0.5 * float(du @ mass @ du), want, rtol=1e-12)
+    )
+    # The speeds: the steady state's, a unit speed of each coordinate above, and the steady
+    # state's with the azimuth sun moving sideways at 1 mm/s (for the vector fields).
+    y = (q, u.at[lay.azimuth_u.start + jl.sun_xy.start].add(1e-3), v)
+    us = jnp.stack([u] + [jnp.zeros(lay.size_u).at[lay.azimuth_u.start + index].set(1.0) for index, _ in cases] + [y[1]])
+    energy_s, mass, _ = _mass_terms(scaled, t, y, us)
+    energy_f, _, want = _mass_terms(full, t, y, us)
+    np.testing.assert_allclose(float(energy_s[0]), float(energy_f[0]), rtol=1e-14)
+    for k, (index, inertia) in enumerate(cases, start=1):
+        du = us[k]
+        own = float(energy_f[k])
+        want_k = own + 0.5 * (s - 1.0) * float(inertia)
+        np.testing.assert_allclose(float(energy_s[k]), want_k, rtol=1e-12)
+        np.testing.assert_allclose(0.5 * float(du @ mass @ du), want_k, rtol=1e-12)
         if index != jl.carrier_xy.start:
             np.testing.assert_allclose(own, 0.5 * float(inertia), rtol=1e-12)
     unscaled = eqx.tree_at(lambda m: (m.azimuth.mass_scaling, m.pitch.mass_scaling), scaled, (jnp.asarray(1.0), jnp.asarray(1.0)))
-    y = (q, u.at[lay.azimuth_u.start + jl.sun_xy.start].add(1e-3), v)
-    got, want = unscaled.vector_field(t, y, None), full.vector_field(t, y, None)
+    got = _mass_terms(unscaled, t, y, us)[2]  # the scaled joint's program: the scaling is a value
     for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-12 * float(jnp.abs(b).max(initial=0.0)))
     for bad in (0.5, float("nan")):

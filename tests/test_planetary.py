@@ -71,8 +71,12 @@ LIN_PARKER_N3 = sorted(
 )
 
 
+# The modes in one compiled program per stage structure (op by op, 4-5x the time).
+_natural_frequencies = eqx.filter_jit(tx.natural_frequencies)
+
+
 def test_lin_parker_natural_frequencies():
-    modes = tx.natural_frequencies(lin_parker_stage(3))
+    modes = _natural_frequencies(lin_parker_stage(3))
     computed = np.asarray(modes.frequencies)
     assert computed.shape == (18,)
     # The rigid-body rotation (sun and carrier free) is the 0 Hz mode.
@@ -87,7 +91,7 @@ def test_rigid_mode_has_the_kinematic_ratio():
     stage = tx.default_stage(
         mesh="linear", sun_support="rigid", carrier_support="rigid", planet_support="rigid"
     )
-    modes = tx.natural_frequencies(stage)
+    modes = _natural_frequencies(stage)
     shape = np.asarray(modes.shapes[:, 0])
     assert float(modes.frequencies[0]) < 1e-3
     ratio = shape[0] / shape[1]
@@ -108,14 +112,12 @@ def test_simulated_speed_ratio_rigid_supports_zero_backlash():
     assert abs(float(ratio) - 5.0) < 1e-9 * 5.0
 
 
-def test_stage_energy_conserved_without_damping():
+def _conservative_stage():
     """Damping off, restitution 1 (no hysteresis), linear meshes, Hertz contact at the planet
-    pins and springs elsewhere, no drive: T + V is constant to the integrator's tolerance,
-    through impacts. This also checks the Coriolis/centripetal terms and the smoothed
-    contact force being the exact gradient of its potential."""
+    pins (2 um clearance) and springs elsewhere."""
     from tolerax import Flores
 
-    stage = tx.default_stage(
+    return tx.default_stage(
         mesh="linear",
         mesh_damping_ratio=0.0,
         sun_support="spring",
@@ -125,9 +127,57 @@ def test_stage_energy_conserved_without_damping():
         contact_law=Flores(1.0),
         smoothing_width=1e-9,
     )
-    bench = tx.TestBench(
-        stage, servo=tx.SpeedServo(math.radians(30.0), 0.0, 0.0), load_torque=0.0
-    )
+
+
+def _conservative_bench():
+    """The conservative stage on its bench, no drive (zero servo gains) and no load torque."""
+    return tx.TestBench(_conservative_stage(), servo=tx.SpeedServo(math.radians(30.0), 0.0, 0.0), load_torque=0.0)
+
+
+@eqx.filter_jit
+def _energy_rates(bench, t, y):
+    """The rates of kinetic and elastic energy along the bench's vector field (autodiff of
+    `kinetic_energy` and `potential_energy`), and the elastic energy."""
+    stage = bench.stage
+    q, qd, _ = y
+    _, qdd, _ = bench.vector_field(t, y, None)
+    kinetic = jax.jvp(lambda q_, qd_: P.kinetic_energy(stage, q_, qd_, bench.added), (q, qd), (qd, qdd))[1]
+    potential, potential_rate = jax.jvp(lambda q_: P.potential_energy(stage, q_), (q,), (qd,))
+    return kinetic, potential, potential_rate
+
+
+def test_stage_energy_conserved_without_damping():
+    """Damping off, restitution 1 (no hysteresis), linear meshes, Hertz contact at the planet
+    pins and springs elsewhere, no drive: along the bench's vector field the rate of kinetic
+    energy is minus the rate of elastic energy, to rounding (1e-10) of either, at random states
+    near rigid rolling: the angles the rigid train's at a random carrier angle plus 1e-5 rad
+    (meshes deflected by fractions of a um, as in a run: angles anywhere would deflect them by
+    cm and drown the inertial terms), translations to 6 um (the 2 um pin clearances partly
+    closed), speeds the rigid train's at a random rate plus 1e-2 rad/s and 1 mm/s. This checks
+    the Coriolis/centripetal terms against the kinetic energy and the smoothed contact force
+    being the exact gradient of its potential. (Over a run through impacts: the slow
+    `test_stage_energy_conserved_over_a_run`.)"""
+    bench = _conservative_bench()
+    lay = bench.stage.layout
+    angle = jnp.asarray([n.startswith("theta") for n in lay.names])
+    rolling = bench.initial_state("steady")[1] / bench.initial_state("steady")[1][lay.carrier_theta]  # per radian of the carrier
+    for k in range(3):
+        ka, kb, kc, kd = jax.random.split(jax.random.key(40 + k), 4)
+        noise = jnp.where(angle, 1e-5, 2e-6) * jax.random.uniform(kb, (lay.size,), minval=-3.0, maxval=3.0)
+        q = rolling * jax.random.uniform(ka, minval=-np.pi, maxval=np.pi) + noise
+        qd = rolling * jax.random.normal(kc) + jnp.where(angle, 1e-2, 1e-3) * jax.random.normal(kd, (lay.size,))
+        y = (q, qd, P.initial_impact_rates(bench.stage, q, qd))
+        kinetic, potential, potential_rate = (float(x) for x in _energy_rates(bench, jnp.asarray(0.1 * k), y))
+        assert potential > 0.0 and abs(kinetic) > 0.0  # loaded, exchanging energy
+        assert abs(kinetic + potential_rate) < 1e-10 * abs(potential_rate), (kinetic, potential_rate)
+
+
+@pytest.mark.slow
+def test_stage_energy_conserved_over_a_run():
+    """Enlarges `test_stage_energy_conserved_without_damping` (the vector field at random states)
+    to a run: T + V is constant to the integrator's tolerance, through impacts."""
+    bench = _conservative_bench()
+    stage = bench.stage
     q0, qd_rigid, v0 = bench.initial_state("steady")
     lay = stage.layout
     # Throw each planet radially and tangentially at its pin: impacts within the run.
@@ -153,35 +203,35 @@ def test_stage_energy_conserved_without_damping():
     assert drift < 1e-7, drift
 
 
+@eqx.filter_jit
+def _forces_and_potential_gradient(stage, q):
+    zero = jnp.zeros(stage.layout.size)
+    forces = P.stage_forces(stage, q, zero, jnp.zeros(len(stage.contact_names)))
+    return forces, -jax.grad(lambda q_: P.potential_energy(stage, q_))(q)
+
+
 def test_generalised_forces_are_minus_the_potential_gradient():
     """`stage_forces` projects the forces through the deflections' Jacobian (forward mode,
     `D^T F`); independently, for a conservative stage at rest (no damping, restitution 1, planets
     pressed into their pins) the generalised forces are $-\\partial V/\\partial q$ of
     `potential_energy` (reverse mode through a different function). Random states with the
     carrier turned (the deflections' nonlinear part)."""
-    from tolerax import Flores
 
-    stage = tx.default_stage(
-        mesh="linear",
-        mesh_damping_ratio=0.0,
-        sun_support="spring",
-        carrier_support="spring",
-        planet_support="clearance",
-        planet_clearance=2e-6,
-        contact_law=Flores(1.0),
-        smoothing_width=1e-9,
-    )
+    stage = _conservative_stage()
     lay = stage.layout
     for k in range(3):
         q = 3e-6 * jax.random.normal(jax.random.key(k), (lay.size,))
         q = q.at[lay.carrier_theta].set(0.7 * k + 0.3).at[lay.sun_theta].add(0.2 * k)
-        zero = jnp.zeros(lay.size)
-        f = P.stage_forces(stage, q, zero, jnp.zeros(len(stage.contact_names)))
+        f, want = _forces_and_potential_gradient(stage, q)
         assert float(jnp.abs(f.contact).max()) > 0.0  # some planet is in contact
-        want = -jax.grad(lambda q_: P.potential_energy(stage, q_))(q)
         scale = float(jnp.abs(want).max())
         assert scale > 0.0
         np.testing.assert_allclose(np.asarray(f.generalised), np.asarray(want), rtol=0, atol=1e-10 * scale)
+
+
+@eqx.filter_jit
+def _three_projections(stage, q, qd, v):
+    return tuple(P.stage_forces(stage, q, qd, v, projection=p) for p in ("closed-form", "jvp-vjp", "forward"))
 
 
 def test_force_projections_agree():
@@ -197,9 +247,7 @@ def test_force_projections_agree():
         q = q.at[lay.carrier_theta].set(0.9 * k + 0.1).at[lay.sun_theta].add(4.0 * k)
         qd = jax.random.normal(ku, (lay.size,))
         v = 0.1 * jax.random.normal(kv, (len(stage.contact_names),))
-        a = P.stage_forces(stage, q, qd, v)
-        b = P.stage_forces(stage, q, qd, v, projection="jvp-vjp")
-        c = P.stage_forces(stage, q, qd, v, projection="forward")
+        a, b, c = _three_projections(stage, q, qd, v)
         assert float(jnp.abs(b.contact).max()) > 0.0 and float(jnp.abs(b.sun_mesh).max()) > 0.0
         for x, y, z in zip(jax.tree.leaves(a), jax.tree.leaves(b), jax.tree.leaves(c)):
             scale = float(jnp.abs(y).max(initial=0.0))
@@ -207,6 +255,11 @@ def test_force_projections_agree():
             np.testing.assert_allclose(np.asarray(z), np.asarray(y), rtol=0, atol=1e-12 * scale)
     with pytest.raises(ValueError, match="projection='adjoint' is unknown"):
         P.stage_forces(stage, q, qd, v, projection="adjoint")
+
+
+@eqx.filter_jit
+def _jacobians(stage, q):
+    return P.deflections_and_jacobian(stage, q), jax.jacfwd(lambda q_: P.deflections(stage, q_))(q)
 
 
 @pytest.mark.parametrize(
@@ -237,8 +290,7 @@ def test_closed_form_jacobian_equals_autodiff(variant):
         q = q.at[lay.carrier_theta].set(1.7 * k - 0.6).at[lay.sun_theta].add(5.0 * k + 0.3)
         if lay.ring_theta is not None:
             q = q.at[lay.ring_theta].add(0.2 * k)
-        defl, jac = P.deflections_and_jacobian(stage, q)
-        want = jax.jacfwd(lambda q_: P.deflections(stage, q_))(q)
+        (defl, jac), want = _jacobians(stage, q)
         assert sorted(jac) == sorted(want) == sorted(defl)
         for key in want:
             assert jac[key].shape == want[key].shape, key
@@ -260,6 +312,16 @@ def test_dynamic_backlash_follows_planet_displacement():
     np.testing.assert_allclose(float(b(d1, "ring")[0] - b(d0, "ring")[0]), -2 * dz * s, rtol=1e-4)
 
 
+@eqx.filter_jit
+def _summary(stage, q, qd, v):
+    """A contact-force summary of the stage at a state."""
+    f = P.stage_forces(stage, q, qd, v)
+    return jnp.sum(f.contact) + jnp.sum(f.sun_mesh**2)
+
+
+_summary_gradient = eqx.filter_jit(eqx.filter_grad(_summary))
+
+
 def test_no_retrace_and_finite_gradient_of_clearance():
     """Changing only values (clearances) must not retrace; the gradient of a contact-force
     summary with respect to every clearance and backlash is finite."""
@@ -278,13 +340,7 @@ def test_no_retrace_and_finite_gradient_of_clearance():
 
     q, qd, v = y0
     q = q.at[stage.layout.planet_xy.start].set(100.5e-6)  # planet 0 pressed into its pin
-
-    def summary(st):
-        f = P.stage_forces(st, q, qd, v)
-        return jnp.sum(f.contact) + jnp.sum(f.sun_mesh**2)
-
-    params, static = eqx.partition(stage, eqx.is_inexact_array)
-    grads = jax.grad(lambda p: summary(eqx.combine(p, static)))(params)
+    grads = _summary_gradient(stage, q, qd, v)  # with respect to every inexact array of the stage
     g_c = grads.planet_support.bearing.clearance
     g_b = grads.sun_mesh.backlash
     assert np.all(np.isfinite(np.asarray(g_c))) and float(g_c) != 0.0
@@ -293,7 +349,7 @@ def test_no_retrace_and_finite_gradient_of_clearance():
     h = 1e-9
 
     def at(c):
-        return summary(eqx.tree_at(lambda s: s.planet_support.bearing.clearance, stage, jnp.asarray(c)))
+        return _summary(eqx.tree_at(lambda s: s.planet_support.bearing.clearance, stage, jnp.asarray(c)), q, qd, v)
 
     fd = (at(100e-6 + h) - at(100e-6 - h)) / (2 * h)
     np.testing.assert_allclose(float(g_c), float(fd), rtol=1e-5)
