@@ -1,5 +1,10 @@
 """The joint on its test bench: the paper's 0.98 deg/s case runs, results are physical, failures
-are reported, and the command line works."""
+are reported, and the command line works.
+
+Every run saves at `N_SAVE` times, as `test_hard_cases.py` and `test_validation.py` do: the
+default solver's runs of the default bench (any duration, tolerance, start) are one compiled
+program, which the run's compilation cache serves to all three files; each static setting
+tested here (PI coefficients, a solver, a step budget, fixed steps) compiles its own once."""
 
 import json
 import math
@@ -11,11 +16,13 @@ import pytest
 import tolerax as tx
 from tolerax import cli
 
+N_SAVE = 51  # the bench's save grid in test_hard_cases.py and test_validation.py too: one program
+
 
 @pytest.fixture(scope="module")
 def bench_run():
     bench = tx.TestBench()  # default joint: 100 um clearances and backlash, 0.98 deg/s
-    return bench, tx.simulate(bench, 0.6, n_save=301)
+    return bench, tx.simulate(bench, 0.6, n_save=N_SAVE)
 
 
 def test_bench_runs_at_paper_speed(bench_run):
@@ -45,17 +52,24 @@ def test_bench_runs_at_paper_speed(bench_run):
     assert 100e-6 / 5 / r_eff < te < (2 * 100e-6 + 3 * 100e-6) / r_eff
 
 
-def test_pi_step_controller_rejects_fewer_steps_same_answer():
+@pytest.fixture(scope="module")
+def start_up_reference():
+    """The bench's start-up (0.2 s from rest, before the planets land on their pins) at rtol
+    1e-10: the reference of the controller and solver tests."""
+    return tx.simulate(tx.TestBench(), 0.2, n_save=N_SAVE, rtol=1e-10, atol=1e-13)
+
+
+def test_pi_step_controller_rejects_fewer_steps_same_answer(start_up_reference):
     # simulate(pcoeff, icoeff) reaches diffrax's controller: a PI controller (0.3, 0.3) on the
     # bench's start-up (0.2 s, before the planets land on their pins) rejects 68 steps where the
     # default I-controller rejects 211, and both agree with an rtol 1e-10 run to ~1e-11 rad of
     # transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3 rad signal).
     bench = tx.TestBench()
-    plain = tx.simulate(bench, 0.2, n_save=31)
-    pi = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.3, icoeff=0.3)
-    explicit = tx.simulate(bench, 0.2, n_save=31, pcoeff=0.0, icoeff=1.0)  # the default is diffrax's I-controller
+    plain = tx.simulate(bench, 0.2, n_save=N_SAVE)
+    pi = tx.simulate(bench, 0.2, n_save=N_SAVE, pcoeff=0.3, icoeff=0.3)
+    explicit = tx.simulate(bench, 0.2, n_save=N_SAVE, pcoeff=0.0, icoeff=1.0)  # the default is diffrax's I-controller
     assert (int(plain.num_steps), int(plain.num_rejected)) == (int(explicit.num_steps), int(explicit.num_rejected))
-    ref = tx.simulate(bench, 0.2, n_save=31, rtol=1e-10, atol=1e-13)
+    ref = start_up_reference
     assert int(pi.num_rejected) < 0.5 * int(plain.num_rejected)
     for res in (plain, pi):
         te = np.abs(np.asarray(res.transmission_error) - np.asarray(ref.transmission_error)).max()
@@ -66,22 +80,22 @@ def test_pi_step_controller_rejects_fewer_steps_same_answer():
         tx.simulate(bench, 1e-3, pcoeff=float("nan"))
 
 
-def test_solver_by_name_same_run_and_bosh3_within_its_tolerance():
+def test_solver_by_name_same_run_and_bosh3_within_its_tolerance(start_up_reference):
     # simulate(solver="Bosh3") is diffrax.Bosh3(); unknown names are refused with the list. On the
     # bench's start-up (0.2 s) Bosh3 at rtol 1e-4 agrees with an rtol 1e-10 Tsit5 run to 1.0e-9 rad
     # of transmission error (measured; Tsit5 at rtol 1e-6: 8e-12). The bound, 1e-8 rad, is 30x
     # below rtol times the ~3.4e-3 rad signal (3.4e-7): a check of the solver, not of rtol.
     bench = tx.TestBench()
-    named = tx.simulate(bench, 0.2, n_save=31, solver="Bosh3", rtol=1e-4, atol=1e-7)
-    given = tx.simulate(bench, 0.2, n_save=31, solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7)
+    named = tx.simulate(bench, 0.2, n_save=N_SAVE, solver="Bosh3", rtol=1e-4, atol=1e-7)
+    given = tx.simulate(bench, 0.2, n_save=N_SAVE, solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7)
     assert int(named.num_steps) == int(given.num_steps)
     np.testing.assert_array_equal(np.asarray(named.transmission_error), np.asarray(given.transmission_error))
-    ref = tx.simulate(bench, 0.2, n_save=31, rtol=1e-10, atol=1e-13)
+    ref = start_up_reference
     te = np.abs(np.asarray(named.transmission_error) - np.asarray(ref.transmission_error)).max()
     assert te < 1e-8, te
     # SRK53 (tolerax's own tableau, fitted to the planetary stage's damped modes) by name, on the
     # same scene and bound: measured 8.2e-10 rad (Bosh3 1.4e-9), in 797 steps (Bosh3 926).
-    srk = tx.simulate(bench, 0.2, n_save=31, solver="SRK53", rtol=1e-4, atol=1e-7)
+    srk = tx.simulate(bench, 0.2, n_save=N_SAVE, solver="SRK53", rtol=1e-4, atol=1e-7)
     te = np.abs(np.asarray(srk.transmission_error) - np.asarray(ref.transmission_error)).max()
     assert te < 1e-8, te
     with pytest.raises(ValueError, match=r"solver 'RK4' is unknown; use one of \['Bosh3', 'Dopri5', 'Dopri8', 'SRK53', 'Tsit5'\]"):
@@ -92,19 +106,19 @@ def test_solver_by_name_same_run_and_bosh3_within_its_tolerance():
 
 def test_failure_is_reported_not_hidden():
     bench = tx.TestBench()
-    res = tx.simulate(bench, 0.05, n_save=11, max_steps=50, throw=False)
+    res = tx.simulate(bench, 0.05, n_save=N_SAVE, max_steps=50, throw=False)
     assert not res.success
     assert res.result == diffrax.RESULTS.max_steps_reached
     # t_reached is where the solver stopped: the same 50-step budget reaches it (the step
     # sequence is the same up to there), and does not reach 20 % further.
     t = float(res.t_reached)
     assert 0 < t < 0.05
-    assert tx.simulate(bench, t, n_save=11, max_steps=50, throw=False).success
-    assert not tx.simulate(bench, 1.2 * t, n_save=11, max_steps=50, throw=False).success
+    assert tx.simulate(bench, t, n_save=N_SAVE, max_steps=50, throw=False).success
+    assert not tx.simulate(bench, 1.2 * t, n_save=N_SAVE, max_steps=50, throw=False).success
     (line,) = res.failures()
     assert "max_steps_reached" in line and f"t = {t:.6g} s of 0.05 s" in line and "max_steps" in line
     with pytest.raises(tx.SimulationError, match=r"failed \(max_steps_reached\) at t = "):
-        tx.simulate(bench, 0.05, n_save=11, max_steps=50)
+        tx.simulate(bench, 0.05, n_save=N_SAVE, max_steps=50)
 
 
 def test_fixed_step_beyond_stability_is_a_failure_not_nan():
@@ -113,15 +127,15 @@ def test_fixed_step_beyond_stability_is_a_failure_not_nan():
     # diffrax, taking constant steps, has no error estimate to refuse them. That must come back
     # as a failure, not as numbers.
     bench = tx.TestBench()
-    res = tx.simulate(bench, 0.02, n_save=11, fixed_step=1e-4, throw=False)
+    res = tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=1e-4, throw=False)
     assert not res.success
     assert res.result == diffrax.RESULTS.nonfinite
     with pytest.raises(tx.SimulationError, match="smaller step"):
-        tx.simulate(bench, 0.02, n_save=11, fixed_step=1e-4)
+        tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=1e-4)
     # Inside the limit the fixed step agrees with the adaptive solution (no contact yet in the
     # first 20 ms from rest, so both are smooth; 5th-order steps of 20 us: error far below 1e-9).
-    fixed = tx.simulate(bench, 0.02, n_save=11, fixed_step=2e-5)
-    adaptive = tx.simulate(bench, 0.02, n_save=11, rtol=1e-10, atol=1e-13)
+    fixed = tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=2e-5)
+    adaptive = tx.simulate(bench, 0.02, n_save=N_SAVE, rtol=1e-10, atol=1e-13)
     assert fixed.success and int(fixed.num_steps) == 1000
     np.testing.assert_allclose(np.asarray(fixed.output_angle), np.asarray(adaptive.output_angle), rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="fixed_step"):
@@ -136,7 +150,8 @@ def test_bad_duration_rejected():
 
 
 def test_cli_demo_bench(tmp_path, capsys):
-    code = cli.main(["demo", "--bench", "--duration", "0.02", "--out", str(tmp_path)])
+    # 0.05 s: the demo saves every millisecond, so N_SAVE saves: the shared program.
+    code = cli.main(["demo", "--bench", "--duration", "0.05", "--out", str(tmp_path)])
     assert code == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["result"] == "successful"

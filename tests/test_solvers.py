@@ -63,14 +63,19 @@ class PenaltyAdam(AbstractDesignSolver):
             return problem.cost_model.total(x.band, problem.features.size_mm) / c0 + self.penalty * jnp.sum(excess**2)
 
         optimiser = optax.adam(self.learning_rate)
-        return dict(z=z, state=optimiser.init(z), to_x=to_x, loss=jax.jit(jax.value_and_grad(loss)), optimiser=optimiser, rows=[])
+
+        def adam_step(_, carry):
+            z, state = carry
+            updates, state = optimiser.update(jax.grad(loss)(z), state, z)
+            z = optax.apply_updates(z, updates)
+            return optax.projections.projection_box(z, jax.tree.map(jnp.zeros_like, z), jax.tree.map(jnp.ones_like, z)), state
+
+        # The `inner` steps in one compiled loop (not `inner` Python calls of eager optax updates).
+        inner = jax.jit(lambda z, state: jax.lax.fori_loop(0, self.inner, adam_step, (z, state)))
+        return dict(z=z, state=optimiser.init(z), to_x=to_x, inner=inner, rows=[])
 
     def step(self, problem, s):
-        for _ in range(self.inner):
-            _, g = s["loss"](s["z"])
-            updates, s["state"] = s["optimiser"].update(g, s["state"], s["z"])
-            z = optax.apply_updates(s["z"], updates)
-            s["z"] = optax.projections.projection_box(z, jax.tree.map(jnp.zeros_like, z), jax.tree.map(jnp.ones_like, z))
+        s["z"], s["state"] = s["inner"](s["z"], s["state"])
         x = s["to_x"](s["z"])
         f = float(problem.objective(x, problem.draws, problem.width))
         s["rows"].append((float(problem.cost_model.total(x.band, problem.features.size_mm)), f, f - 60.0, 0.0, self.penalty, 0.0,
