@@ -55,10 +55,20 @@ def test_a_second_process_reads_every_program_from_the_cache(tmp_path):
     assert result_warm == result  # bitwise the same simulation
 
 
-def test_the_cache_can_be_turned_off(tmp_path):
+def test_the_cache_can_be_turned_off(tmp_path, monkeypatch):
+    """`TOLERAX_CACHE=off`: `enable_compilation_cache` returns None, makes no folder and leaves
+    JAX's settings as they were (checked here in-process; a whole command run with it, writing
+    nothing, in test_montecarlo_command_with_the_cache_equals_without)."""
+    import jax
+
+    import tolerax as tx
+
+    before = (jax.config.jax_compilation_cache_dir, jax.config.jax_persistent_cache_min_compile_time_secs)
     folder = tmp_path / "cache"
-    printed, _, hits, _, _ = _run(folder, TOLERAX_CACHE="off")
-    assert printed == "None" and hits == 0 and not folder.exists()
+    for off in ("off", "0", "no", "False"):
+        monkeypatch.setenv("TOLERAX_CACHE", off)
+        assert tx.enable_compilation_cache(folder) is None and not folder.exists()
+        assert (jax.config.jax_compilation_cache_dir, jax.config.jax_persistent_cache_min_compile_time_secs) == before
 
 
 USER_MODULE = """
@@ -137,6 +147,8 @@ def test_montecarlo_command_with_the_cache_equals_without(tmp_path):
     for name, extra in (("off", {"TOLERAX_CACHE": "off"}), ("cold", {}), ("warm", {})):
         subprocess.run([*argv, "--out", str(tmp_path / name)], env=env | extra, check=True, capture_output=True, timeout=600)
         runs[name] = xr.load_dataset(tmp_path / name / "montecarlo.nc")
+        if name == "off":  # the off switch: the whole command wrote nothing where the cache would be
+            assert not (tmp_path / "cache").exists()
     assert len(list((tmp_path / "cache" / "exported").iterdir())) >= 1
     for name in ("cold", "warm"):
         for var in runs["off"].variables:

@@ -434,6 +434,12 @@ estimate = "high"
 """
 
 
+# `over_life` jitted once for the module (what `tolerax run` and `feature_growth` compute with the
+# same lambda): the life tests below trace it once between them, and read the program `tolerax
+# run` compiled back from the run's compilation cache.
+_over_life = eqx.filter_jit(lambda p, v: p.over_life(v))
+
+
 def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys):
     """`[life]`: the MissionLife it describes (one year of operation: 4 years at a quarter,
     the lubricant's high estimate, 2 points by default), carried into `objective()` (its `_eol`
@@ -477,7 +483,7 @@ def test_life_table_builds_the_mission_life_and_run_reports_it(tmp_path, capsys)
     assert "## Over the mission's life" in text and text in printed
     rows = [line for line in text.splitlines() if line.startswith("| ") and line[2].isdigit()]
     assert len(rows) == 3 and rows[0].split(" | ")[1] == "0" and rows[2].split(" | ")[1] == "4"
-    outputs, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(tx.load_scene(path).objective(), tx.design_of(sf.build()))
+    outputs, depths = _over_life(tx.load_scene(path).objective(), tx.design_of(sf.build()))
     last = rows[2].strip("| ").split(" | ")
     assert float(last[2]) == pytest.approx(float(outputs["pointing_rms"][2]), abs=0.051)
     np.testing.assert_allclose([float(v) for v in last[4:]], np.asarray(depths["azimuth"][2]) * 1e6, rtol=5e-3, atol=1e-12)
@@ -548,7 +554,7 @@ def test_life_comparison_shows_the_wear_allowance(tmp_path):
         return types.SimpleNamespace(nominal=m, band=b, cost=cost, tolerances=tx.Tolerances(names, m, b))
 
     growth = feature_growth(pointing, middle)
-    _, depths = eqx.filter_jit(lambda p, v: p.over_life(v))(pointing, jnp.asarray(middle))
+    _, depths = _over_life(pointing, jnp.asarray(middle))
     end = np.asarray(depths["azimuth"][-1])
     assert growth["azimuth.planet_clearance"] == pytest.approx((end[2:5].min(), end[2:5].max()), rel=1e-12)
     assert growth["azimuth.sun_backlash"] == pytest.approx((end[5:8].min(), end[5:8].max()), rel=1e-12)
