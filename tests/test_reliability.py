@@ -189,6 +189,32 @@ def test_slopes_at_a_wider_width():
         rel.LinearisedYield(line, slope_width=-1.0)
 
 
+def test_two_sets_of_secant_units_are_one_compiled_program():
+    """The secant units' positions are values, not structure: `design_problem` hands
+    `LinearisedYield` the positions `secant_draws` makes at `secant_seed`, so the noise band's
+    twin design (seed + 1, `propose_design`) traces and compiles nothing again; the fit at given
+    positions is the fit at that seed; a seed and positions together, or positions of another
+    number of units, are refused."""
+    line = R.Line(R.scan_scene(), 100.0, SLOPES, 35e-6, sigma=0.5)
+    one, two = (_propose.design_problem(line, yield_=0.9, secant_units=8, scatter=True, secant_seed=seed).objective.objective
+                for seed in (1, 2))
+    for objective, seed in ((one, 1), (two, 2)):
+        np.testing.assert_array_equal(np.asarray(objective.secant_positions), np.asarray(rel.secant_draws(4, 8, seed)))
+    traces = []
+    model = eqx.filter_jit(lambda o, x_: (traces.append(1), o.model(x_, 1e-6))[1])
+    fitted = [model(o, X) for o in (one, two)]
+    assert len(traces) == 1  # the second set of units: no new trace, no new compile
+    assert float(fitted[0][0]) != float(fitted[1][0])  # other units, another fit
+    by_seed = rel.LinearisedYield(line, q=0.9, secant_units=8, scatter=True, secant_seed=2)
+    for a, b in zip(fitted[1], eqx.filter_jit(lambda o, x_: o.model(x_, 1e-6))(by_seed, X)):
+        if a is not None:
+            np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-12)
+    with pytest.raises(ValueError, match="give one of the two"):
+        rel.LinearisedYield(line, q=0.9, secant_units=8, secant_seed=2, secant_positions=one.secant_positions)
+    with pytest.raises(ValueError, match="one per secant unit"):
+        rel.LinearisedYield(line, q=0.9, secant_units=9, secant_positions=one.secant_positions)
+
+
 def test_secant_slopes_are_the_least_squares_line_through_the_units():
     """`secant_units`: the value and slopes are the least-squares line through the outputs of
     the units at `secant_draws` (against NumPy's lstsq on the same units evaluated one by one,

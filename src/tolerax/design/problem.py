@@ -16,7 +16,7 @@ from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
 from .objectives import AbstractObjective, unit_output, value_and_jacobian
-from .reliability import LinearisedYield, fit_surface, secant_gradient_noise, yield_draws
+from .reliability import LinearisedYield, fit_surface, secant_draws, secant_gradient_noise, yield_draws
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
 from ..uncertainty.sampling import Tolerances, unit_draws
@@ -218,7 +218,8 @@ def design_problem(
       forward solves only; where tangents are noise, a line through the units is not);
       `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
       (`LinearisedYield(scatter=True)`: a chaotic metric such as the jitter); `secant_seed`:
-      which set of secant units (`LinearisedYield.secant_seed`); `log_outputs` (with
+      which set of secant units (`LinearisedYield.secant_seed`; handed to it as positions,
+      `secant_positions`, so that two seeds run one compiled program); `log_outputs` (with
       `secant_units`): outputs whose line is fitted to their logarithm, a scatter relative to
       their level (`LinearisedYield.log_outputs`: the jitter); `secant_reach` (m, with
       `secant_units`): the secant units span the middle +- at least this much
@@ -299,9 +300,13 @@ def design_problem(
     if yield_ is None:
         objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
     else:
+        # The secant units' positions as values (from `secant_seed`), not as a static seed: the
+        # noise band's twin design (`secant_seed` + 1) runs the same compiled programs.
+        positions = None if secant_units is None else secant_draws(n + len(uncertain), int(secant_units), int(secant_seed))
         objective = LinearisedYield(pointing, output, float(yield_), None if slope_width is None else float(slope_width),
-                                    None if secant_units is None else int(secant_units), bool(scatter), int(secant_seed),
-                                    tuple(log_outputs), None if secant_reach is None else float(secant_reach))
+                                    None if secant_units is None else int(secant_units), bool(scatter), None,
+                                    tuple(log_outputs), None if secant_reach is None else float(secant_reach),
+                                    secant_positions=positions)
         if surface_box is not None:
             objective = eqx.tree_at(lambda o: o.surface, objective, fit_surface(objective, *surface_box, surface_width),
                                     is_leaf=lambda v: v is None)

@@ -272,9 +272,13 @@ class LinearisedYield(eqx.Module):
     under-reads the units' (benchmarks/results/design_stability.md). $\\sigma$ is held fixed in
     the derivative, like the slopes.
 
-    `secant_seed`: the seed of the secant units' Latin hypercube (`secant_draws`). Two seeds are
-    two independent sets of units: where the response is chaotic the design found with each
-    differs by the fits' noise (`propose_design`'s noise band).
+    `secant_seed`: the seed of the secant units' Latin hypercube (`secant_draws`; `None`: seed 1).
+    Two seeds are two independent sets of units: where the response is chaotic the design found
+    with each differs by the fits' noise (`propose_design`'s noise band). Or `secant_positions`
+    (an array, `secant_draws`' shape: the standardised positions of the units, middle first)
+    instead of a seed: the positions are then values, not structure, so designs with two sets of
+    units run one compiled program (`design_problem` gives them so; `propose_design`'s noise band
+    solves its twin design without compiling again).
 
     `log_outputs` (with `secant_units`): outputs whose line is fitted to their logarithm,
     $\\log y \\approx f + s\\cdot(v - m) + \\sigma z$, and whose quantile is then $\\exp$ of that
@@ -322,10 +326,11 @@ class LinearisedYield(eqx.Module):
     slope_width: float | None = eqx.field(static=True, default=None)
     secant_units: int | None = eqx.field(static=True, default=None)
     scatter: bool = eqx.field(static=True, default=False)
-    secant_seed: int = eqx.field(static=True, default=1)
+    secant_seed: int | None = eqx.field(static=True, default=None)
     log_outputs: tuple[str, ...] = eqx.field(static=True, default=())
     secant_reach: float | None = eqx.field(static=True, default=None)
     surface: Surface | None = None
+    secant_positions: Array | None = None
 
     def __check_init__(self):
         if not 0.0 < self.q < 1.0:
@@ -344,8 +349,23 @@ class LinearisedYield(eqx.Module):
         if _uncertain_count(self.pointing) and self.secant_units is None:
             raise ValueError(f"LinearisedYield: each unit of this pointing objective draws {', '.join(self.pointing.uncertain_inputs)} "
                              "(a life's spread); a tangent at the zone's middle cannot carry it: give secant_units (and scatter).")
+        if self.secant_positions is not None:
+            if self.secant_units is None or self.secant_seed is not None:
+                raise ValueError("LinearisedYield: secant_positions (the units' standardised positions) need secant_units and replace "
+                                 "secant_seed: give one of the two.")
+            if jnp.shape(self.secant_positions)[0] != self.secant_units:
+                raise ValueError(f"LinearisedYield: secant_positions has {jnp.shape(self.secant_positions)[0]} rows; it needs one per "
+                                 f"secant unit ({self.secant_units}).")
         if self.secant_reach is not None and (self.secant_units is None or not self.secant_reach > 0):
             raise ValueError(f"LinearisedYield: secant_reach must be > 0 (m) and needs secant_units, got {self.secant_reach!r}.")
+
+    def unit_positions(self, n_features: int) -> Array:
+        """The standardised positions ([-1, 1]) of the secant units over `n_features` design
+        features and the uncertain inputs: `secant_positions`, or `secant_draws` at `secant_seed`."""
+        if self.secant_positions is not None:
+            return self.secant_positions
+        seed = 1 if self.secant_seed is None else self.secant_seed
+        return secant_draws(n_features + _uncertain_count(self.pointing), self.secant_units, seed)
 
     def fit_band(self, band):
         """The half-widths (m) the secant units span about the middle: the zone's, at least
@@ -383,7 +403,7 @@ class LinearisedYield(eqx.Module):
                 value, slopes, sigma, t = value[0], slopes[0], sigma[0], t[0]
             return value, slopes, (sigma if self.scatter else None), (t if uncertain else None)
         if self.secant_units is not None:
-            positions = secant_draws(middle.shape[0] + _uncertain_count(self.pointing), self.secant_units, self.secant_seed)
+            positions = self.unit_positions(middle.shape[0])
             f, s, sigma, t = value_and_secants(middle, jax.lax.stop_gradient(self.fit_band(x.band)), positions, self.pointing,
                                                self.output, width, self.log)
             return f, s, (jax.lax.stop_gradient(sigma) if self.scatter else None), (jax.lax.stop_gradient(t) if uncertain else None)
@@ -486,7 +506,7 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
 def _fit_units(objective: LinearisedYield, middle, band, width):
     """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
     n = middle.shape[0]
-    positions = secant_draws(n + _uncertain_count(objective.pointing), objective.secant_units, objective.secant_seed)
+    positions = objective.unit_positions(n)
     units = realise(Design(middle, band), positions[:, :n])
     drawn = _with_uncertain(objective.pointing, units, positions)  # a life's wear rate, drawn per unit: carried by the line
     width = None if width is None else jnp.asarray(width, dtype=float)
