@@ -91,8 +91,13 @@ def test_distinct_planets_are_features_of_their_own(tmp_path):
         tx.default_stage(distinct_planets="yes")
 
 
+@pytest.mark.slow
 def test_scan_gradients_against_finite_differences(scan_pointing, scan_unit):
-    """Through one reversal (0.25 s) with the back flank engaging after it: the reverse-mode
+    """Enlarges tests/test_gradients.py::test_lumped_scan_directional_derivative_at_contact_onset
+    (reverse and forward mode against differences and each other, 0.3 s) and
+    tests/test_reliability.py::test_yield_objective_gradient_on_the_scan (the forward-mode
+    gradient on this scan, its backlash derivatives against the lever): the whole 0.6 s scan at
+    the design's own tolerance, both modes. Through one reversal (0.25 s) with the back flank engaging after it: the reverse-mode
     gradient of the RMS pointing error matches central differences along a random direction,
     and the forward-mode one matches it. At the 1 um smoothing width of the optimiser's
     continuation the objective is nearly smooth at finite-difference scale:

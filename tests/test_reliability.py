@@ -109,6 +109,11 @@ def test_yield_objective_gradient_on_the_scan(scan_pointing, scan_unit):
     assert float(grad.nominal @ d) == pytest.approx(fd, rel=2e-3)  # the same FD noise as test_design's gradient check
     geometric = np.asarray(lost_motion_weights(scan_pointing.scene))
     assert float(grad.nominal[1] / grad.nominal[2]) == pytest.approx(geometric[1] / geometric[2], rel=0.05)
+    # Lost motion per metre of backlash seen at the output: 1 / lever (rad/m); the RMS over the
+    # run sees a fraction of it. Sun and ring backlash add in the lumped mesh: equal derivatives.
+    per_backlash = 1.0 / float(tx.lumped_mesh(scan_pointing.scene.azimuth.stage, 2e-4).lever) / tx.ARCSEC
+    assert 0.1 * per_backlash < float(grad.nominal[2]) < per_backlash
+    assert float(grad.nominal[2]) == pytest.approx(float(grad.nominal[3]), rel=1e-9)
 
 
 def test_yield_check_is_direct_simulation(scan_pointing, scan_unit):
