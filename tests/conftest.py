@@ -41,11 +41,13 @@ def pytest_configure(config):
 # The files that take longest, longest first (summed test seconds of a whole run: tests/README.md).
 # pytest-xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands whole files to
 # the workers in collection order, each to the first worker free; longest first keeps both of
-# CI's two cores busy to the end instead of one finishing a long file alone. A stale order costs
-# only that balance, never a result.
-_LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_mechanism.py", "test_notebooks.py", "test_notebooks_physics.py",
-                  "test_life.py", "test_hard_cases.py", "test_montecarlo.py", "test_scenefile.py", "test_loaded.py",
-                  "test_design.py", "test_gradients.py", "test_cache.py", "test_bench.py", "test_joint.py", "test_requirements.py",
+# CI's two cores busy to the end instead of one finishing a long file alone. The notebooks come
+# after test_cli.py, whose designs and studies compile programs two of them read back from the
+# run's cache (tests/_notebooks.py); test_hard_cases.py before test_bench.py (the bench
+# program). A stale order costs only time, never a result.
+_LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_mechanism.py", "test_life.py", "test_hard_cases.py",
+                  "test_notebooks.py", "test_notebooks_physics.py", "test_montecarlo.py", "test_scenefile.py", "test_loaded.py",
+                  "test_gradients.py", "test_design.py", "test_cache.py", "test_bench.py", "test_joint.py", "test_requirements.py",
                   "test_planetary.py")
 
 

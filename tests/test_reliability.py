@@ -84,36 +84,43 @@ X_SCAN = tx.Design(jnp.array([100e-6, 20e-6, 20e-6, 20e-6]), jnp.array([10e-6, 5
 
 
 def test_yield_objective_gradient_on_the_scan(scan_pointing, scan_unit):
-    """On the lumped scan (1 um width): the objective's derivative with respect to the bands is
-    exact (the slopes depend on the zone middles only) and matches central differences along a
-    random direction of the bands; with respect to the middles it is the unit's gradient s, which
-    central differences of the unit's own metric confirm along a random direction. The
-    simulated slopes weigh pin against backlash as the drawings do on this slow scan (8.25 /
-    4.39 = 1.88, within 5 %)."""
-    objective = rel.LinearisedYield(scan_pointing, q=0.99)
-    draws = rel.yield_draws(4)
-    x = X_SCAN
-    value_and_grad = eqx.filter_jit(jax.value_and_grad(lambda x_, d, w: objective(x_, d, w)))
-    _, grad = value_and_grad(x, draws, jnp.asarray(1e-6))
+    """On the lumped scan (1 um width), through the program `propose_design` compiles for a 99 %
+    yield (the design problem's objective of lower limits and half-widths, its value and
+    gradient: test_yield_proposal_binds_its_quantile runs the same one): the derivative with
+    respect to the bands at fixed middles is exact (the slopes depend on the zone middles only)
+    and matches central differences along a random direction of the bands; with respect to the
+    middles (the lower limits at fixed bands) it is the unit's gradient s, which central
+    differences of the unit's own metric confirm along a random direction. The simulated slopes
+    weigh pin against backlash as the drawings do on this slow scan (8.25 / 4.39 = 1.88, within
+    5 %), and each backlash as the lumped mesh's lever says."""
+    from tolerax.design.subproblem import _value_and_grad
+
+    problem = _propose.design_problem(scan_pointing, yield_=0.99)
+    width = jnp.asarray(1e-6, dtype=float)
+    x = tx.Design(X_SCAN.nominal - X_SCAN.band, X_SCAN.band)  # lower limits, half-widths (m)
+    value = lambda x_: float(_propose._objective_value(problem.objective, x_, problem.draws, width))  # noqa: E731
+    _, grad = _value_and_grad(problem.objective, x, problem.draws, width)
+    middles, bands = np.asarray(grad.nominal), np.asarray(grad.band) - np.asarray(grad.nominal)  # d/d(middle), d/d(band) at fixed middle
     rng = np.random.default_rng(5)
     # The estimate is piecewise linear in the bands (a kink wherever two of the 16384 draws
     # swap rank: at a 0.1 um step the differences average over kinks and differ by 0.1 %), so
     # the step is 1e-10 m, mostly inside one linear piece: measured 5e-5 relative per feature,
-    # where a kink still falls inside the step (rounding error alone ~1e-10).
+    # where a kink still falls inside the step (rounding error alone ~1e-10). The middles stay
+    # where they are (the limits move down as the bands grow): no simulation changes.
     h, e = 1e-10, jnp.asarray(rng.normal(size=4))
-    up, _ = value_and_grad(tx.Design(x.nominal, x.band + h * e), draws, jnp.asarray(1e-6))
-    down, _ = value_and_grad(tx.Design(x.nominal, x.band - h * e), draws, jnp.asarray(1e-6))
-    assert float(grad.band @ e) == pytest.approx((float(up) - float(down)) / (2 * h), rel=2e-4)
+    up, down = (value(tx.Design(x.nominal - s * h * e, x.band + s * h * e)) for s in (1.0, -1.0))
+    assert float(bands @ np.asarray(e)) == pytest.approx((up - down) / (2 * h), rel=2e-4)
     h, d = 0.1e-6, rng.normal(size=4) * np.array([0.0, 1.0, 1.0, 1.0])  # the carrier barely moves it: FD noise only
-    fd = (float(scan_unit(x.nominal + h * d)["pointing_rms"]) - float(scan_unit(x.nominal - h * d)["pointing_rms"])) / (2 * h)
-    assert float(grad.nominal @ d) == pytest.approx(fd, rel=2e-3)  # the same FD noise as test_design's gradient check
+    middle = np.asarray(X_SCAN.nominal)
+    fd = (float(scan_unit(middle + h * d)["pointing_rms"]) - float(scan_unit(middle - h * d)["pointing_rms"])) / (2 * h)
+    assert float(middles @ d) == pytest.approx(fd, rel=2e-3)  # the same FD noise as test_design's gradient check
     geometric = np.asarray(lost_motion_weights(scan_pointing.scene))
-    assert float(grad.nominal[1] / grad.nominal[2]) == pytest.approx(geometric[1] / geometric[2], rel=0.05)
+    assert middles[1] / middles[2] == pytest.approx(geometric[1] / geometric[2], rel=0.05)
     # Lost motion per metre of backlash seen at the output: 1 / lever (rad/m); the RMS over the
     # run sees a fraction of it. Sun and ring backlash add in the lumped mesh: equal derivatives.
     per_backlash = 1.0 / float(tx.lumped_mesh(scan_pointing.scene.azimuth.stage, 2e-4).lever) / tx.ARCSEC
-    assert 0.1 * per_backlash < float(grad.nominal[2]) < per_backlash
-    assert float(grad.nominal[2]) == pytest.approx(float(grad.nominal[3]), rel=1e-9)
+    assert 0.1 * per_backlash < middles[2] < per_backlash
+    assert middles[2] == pytest.approx(middles[3], rel=1e-9)
 
 
 def test_yield_check_is_direct_simulation(scan_pointing, scan_unit):

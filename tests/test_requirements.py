@@ -82,10 +82,10 @@ def test_a_new_requirement_kind_is_one_metric_class(peak_pointing):
     both, each equal to the problem's objective evaluated again; the Monte Carlo check covers
     the metric; the report names it."""
     values = tx.design_of(peak_pointing.scene)
-    run = peak_pointing.run(values)
+    run = peak_pointing.run(values, 1e-6)  # the optimiser's width: `outputs` and `at_middle` below are one program
     ts, error = np.asarray(run.ts), np.asarray(run.pointing_error) / ARCSEC
     after = (ts >= 0.25) & (ts <= 0.35)
-    outputs = peak_pointing(values)
+    outputs = peak_pointing(values, 1e-6)
     assert float(outputs["peak_after_reversal"]) == pytest.approx(error[after].max(), rel=1e-12)
     assert "peak_after_reversal" in peak_pointing.outputs and peak_pointing.units["peak_after_reversal"] == "arcsec"
     pair = _propose.design_problem(peak_pointing, yield_=0.9, output=("pointing_rms", "peak_after_reversal"))

@@ -493,24 +493,25 @@ def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
     """`tolerax design SCENE --life YEARS [--wear-spread]`: the scene's `[life]` lasting YEARS
     (its other keys kept, or the defaults without one), the RMS requirement met at the end of
     life too (one budget), each unit's rate drawn over the lubricant's band with `--wear-spread`;
-    what reaches `propose_design` is read off (the design itself is replaced: its solves are
-    tested in test_life.py and test_reliability.py). Refused where nothing wears, and
-    `--wear-spread` without `--life`."""
-    from tolerax.cli import commands
+    what reaches the public `propose_design` is read off (the design itself is replaced by a
+    recorder that then refuses, so the command stops there with its refusal's exit code 2: the
+    design's solves are tested in test_life.py and test_reliability.py). Refused where nothing
+    wears, and `--wear-spread` without `--life`."""
+    from tolerax.design import propose as _p
     from tolerax.design.life import YEAR, WEAR_FACTOR
     from tolerax.physics.wear import LUBRICANTS
 
     seen = {}
 
-    def propose(pointing, requirements, options, command):
+    def propose(pointing, requirements, **options):
         seen.update(pointing=pointing, requirements=requirements)
-        return 0
+        raise ValueError("recorded by the test")
 
-    monkeypatch.setattr(commands, "_propose", propose)
+    monkeypatch.setattr(_p, "propose_design", propose)
     lifeless = tmp_path / "lifeless.toml"
     lifeless.write_text(LIFE_SCENE.split("[life]")[0])
     args = ["design", str(lifeless), "--requirement", "500", "--yield", "0.9", "--out", str(tmp_path / "d")]
-    assert cli.main(args + ["--life", "10", "--wear-spread"]) == 0
+    assert cli.main(args + ["--life", "10", "--wear-spread"]) == 2 and "recorded by the test" in capsys.readouterr().err
     life = seen["pointing"].life
     mos2 = LUBRICANTS["MoS2 sputtered film, vacuum"]
     assert float(life.operating_time) == pytest.approx(10 * YEAR, rel=1e-15) and float(life.wear.rate) == mos2.median
@@ -521,7 +522,7 @@ def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
     own = tmp_path / "own.toml"
     own.write_text(LIFE_SCENE)
     assert cli.main(["design", str(own), "--requirement", "500", "--life", "2", "--require", "pointing_rms_eol=800",
-                     "--out", str(tmp_path / "e")]) == 0
+                     "--out", str(tmp_path / "e")]) == 2
     life = seen["pointing"].life
     assert float(life.operating_time) == pytest.approx(0.5 * YEAR, rel=1e-15) and life.spread is None
     assert float(life.wear.rate) == LUBRICANTS["PFPE grease (Braycote-type), vacuum"].high
