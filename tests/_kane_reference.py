@@ -89,3 +89,14 @@ def spring_ring_stage(**options):
         lambda s: (s.ring_support, s.ring_torsion), tx.default_stage(**options), (Support("spring", 1e8), jnp.asarray(1e8)),
         is_leaf=lambda x: x is None,
     )
+
+
+def twisted_scan_state(layout, ratio, key):
+    """A random state of a one-axis scan whose azimuth stage turns as a rigid reduction up to a
+    twist: output angle anywhere in [-3, 3] rad, motor at `ratio` times it plus up to 1 mrad of
+    twist, speeds standard normal, no auxiliary states (test_joint.py, test_extending.py)."""
+    kq, ku, kt = jax.random.split(key, 3)
+    theta_c = jax.random.uniform(kt, minval=-3.0, maxval=3.0)
+    twist = 1e-3 * jax.random.uniform(kq, (), minval=-1.0, maxval=1.0)
+    q = jnp.zeros(layout.size_q).at[layout.azimuth_q].set(jnp.stack([ratio * (theta_c + twist), theta_c]))
+    return q, jax.random.normal(ku, (layout.size_u,)), jnp.zeros(layout.size_v)

@@ -12,6 +12,7 @@ import pytest
 from jaxtyping import Array, Float
 
 import tolerax as tx
+from _kane_reference import twisted_scan_state
 from tolerax.mechanism.joints import JointLayout, disc_tensors, planet_spin_ratio
 
 # -- Recipe: a contact law ----------------------------------------------------------------------
@@ -148,11 +149,7 @@ def test_fourth_fidelity_equals_lumped_on_a_clearance_free_stage():
     assert new.layout == lay
     i = float(stage.ratio)
     for k, t in enumerate((0.0, 0.3, 0.8)):
-        kq, ku, kt = jax.random.split(jax.random.key(k), 3)
-        theta_c = jax.random.uniform(kt, minval=-3.0, maxval=3.0)
-        twist = 1e-3 * jax.random.uniform(kq, (), minval=-1.0, maxval=1.0)
-        q = jnp.zeros(lay.size_q).at[lay.azimuth_q].set(jnp.stack([i * (theta_c + twist), theta_c]))
-        y = (q, jax.random.normal(ku, (lay.size_u,)), jnp.zeros(lay.size_v))
+        y = twisted_scan_state(lay, i, jax.random.key(k))
         got, want = _field(new, jnp.asarray(t), y), _field(ref, jnp.asarray(t), y)
         assert float(jnp.abs(want[1]).max()) > 1.0  # the mesh torque accelerates the gears
         for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):

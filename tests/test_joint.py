@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
+from _kane_reference import twisted_scan_state
 from tolerax.mechanism.joints import JointLayout
 
 
@@ -76,11 +77,7 @@ def test_a_fourth_fidelity_is_one_class_and_matches_the_lumped_joint():
     lay, i = mechs["lumped"].layout, float(mechs["lumped"].azimuth.stage.ratio)
     assert mechs["toy"].layout == lay
     for k, t in enumerate((0.0, 0.13, 0.41)):
-        kq, ku, kt = jax.random.split(jax.random.key(k), 3)
-        theta_c = jax.random.uniform(kt, minval=-3.0, maxval=3.0)
-        twist = 1e-3 * jax.random.uniform(kq, (), minval=-1.0, maxval=1.0)
-        q = jnp.zeros(lay.size_q).at[lay.azimuth_q].set(jnp.stack([i * (theta_c + twist), theta_c]))
-        y = (q, jax.random.normal(ku, (lay.size_u,)), jnp.zeros(lay.size_v))
+        y = twisted_scan_state(lay, i, jax.random.key(k))
         got, want = (_field(mechs[name], jnp.asarray(t), y) for name in ("toy", "lumped"))
         assert float(jnp.abs(want[1]).max()) > 1.0  # the mesh torque accelerates the gears
         for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
