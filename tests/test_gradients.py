@@ -38,6 +38,7 @@ import numpy as np
 import pytest
 
 import tolerax as tx
+from tolerax.mechanism.outputs import pointing_metrics
 
 
 # Two tiers. The default run checks each property once, cheaply: a forward-mode directional
@@ -110,20 +111,24 @@ class _Lumped:
             self.scene, duration=LUMPED_HORIZON, settle=0.0, start="steady", n_save=61, rtol=RTOL, atol=ATOL
         )
         rms = lambda p: self.pointing(p, WIDTH)["pointing_rms"]  # noqa: E731
-        self.f = eqx.filter_jit(rms)
         self.grad = eqx.filter_jit(jax.grad(rms))
         joint = self.scene.azimuth
         lever, ratio, lay = tx.lumped_mesh(joint.stage, joint.motor_inertia).lever, joint.stage.ratio, joint.layout
         sq = self.scene.layout.azimuth_q
 
         @eqx.filter_jit
-        def probe(p):
-            # The displacements the two contacts see: the output bearing's eccentricity (m) and
-            # the lumped mesh deflection g (m; the back flank closes at g = -back_gap).
-            q = self.pointing.run(p, WIDTH).states[0][:, sq]
-            return jnp.hypot(q[:, lay.carrier_xy][:, 0], q[:, lay.carrier_xy][:, 1]), lever * (q[:, lay.sun] / ratio - q[:, lay.carrier])
+        def observe(p):
+            # The objective (the objective's own metric of the same run: `pointing_rms` over every
+            # save, settle 0) and, from that run (one compiled program for both), the displacements
+            # the two contacts see: the output bearing's eccentricity (m) and the lumped mesh
+            # deflection g (m; the back flank closes at g = -back_gap).
+            run = self.pointing.run(p, WIDTH)
+            q = run.states[0][:, sq]
+            return (pointing_metrics(run, run.ts >= 0.0)["pointing_rms"], jnp.hypot(q[:, lay.carrier_xy][:, 0], q[:, lay.carrier_xy][:, 1]),
+                    lever * (q[:, lay.sun] / ratio - q[:, lay.carrier]))
 
-        self.probe = probe
+        self.f = lambda p: observe(p)[0]
+        self.probe = lambda p: observe(p)[1:]
         self.ts = np.linspace(0.0, LUMPED_HORIZON, 61)
         self.kappa = float(jnp.cos(joint.stage.sun_pressure_angle) + jnp.cos(joint.stage.ring_pressure_angle))
 

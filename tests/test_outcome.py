@@ -144,7 +144,7 @@ def test_a_stalled_tangent_design_is_finished_on_secant_slopes():
     scene = R.scan_scene()
     line = R.Line(scene, 600.0, 0.5 * np.asarray(lost_motion_weights(scene)), 60e-6, sigma=[100.0])
     problem = P.design_problem(line, yield_=0.99)
-    requirement = 0.9 * float(P._objective_value(problem.objective, problem.x0, problem.draws, 1e-6))
+    requirement = 0.9 * float(problem.value(width=1e-6))
     report = tx.propose_design(line, requirement, yield_=0.99, widths=(1e-6,), max_outer=20, check_units=0)
     common = dict(requirement=requirement, draws=problem.draws, cost_model=problem.cost_model, width=1e-6, max_iterations=20,
                   tol=(0.01,))

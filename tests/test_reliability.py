@@ -98,7 +98,7 @@ def test_yield_objective_gradient_on_the_scan(scan_pointing, scan_unit):
     problem = _propose.design_problem(scan_pointing, yield_=0.99)
     width = jnp.asarray(1e-6, dtype=float)
     x = tx.Design(X_SCAN.nominal - X_SCAN.band, X_SCAN.band)  # lower limits, half-widths (m)
-    value = lambda x_: float(_propose._objective_value(problem.objective, x_, problem.draws, width))  # noqa: E731
+    value = lambda x_: float(problem.value(x_, width))  # noqa: E731
     _, grad = _value_and_grad(problem.objective, x, problem.draws, width)
     middles, bands = np.asarray(grad.nominal), np.asarray(grad.band) - np.asarray(grad.nominal)  # d/d(middle), d/d(band) at fixed middle
     rng = np.random.default_rng(5)
@@ -161,7 +161,7 @@ def test_yield_proposal_binds_its_quantile(scan_pointing):
     optimality residual and the check, and the quantile evaluated again at the proposal is the
     reported one."""
     problem = _propose.design_problem(scan_pointing, yield_=0.99)
-    value = lambda x: float(_propose._objective_value(problem.objective, x, problem.draws, jnp.asarray(1e-6)))  # noqa: E731
+    value = lambda x: float(problem.value(x, 1e-6))  # noqa: E731
     requirement = 0.5 * value(problem.x0)
     report = tx.propose_design(scan_pointing, requirement, yield_=0.99, widths=(1e-6,), check_units=20, max_checks=1)
     assert report.yield_ == 0.99 and len(report.checks) == 1 and report.checks[0].n == 20

@@ -16,6 +16,7 @@ from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
 from .objectives import AbstractObjective, unit_output, value_and_jacobian
+from .subproblem import objective_value
 from .reliability import LinearisedYield, fit_surface, secant_draws, secant_gradient_noise, yield_draws
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
@@ -133,6 +134,13 @@ class DesignProblem:
     x0: Design
     cost_model: AbstractCostModel
     zone_upper: np.ndarray | None = None
+
+    def value(self, x: Design | None = None, width: float = 1e-7) -> Array:
+        """The objective at `x` (`Design(lower limit, band)`, m; default `x0`) and smoothing
+        `width` (m; default `propose_design`'s last width): the value part of the program the
+        optimiser differentiates, so that asking for a baseline before a design compiles nothing
+        the design does not use. One value per requirement (an array of them for several)."""
+        return objective_value(self.objective, self.x0 if x is None else x, self.draws, width)
 
     @property
     def gradient_noise(self):

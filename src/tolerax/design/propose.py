@@ -27,7 +27,7 @@ from .loop import tolerance_worth
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
-from .subproblem import _value_and_grad, _value_and_jacobian
+from .subproblem import objective_value as _objective_value
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -75,18 +75,6 @@ def _cheapest_accepted(costs, quantiles, requirement, tol=0.01):
     did."""
     ok = [k for k, q in enumerate(quantiles) if np.all(np.asarray(q) <= np.asarray(requirement) * (1 + np.asarray(tol)))]
     return min(ok, key=lambda k: costs[k]) if ok else None
-
-
-def _objective_value(objective, x, draws, width):
-    """The design objective at `x`: the value part of the program the optimiser differentiates
-    (`_value_and_grad`, or `_value_and_jacobian` for several requirements), so that a design
-    compiles one program through its simulations, not two (each is a solve carrying the
-    slopes' tangents: the value alone would be a second program of about the same size)."""
-    output = getattr(getattr(objective, "objective", objective), "output", None)
-    width = None if width is None else jnp.asarray(width, dtype=jnp.float64)  # not weakly typed: the optimiser's program
-    if isinstance(output, tuple) and len(output) > 1:
-        return _value_and_jacobian(objective, x, draws, width)[0]
-    return _value_and_grad(objective, x, draws, width)[0]
 
 
 def propose_design(
