@@ -1,7 +1,7 @@
 """JAX's persistent compilation cache for tolerax: compiled programs written to disk and read
 back by the next process, so that a command, a notebook kernel or a Monte Carlo worker that
 simulates a scene structure already compiled skips the compilation (seconds per solve;
-`benchmarks/results/warm_start.md`).
+`benchmarks/warm_start.py` times a cold start against a warm one).
 
 - `enable_compilation_cache(path=None)`: turn it on (the command line does, unless
   `TOLERAX_CACHE=off`); in a notebook or script, `tx.enable_compilation_cache()` before the

@@ -23,27 +23,24 @@ DTMIN = 1e-13  # s: a step below this is a step-size collapse (see `solve`)
 # scene files' `[run]` check (which names the key and line) both read it.
 PID_RULES = {"pcoeff": (lambda x: x >= 0, ">= 0"), "icoeff": (lambda x: x > 0, "> 0")}
 # The default (pcoeff, icoeff): diffrax's I-controller. A PI controller (0.3, 0.3) rejects fewer
-# steps at the same rtol: 0.88x the wall time on the full planetary antenna in developed rattle,
-# 0.87-0.95x on the bench, the lumped antenna and the planetary scan; but no gain at rtol 1e-8 or
-# on rattling Monte Carlo units (0.97-1.04x), 4x farther from a tight solve on the one rattle
-# window's pointing RMS (6.5e-4 against 1.5e-4 relative; nearer on the other scenes)
-# (`benchmarks/results/archive/rattle_window_5242a25.md`, `archive/monte_carlo_solvers_5242a25.md`), and the same solve compiled
-# in two programs (a vmapped batch, a gradient) then differs by ~1e-8 instead of rounding
-# (tests/test_reliability.py). Tried as the default and reverted: it is an option, not the default.
+# steps at the same rtol, so a single run at rtol 1e-6 costs a little less; it gains nothing at
+# tight tolerances or on rattling Monte Carlo units (as many attempted steps), and in a developed
+# rattle its pointing error lies farther from a tight solve. It is an option, not the default:
+# with it the same solve compiled in two programs (a vmapped batch, a gradient) differs by ~1e-8
+# instead of rounding (tests/test_reliability.py).
 DEFAULT_PID = (0.0, 1.0)
 # The explicit Runge-Kutta solvers a run may name (scene files' `[run] solver`, `simulate(solver=
-# "Bosh3")`). Tsit5 is the default (`DEFAULT_SOLVER`). Bosh3 (3rd order, 3 evaluations a step) at
-# rtol 1e-4 with the PI controller runs the full planetary stage 1.6x (developed rattle) and
-# 1.7x (rattling Monte Carlo units) faster than Tsit5 at rtol 1e-6; against a tight solve
-# its pointing RMS errs 1.1-1.3x as much as Tsit5's with the I-controller on the Monte Carlo units
-# (2.3x on the rattle window), its peak 1.6x, its jitter up to 3.4x on the worst of 16 units
-# (`benchmarks/results/archive/rattle_window_5242a25.md`, `archive/monte_carlo_solvers_5242a25.md`).
-# SRK53 (3rd order, 5 evaluations, its stability region fitted to the full stage's damped mesh
-# modes) at rtol 1e-3 with pcoeff = icoeff = 0.2 runs the full planetary antenna in developed
-# rattle at 0.78x Bosh3 + PI (0.3, 0.3) at 1e-3 and 0.45x Tsit5 at the default setting, its
-# pointing and jitter errors against a tight solve inside the default's own
-# (`benchmarks/results/rattle_window.md`, `stability_region.md`); on scenes whose fast modes are
-# undamped it is slower than Bosh3 (`SRK53`).
+# "Bosh3")`). Tsit5 is the default (`DEFAULT_SOLVER`). On the full planetary stage the explicit
+# step is held by the stability of lightly damped mesh modes, not by accuracy, so a method with a
+# larger stability region per evaluation pays there. Bosh3 (3rd order, 3 evaluations a step) at
+# rtol 1e-4 to 1e-5 with the PI controller is cheaper than Tsit5 at rtol 1e-6, its pointing RMS
+# and peak errors against a tight solve near Tsit5's, its jitter (the rattle's most chaotic
+# output) farther off on the worst units. SRK53 (3rd order, 5 evaluations, its stability region
+# fitted to the full stage's damped mesh modes) at rtol 1e-3 with pcoeff = icoeff = 0.2 is the
+# cheapest of them on the full planetary antenna in developed rattle, its pointing and jitter
+# errors against a tight solve of the default's size; on scenes whose fast modes are undamped it
+# is slower than Bosh3 (`SRK53`). `benchmarks/rattle_window.py` and
+# `benchmarks/monte_carlo_solvers.py` measure them (benchmarks/README.md lists the runs).
 DEFAULT_SOLVER = "Tsit5"
 
 
@@ -51,7 +48,7 @@ class SRK53(diffrax.AbstractERK):
     """An explicit Runge-Kutta method of 3rd order in 5 evaluations a step (FSAL) whose stability
     region is fitted to lightly damped fast modes: the full planetary stage's mesh and bearing
     modes, 7-19 kHz at 3.3-8 % of critical damping in the developing rattle (the slower ones,
-    1-7 kHz, down to 0.5 %) (`benchmarks/results/stability_region.md`).
+    1-7 kHz, down to 0.5 %; `benchmarks/stability_region.py` computes the spectrum).
 
     Its stability polynomial is `1 + z + z^2/2 + z^3/6 + g4 z^4 + g5 z^5` with `(g4, g5) =
     (0.029692, 0.005774)`, chosen to reach farthest along the rays of 3.5-12 % damping (and the
@@ -153,14 +150,10 @@ class _NanSafe(diffrax.AbstractAdaptiveStepSizeController):
 
 # XLA's CPU compiler hands some products and reductions to YNNPACK ("ynn fusions"); for one
 # state's right-hand side of these scenes (36 x 36 mass matrices, many kernels of a few
-# microseconds) that costs more than it saves: a single solve runs 12 % faster without them
-# (planetary and lumped dual-axis antenna, same steps and results; vmapped over 64 states they
-# pay, so Monte Carlo's batched programs keep the default). benchmarks/results/archive/rhs_anatomy.md.
-# Eigen's products on one thread: split over the CPU's threads, the right-hand side's 12 x 84 x 12
-# and smaller products pay the hand-over more than they save (that product alone 0.6x its time
-# on one thread; the whole right-hand side 0.89-0.98x in interleaved races of one state and of
-# 16 vmapped, 1.03x, within the noise, in benchmarks/results/archive/rhs_floor_5a45657.md's run,
-# 0.93x in archive/rhs_floor_b12243a.md's).
+# microseconds) that costs more than it saves: a single solve is faster without them, with the
+# same steps and results; vmapped over many states they pay, so Monte Carlo's batched programs
+# keep the default. Eigen's products on one thread: split over the CPU's threads, the right-hand
+# side's 12 x 84 x 12 and smaller products pay the hand-over more than they save.
 CPU_COMPILER_OPTIONS = {"xla_cpu_experimental_ynn_fusion_type": "", "xla_cpu_multi_thread_eigen": False}
 
 

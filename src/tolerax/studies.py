@@ -6,10 +6,9 @@ scenes, a few hundredths of a second: it proves the pipeline in CI) or `"full"` 
 grids, coarser where noted, 3 s each with metrics over the last 1 s: hours of CPU for the 46
 scenes). Scenes start in steady rolling at the commanded rate (free base, meshes
 undeflected). That is not the loaded steady state: the servo then builds its lag against the
-output drag, and the output's speed swings down to nearly a stop and back over the first ~2 s
-(`benchmarks/results/archive/claim_causes_transient.md`). Metrics therefore start at `settle` = 2 s.
-The full size also records each scene's metrics over 0.3-1 s under `"start_up"`, the window of
-the 1 s studies committed before (which measured the start-up, not the steady state).
+output drag, and the output's speed swings down to nearly a stop and back over the first ~2 s.
+Metrics therefore start at `settle` = 2 s. The full size also records each scene's metrics over
+0.3-1 s under `"start_up"`: a window inside that start-up, not the steady state.
 
 Fidelity per joint, chosen for what each study asks: the *driving* joint is `"planetary"` (the
 studies vary its planet, carrier and mesh clearances); the non-driving joint, which the paper
@@ -20,7 +19,7 @@ fidelity misses.
 
 A long horizon is `run(..., duration=, settle=)` (`tolerax studies --duration 20 --settle 19`),
 saved after every scene and resumable (`done=`, `--resume`), so that a long horizon (the 46
-scenes of 20 s in `notebooks/results/horizon-20s/`) can run in several sittings.
+scenes of 20 s that `benchmarks/study_horizon.py` compares) can run in several sittings.
 """
 
 import dataclasses

@@ -81,7 +81,7 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
 
 
 # Rough wall seconds per simulated second of one joint at each fidelity, on one core of the
-# development machine: half the dual antenna's, benchmarks/results/mechanism_cost.md (Tsit5,
+# development machine: half the dual antenna's as `benchmarks/mechanism_cost.py` times it (Tsit5,
 # rtol 1e-6, steady start, 0.98 deg/s). A scan's reversals, a tighter tolerance or another
 # machine change it by 2x or more: an estimate to say before a long run, not a promise.
 ROUGH_COST = {"ideal": 0.03, "lumped": 0.22, "planetary-scaled": 3.2, "planetary": 8.1}

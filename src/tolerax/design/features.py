@@ -127,8 +127,8 @@ def lost_motion_weights(scene):
     clearance $c_p$ by $(\\cos\\alpha_s + \\cos\\alpha_r)/r$ (the carrier floats by that on the pin's
     loaded side), the bearings that carry the output (sun, carrier) 0; $r = i\\,r_{bs}$ the lever of
     the output rotation on the sun's base circle. What an engineer reads off the drawings; a
-    simulation's sensitivities (`propose_design`'s report) say where the dynamics weigh
-    otherwise (benchmarks/results/design_antenna.md).
+    simulation's sensitivities (`propose_design`'s report, `DesignReport.split`) say where the
+    dynamics weigh otherwise.
     With `distinct_planets`, each planet's feature weighs $1/N$ of that: the stack-up of the
     planets' mean play (the first planet to take the load sets the lost motion, which a linear
     stack-up cannot say in advance)."""

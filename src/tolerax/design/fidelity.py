@@ -16,8 +16,8 @@ cost. What each keeps decides what it can answer:
 
 So the vibration outputs (`VIBRATION_OUTPUTS`: the jitter, the RMS of the pointing error above
 a cutoff frequency) are read at `planetary` fidelity only; the others at any fidelity that models
-the joint's clearances. `benchmarks/results/fidelity_adequacy_*.md` measures it: every output at
-every fidelity against the full stage on paired units (`fidelity_agreement`).
+the joint's clearances. `fidelity_agreement` measures it (`benchmarks/fidelity_adequacy.py` runs
+it): every output at every fidelity against the full stage on paired units.
 
 A requirement states the fidelity it is read at (`Requirement.fidelity`, default by its
 output: `read_at`); `check_fidelity` refuses a design whose scene models a joint below it,
@@ -85,8 +85,8 @@ def check_fidelity(scene, requirements: Sequence, *, allow_proxy: bool = False, 
         if below:
             joints = ", ".join(f"the {joint} joint is {f}" for joint, f in below.items())
             findings.append(f"The requirement {r.text()} is read at {fidelity} fidelity, but {joints}: a proxy that does not "
-                            f"read {r.name} as the full stage does (tolerax.design.fidelity; measured in "
-                            "benchmarks/results/fidelity_adequacy_*.md).")
+                            f"read {r.name} as the full stage does (tolerax.design.fidelity: on paired units the cheaper "
+                            "fidelities do not follow the full stage's vibration, unit by unit).")
     if findings and not allow_proxy:
         raise ValueError(f"{who}: " + " ".join(findings) + f" To design it: {remedy}; or allow the proxy knowingly "
                          "(allow_proxy=True, `--allow-proxy`).")

@@ -128,7 +128,7 @@ class PointingObjective(AbstractObjective):
     of the saves, `(n_save - 1) / (2 duration)`. Calling the objective raises `ValueError`
     where the saves are too sparse for it (fewer than 4 per cutoff period, or a window
     `duration - settle` shorter than one period: raise `n_save`). Off by default so that the
-    objectives without it (short smoke horizons, sparse saves) run as before. The jitter's
+    objectives without it (short smoke horizons, sparse saves) are unaffected. The jitter's
     window is the others', decided in Python from the save times (`jnp.linspace(0, duration,
     n_save)` computed by NumPy: a save within rounding of `settle` may fall on the other side).
 
@@ -148,8 +148,9 @@ class PointingObjective(AbstractObjective):
 
     `adjoint` (optional): how derivatives pass through the solve, a diffrax adjoint handed to
     `simulate` (default `None`: `diffrax.RecursiveCheckpointAdjoint()`, reverse mode;
-    `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). benchmarks/results/gradient_methods.md compares
-    their costs.
+    `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`). Forward mode's cost grows with the
+    tangents it carries, reverse mode's with the checkpointed trajectory, so for a few design
+    features forward mode is the cheaper (`benchmarks/gradient_methods.py` compares them).
     """
 
     scene: eqx.Module

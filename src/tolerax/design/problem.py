@@ -61,7 +61,7 @@ def _unit_output_forward(values, pointing, output, width):
     """`unit_output`, whose reverse-mode derivative is computed in forward mode: the backward
     pass of a simulation needs the whole trajectory (checkpointed and recomputed), while a
     handful of tangents carried along the forward solve (`diffrax.ForwardMode`) cost less for
-    the few clearances of a scene (benchmarks/results/gradient_methods.md). The Jacobian over
+    the few clearances of a scene. The Jacobian over
     the unit's design vector is formed on the forward pass and kept for the backward one."""
     return unit_output(values, pointing, output, width)
 
@@ -86,7 +86,7 @@ class RobustPointing(eqx.Module):
     `"forward"` (default; one forward solve carrying one tangent per design feature, then the
     chain rule through `realise`; the objective then supports reverse-mode `jax.grad`/`vjp` but
     not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
-    mode). benchmarks/results/gradient_methods.md measures both."""
+    mode). `benchmarks/gradient_methods.py` compares the two."""
 
     pointing: AbstractObjective
     output: str = eqx.field(static=True, default="pointing_rms")
@@ -221,7 +221,7 @@ def design_problem(
       `slope_width` (m, optional): take the slopes at this smoothing width (`LinearisedYield`:
       at a narrow width forward-mode tangents through the contacts can be spiky); default at
       the objective's own width (where the value is rough too, wider slopes may not make the
-      design converge: benchmarks/results/design_antenna.md). `secant_units` (optional, more than the features): fit the value and
+      design converge: secants, below, fit a line through that roughness). `secant_units` (optional, more than the features): fit the value and
       slopes by least squares over this many units of the zone instead (`LinearisedYield`:
       forward solves only; where tangents are noise, a line through the units is not);
       `scatter` (with `secant_units`): the quantile includes the fit's residual scatter
@@ -265,8 +265,8 @@ def design_problem(
         warnings.warn(
             f"design_problem: the lumped joint(s) {', '.join(lumped)} have per-planet features (distinct_planets), but a lumped "
             "joint keeps only the tightest planet's lost motion: a design there tightens one planet and leaves the others wide, "
-            "which the planetary stage does not bear out (its verified yield falls far below the one designed for: "
-            "benchmarks/results/design_antenna_planets.md). Design per-planet features at planetary fidelity.", stacklevel=2)
+            "which the planetary stage does not bear out (its verified yield falls far below the one designed for). "
+            "Design per-planet features at planetary fidelity.", stacklevel=2)
     n = len(names)
     min_clearance = np.broadcast_to(np.asarray(min_clearance, dtype=float), (n,))
     if not (np.all(np.isfinite(min_clearance)) and np.all(min_clearance >= 0)):

@@ -119,7 +119,7 @@ def propose_design(
       sequential method solves at each in turn from the last design; the augmented Lagrangian
       takes one value per outer iteration, the last repeated. A wide first width makes the
       sequential method robust to its start: the contacts make the narrow objective rough far
-      from the optimum (benchmarks/results/design_comparison.md).
+      from the optimum.
     - `method`: `"sequential"` (default: `sequential_design`, the linearised problem solved
       exactly at each iterate in a trust region, once per width of `widths`, each from the last
       one's design; at most `max_outer` gradients per width, default 20; where the tangent
@@ -128,7 +128,7 @@ def propose_design(
       say so; `inner_steps` and `learning_rate` unused) or `"augmented-lagrangian"` (`optimise_design`: Adam on the
       augmented Lagrangian, on optax, with the `widths` continuation; `max_outer` outer
       iterations, default 6, of `inner_steps` steps at `learning_rate`).
-      benchmarks/results/design_comparison.md races the two, SciPy's SLSQP, a calibrated
+      `benchmarks/design_comparison.py` races the two, SciPy's SLSQP, a calibrated
       stack-up and derivative-free search.
     - `progress`: a progress bar over the optimiser's iterations.
     - `callback`: `method="sequential"` only: `callback(gradients, x, cost, objective)` after
@@ -150,7 +150,7 @@ def propose_design(
       `pointing.jitter_cutoff` Hz over the window; set `PointingObjective(jitter_cutoff=...)`)
       at most `jitter`. Needs `yield_`. Both metrics are linearised by secants over
       `secant_units` units of the zone (default max(16, 2 x features + 2); jitter tangents are
-      not its slopes: rattle is chaotic, benchmarks/results/stability_gradient.md), from the same
+      not its slopes: rattle is chaotic and a tangent grows exponentially with the horizon), from the same
       solves (their quantiles include the fits' residual scatter, `scatter=True`, unless
       `scatter=False` is given), so at the pointing objective's fidelity: give a planetary one (lumped jitter does
       not predict the planetary stage's unit by unit). The jitter's tolerance is twice its fit's standard error at the start
@@ -170,7 +170,7 @@ def propose_design(
       the surface's slopes); then the checks, whose re-solves stay in the last box. A surface over
       the whole bounds finds where the requirement can be met but reads the quantile where the
       design lands with the bounds' average misfit; the last surface is fitted over that
-      design's own units (benchmarks/results/design_stability_planetary_log_surface_rounds_checked.md).
+      design's own units.
       1: the one surface over `surface_box`. The report's `notes` list the boxes.
     - `allow_proxy`: design requirements whose output the scene's joints do not read as the
       full stage does (a jitter requirement on a lumped or mass-scaled joint:
@@ -395,7 +395,7 @@ def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, wi
     box's lower edge, `DesignProblem.zone_upper` its upper edge): a line is trusted only where
     it was fitted, and a feature whose fitted slope is noise would otherwise carry its zone
     (free to move: it costs nothing) far outside the box, where the quantile is read off an
-    extrapolation (benchmarks/results/design_stability_planetary_log_surface_rounds_checked.md).
+    extrapolation.
     Until the boxes settle (moving the box's edges would change each output by at most its
     requirement's tolerance `tol` along the surface's slopes) or `rounds` surfaces were
     fitted. Returns `(problem, trusted, result, notes)`: the problem on the last surface, the

@@ -249,7 +249,7 @@ class LinearisedYield(eqx.Module):
     and only the value $f$ at `width` (one more solve, without tangents). Where the contacts
     make the response rough, forward-mode tangents at a narrow width are not the slope of the
     response: at a narrow width they can jump by orders of magnitude for a tiny change of the
-    design while the value barely moves (benchmarks/results/design_matrix.md). The slopes of the smoothed model are what a stack-up needs; the Monte Carlo check measures
+    design while the value barely moves. The slopes of the smoothed model are what a stack-up needs; the Monte Carlo check measures
     what they miss.
 
     `secant_units` (optional, at least one more than the features): instead of tangents at the
@@ -269,8 +269,7 @@ class LinearisedYield(eqx.Module):
     more column: `yield_draws(n_features + 1)`). Where the response scatters about its trend from
     unit to unit for reasons the features do not carry (the jitter of a rattling stage: a line
     in the features explains a small part of its variance), the line's quantile alone
-    under-reads the units' (benchmarks/results/design_stability.md). $\\sigma$ is held fixed in
-    the derivative, like the slopes.
+    under-reads the units'. $\\sigma$ is held fixed in the derivative, like the slopes.
 
     `secant_seed`: the seed of the secant units' Latin hypercube (`secant_draws`; `None`: seed 1).
     Two seeds are two independent sets of units: where the response is chaotic the design found
@@ -284,13 +283,12 @@ class LinearisedYield(eqx.Module):
     $\\log y \\approx f + s\\cdot(v - m) + \\sigma z$, and whose quantile is then $\\exp$ of that
     one's (quantiles commute with a monotone map). For a positive output whose unit-to-unit
     scatter grows with its level: the jitter of a rattling stage, whose standard deviation over
-    units of one zone is about proportional to its mean across the design space
-    (benchmarks/results/jitter_reach.md). Fitted on its own scale, such a scatter is the one
-    measured at the current zone and held fixed, so the optimiser cannot see that a tighter zone
-    scatters less, and a requirement below the scatter reads as unreachable; on the log scale
-    the scatter is relative and moves with the level. Measured: it does not by itself make the
-    full stage's stability design converge (its slopes within a zone are still noise,
-    benchmarks/results/design_stability_planetary_log.md); opt-in (`Requirement(log_fit=True)`).
+    units of one zone is about proportional to its mean across the design space. Fitted on its
+    own scale, such a scatter is the one measured at the current zone and held fixed, so the
+    optimiser cannot see that a tighter zone scatters less, and a requirement below the scatter
+    reads as unreachable; on the log scale the scatter is relative and moves with the level. It
+    does not by itself make the full stage's stability design converge (its slopes within a
+    zone are still noise); opt-in (`Requirement(log_fit=True)`).
 
     `secant_reach` (m, with `secant_units`): the secant units span the middle +- at least this
     much, wider than a narrower zone: the line is the response's trend over that neighbourhood.

@@ -24,7 +24,7 @@ from .objectives import UNITS
 # rattle): linearised by secants over units, with the fit's residual scatter.
 SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
 # Of those, outputs whose scatter grows with their level: their secant line is fitted to their
-# logarithm (a relative scatter), benchmarks/results/jitter_reach.md.
+# logarithm (a relative scatter). Empty: the log fit is opt-in (`Requirement(log_fit=True)`).
 LOG_FIT_OUTPUTS = frozenset()
 
 NAMES = {
@@ -49,8 +49,8 @@ class Requirement:
       (needs a yield requirement); default: for the outputs in `SCATTERING_OUTPUTS`.
     - `log_fit` (optional, with `secants`): fit the secant line to the output's logarithm, so
       that its unit-to-unit scatter is relative to its level (`LinearisedYield.log_outputs`);
-      default: for the outputs in `LOG_FIT_OUTPUTS` (the jitter, whose scatter grows with its
-      level: benchmarks/results/jitter_reach.md).
+      default: for the outputs in `LOG_FIT_OUTPUTS` (none: it suits the jitter, whose scatter
+      grows with its level, but is opt-in).
     - `label` (optional): its name in reports; default from the output.
     - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
       takes it from `PointingObjective.units`, a metric's own included).

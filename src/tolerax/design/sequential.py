@@ -34,7 +34,7 @@ limits held, below `band_tol`). The last test exists because the lower limits ca
 their optimality condition is $\\partial f/\\partial l = 0$, and on an objective rough at small
 scales (impacts at a narrow smoothing width) that derivative is noise: the iterates move such
 a lower limit about and the full residual stays above its tolerance while the cost has
-stopped changing (benchmarks/results/design_comparison.md). Where the constraints' gradients are estimates (slopes fitted over
+stopped changing. Where the constraints' gradients are estimates (slopes fitted over
 a few units of a chaotic response: the jitter), the bands' test may also pass within two
 standard errors of them (`gradient_noise`). Otherwise the run ends on its budget, reported not
 converged, with the cheapest iterate on the requirement.

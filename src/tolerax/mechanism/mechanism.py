@@ -103,8 +103,8 @@ class Mechanism(AbstractScene):
     on-orbit case; or `"fixed"`, a ground test stand). Build the paper's scenes with `antenna`.
 
     `mass_solve` (static): `"blocks"` (the default) solves the equations of motion by blocks
-    (`kane_blocks`); `"whole"` forms the whole mass matrix and factorises it, as before the
-    blocks (the same equations to rounding; kept for the benchmarks that compare the two). It
+    (`kane_blocks`); `"whole"` forms the whole mass matrix and factorises it (the same
+    equations to rounding; kept for the benchmarks that compare the two). It
     is static: build a new `Mechanism(...)` to change it (`eqx.tree_at` cannot)."""
 
     azimuth: AbstractJoint
@@ -501,8 +501,7 @@ class Mechanism(AbstractScene):
         - `"steady"`: as `"rest"`, but each servo-driven joint already turning at its commanded
           rate in rigid kinematics (sun at $i\\Omega$, planets rolling), meshes undeflected and
           the servo at zero lag. The servo then builds its lag against the output drag: the
-          output's speed swings and settles over ~2 s at the default gains
-          (`benchmarks/results/archive/loaded_start.md`).
+          output's speed swings and settles over ~2 s at the default gains.
         - `"loaded"`: the loaded steady state itself (`loaded_state`): speeds as `"steady"`, and
           each servo lagging its command by what the drag needs, the gear train's play taken up
           on the loaded flanks and every mesh and contact deflected under that load. Needs
@@ -537,12 +536,12 @@ class Mechanism(AbstractScene):
         the anchor picks the one nearest the closed form (moved by <= 1.6 urad, 35 nm).
 
         Outside `jit`, a `ValueError` if the polish leaves more than 1 % of the residual that
-        the `"steady"` state has (measured 2e-4 planetary, 4e-3 lumped). What remains is the
+        the `"steady"` state has. What remains is the
         pitch output's radial load (the centripetal force of link 2 and the reflector turning
         about the azimuth axis, ~1e-3 N): the carrier floats in its clearance, where that force
         has no gradient to follow, so it drifts to the bearing wall over the first 1-2 s of a
-        run (lumped joints: output-bearing peaks of 0.5-3.7 N from 1 s, speed error up to
-        7 urad/s, `benchmarks/results/archive/loaded_start.md`)."""
+        run (lumped joints: output-bearing contacts of a few newtons from about 1 s, a speed
+        error of a few urad/s)."""
         lay = self.layout
         for name, joint in (("azimuth", self.azimuth), ("pitch", self.pitch)):
             if joint.layout.size == 0:

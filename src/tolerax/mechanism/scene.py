@@ -93,12 +93,11 @@ def simulate(
     - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
       default; `"Bosh3"`, `"SRK53"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage in
       developed rattle, `"SRK53"` at rtol 1e-3 (atol 1e-6) with `pcoeff = icoeff = 0.2` is the
-      fastest setting measured, 0.45x the default's wall time with its errors inside the
-      default's own (`tolerax.solve.SRK53`); `"Bosh3"` at
-      rtol 1e-4 (atol 1e-7) with `pcoeff = icoeff = 0.3` runs 1.6-1.7x faster than Tsit5 at
-      rtol 1e-6; against a tight solve its pointing RMS errs 1.1-2.3x as much, its peak 1.6x,
-      its jitter up to 3.4x on the worst of 16 rattling units (`tolerax.solve.SOLVERS` has the
-      figures); implicit solvers are compared in `benchmarks/work_precision.py`.
+      cheapest setting, its errors against a tight solve of the default's size
+      (`tolerax.solve.SRK53`); `"Bosh3"` at rtol 1e-4 (atol 1e-7) with `pcoeff = icoeff = 0.3`
+      is also cheaper than Tsit5 at rtol 1e-6, its pointing RMS and peak errors near the
+      default's, its jitter farther off on the worst rattling units (`tolerax.solve.SOLVERS`
+      says why); implicit solvers are compared in `benchmarks/work_precision.py`.
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
@@ -106,9 +105,9 @@ def simulate(
     - `max_steps`: step budget.
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
       (`diffrax.PIDController`). The default (0, 1) is diffrax's I-controller; a PI controller
-      (0.3, 0.3) rejects fewer steps, 0.87-0.95x the wall time of a single run at rtol 1e-6, no
-      gain on rattling Monte Carlo units (`tolerax.solve.DEFAULT_PID` has the figures and why it
-      is not the default). Python numbers: changing them recompiles (like `solver`); ignored
+      (0.3, 0.3) rejects fewer steps, so a single run at rtol 1e-6 costs a little less, but it
+      gains nothing on rattling Monte Carlo units (`tolerax.solve.DEFAULT_PID` says why it is not
+      the default). Python numbers: changing them recompiles (like `solver`); ignored
       with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).

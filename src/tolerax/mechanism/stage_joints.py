@@ -148,10 +148,9 @@ class MassScaledPlanetaryJoint(_AbstractStageJoint):
 
     **What it keeps.** The pointing error, tracking speed error and mean bearing loads stay
     close to the full stage's; vibration amplitude and contact-force peaks do not, so verify a
-    result at full fidelity. The measured speed-up and every output's difference against the
-    full stage, by scaling and tolerance, are in `benchmarks/results/mass_scaling.md` and
-    `mass_scaling_rtol.md` (rerun with `benchmarks/mass_scaling.py`); the mode analysis behind
-    the default families in `benchmarks/results/archive/fast_modes.md`.
+    result at full fidelity. `benchmarks/mass_scaling.py` measures the speed-up and every
+    output's difference against the full stage, by scaling and tolerance; the default families
+    are the relative motions of the stage's fastest modes named above.
     **`mass_scaling`**: $s \\ge 1$ (1: the full stage).
     **`families`**: which relative motions are scaled (static), from `SCALED_FAMILIES`.
     """

@@ -139,8 +139,7 @@ def default_stage(
     `distinct_planets`: design each planet's pin clearance and sun/ring backlash as features of
     their own (`azimuth.planet_clearance[0]`, ...; `tolerax.design.features`) instead of one
     value for all planets: for a tolerance design that sorts or matches planets. Design them at
-    planetary fidelity: a lumped joint keeps only the tightest planet's lost motion
-    (benchmarks/results/design_antenna_planets.md).
+    planetary fidelity: a lumped joint keeps only the tightest planet's lost motion.
 
     Every argument is checked before anything is built (`ValueError`/`TypeError` naming it).
     """

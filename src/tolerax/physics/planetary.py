@@ -166,9 +166,9 @@ def deflections_and_jacobian(stage: PlanetaryStage, q: Array) -> tuple[dict, dic
     column); the only other nonlinear pieces are elementwise, each differentiated where it is
     evaluated (`jax.jvp` along its one argument): the profile error in the mesh phase, the
     centre distance's norm and the dynamic backlash in it. Equal to the forward-mode Jacobian
-    to rounding (`tests/test_planetary.py`); the joints' forces cost 0.6x what they did with it
-    (`benchmarks/results/archive/rhs_floor_5a45657.md`): forward mode carries every coordinate's tangent through
-    every elementwise function, whose derivatives XLA:CPU then recomputes for each of them.
+    to rounding (`tests/test_planetary.py`) and cheaper: forward mode carries every coordinate's
+    tangent through every elementwise function, whose derivatives XLA:CPU then recomputes for
+    each of them.
     """
     lay = stage.layout
     n_q, n = q.shape[-1], stage.n_planets
@@ -345,9 +345,8 @@ def stage_forces(
     each, $F$ as a row ($F^TD$): XLA:CPU fuses the producer of a matrix-vector product's operands
     into the product's loop, and with the vector on the right it evaluated the force laws once
     per coordinate. `"forward"`: the same with $D$ by forward-mode autodiff over the stage's
-    coordinates (the formulation before: the antenna's joint forces cost 1.7x the closed form's,
-    `benchmarks/results/archive/rhs_floor_5a45657.md`). `"jvp-vjp"`: a `jvp` for the rates and a `vjp`
-    for the projection (the formulation before that). Same values to rounding; the other two
+    coordinates (dearer: every coordinate's tangent goes through the elementwise force laws).
+    `"jvp-vjp"`: a `jvp` for the rates and a `vjp` for the projection. Same values to rounding; the other two
     are kept for the equivalence test and the benchmarks."""
     width = stage.smoothing_width
     if projection == "closed-form":

@@ -12,9 +12,8 @@ def small_matmul(a, b):
     """`a @ b` for small operands (rotations, offsets: a few dozen products) as a sum of products
     over the contracted axis, batch axes broadcast as `@` does; `b` may be a vector. XLA:CPU
     runs every dot as a library call of its own, a kernel with its own overhead that nothing
-    fuses into, while a sum of products fuses with the elementwise work beside it: the full
-    planetary antenna's vector field ~10 % faster with its rotations written this way
-    (`benchmarks/results/archive/rhs_floor_b12243a.md`). For products of a few hundred terms
+    fuses into, while a sum of products fuses with the elementwise work beside it, so the
+    frames' rotations are written this way. For products of a few hundred terms
     and more keep `@`: a fused sum recomputes its operands per output element."""
     a, b = jnp.asarray(a), jnp.asarray(b)
     if b.ndim == 1:

@@ -127,7 +127,7 @@ def _pin_worker(cores) -> None:
     """Initializer of a `backend="processes"` worker: run on one core of its own, taken from the
     shared queue `cores`, before JAX starts (its CPU client sizes its thread pool to the process's
     cores). One solve's right-hand side is hundreds of microsecond kernels, which XLA's runtime
-    hands between threads at a loss (a pinned solve is faster: `benchmarks/results/archive/pinning.md`),
+    hands between threads at a loss (a solve pinned to one core runs faster and steadier),
     and two free workers on two cores contend for both."""
     try:
         core = cores.get(timeout=10.0)
@@ -371,9 +371,8 @@ def monte_carlo(
     they agree within the solver's own error, not bitwise: a vmapped batch of another size is
     another program that rounds otherwise, and in an adaptive solve a rounding-level difference
     can flip one step's accept/reject decision, after which the two runs take different step
-    sequences and differ by the integration error (measured on the lumped scan: chunk 8 against
-    chunk 1 at 1.5e-6 relative on the RMS pointing error, where rtol 1e-6 against 1e-9 differs by
-    1.7e-5; per scene in benchmarks/results/monte_carlo_throughput.md). A resumed or extended run
+    sequences and differ by the integration error (`benchmarks/monte_carlo_throughput.py` sets the
+    difference beside the solver's own error, per scene). A resumed or extended run
     keeps the chunk size of its manifest.
 
     **Backends** (each runs the samples in chunks of `chunk_size`, with a tqdm bar over chunks):
@@ -384,7 +383,7 @@ def monte_carlo(
       every device; a model that fails there raises an error that says how to run it on one
       device). On GPUs take large chunks. On CPUs
       a vmapped adaptive solve steps until its slowest sample is done, so batching gains most
-      where samples cost alike (benchmarks/results/monte_carlo_throughput.md). For thousands of
+      where samples cost alike. For thousands of
       samples on a many-core machine `"processes"` wins once its start-up (one compile per
       worker) is paid.
     - `"processes"`: chunks farmed to `workers` processes of this machine
@@ -434,7 +433,7 @@ def monte_carlo(
       workers free. XLA's runtime spreads one solve's small kernels over every core it may use,
       at a loss: pinned workers are faster with samples of a second or more, but a pinned
       worker also compiles on its one core, so for many very short samples `False` starts
-      faster (`benchmarks/results/archive/monte_carlo_pinning.md`).
+      faster.
     - `requirement`: default requirement of `MonteCarloResult.summary` (output units).
     - `units`: units of the outputs, e.g. `{"pointing_error": "arcsec"}` (features are in m).
     - `callback`: called as `callback(k, chunk_dataset)` in the driver after chunk `k` is saved.
