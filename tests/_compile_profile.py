@@ -6,6 +6,10 @@ registers it): each process writes `FOLDER/profile-<pid>.jsonl`, a line per test
     TOLERAX_TEST_PROFILE=/tmp/prof pytest --durations=0
     python tests/_compile_profile.py /tmp/prof          # a table by file, then the slowest tests
 
+Each row also keeps, under `programs`, the programs that took over 0.5 s of the test's tracing,
+lowering or compiling ("name|trace", "name|lower", "name|compile" -> s): which programs a
+test pays for, and which are compiled in more than one test.
+
 Programs compiled in a subprocess (the command-line tests' `tolerax ...`, notebook kernels) are
 not seen: their tests count as run time. A test's own events only: one that reads a program
 another compiled shows the read, not the compile.
@@ -23,13 +27,16 @@ import pytest
 _EVENTS = (("jaxpr_trace", "trace"), ("jaxpr_to_mlir", "lower"), ("backend_compile", "compile"),
            ("compilation_cache/cache_retrieval", "cache_read"))
 _now = collections.Counter()
+_programs = collections.Counter()  # (program name, what) -> seconds, for the test running now
 _rows = []
 
 
-def _listener(event, duration_secs=None, **_):
+def _listener(event, duration_secs=None, fun_name=None, **_):
     for key, name in _EVENTS:
         if key in event and duration_secs is not None:
             _now[name] += duration_secs
+            if fun_name and name != "cache_read":
+                _programs[f"{fun_name.removeprefix('jit(').removesuffix(')')}|{name}"] += duration_secs
 
 
 def register(config) -> None:
@@ -43,9 +50,12 @@ def register(config) -> None:
 @pytest.hookimpl(hookwrapper=True, tryfirst=True)
 def pytest_runtest_protocol(item, nextitem):
     _now.clear()
+    _programs.clear()
     start = time.perf_counter()
     yield
-    _rows.append(dict(test=item.nodeid, wall=time.perf_counter() - start, **_now))
+    # The programs over 0.5 s of the test's tracing, lowering or compiling: "name|what" -> s.
+    programs = {k: round(v, 2) for k, v in _programs.items() if v > 0.5}
+    _rows.append(dict(test=item.nodeid, wall=time.perf_counter() - start, **_now, programs=programs))
 
 
 def pytest_sessionfinish(session):

@@ -13,6 +13,7 @@ import pytest
 # back, not compiled again, by every other module and worker. `TOLERAX_TEST_CACHE=off` runs
 # without it (every process compiles its own); tests/test_cache.py sets its own folders.
 _OWNER = "TOLERAX_TEST_CACHE_OWNER"
+_MADE_HERE = False  # whether this process made the run's cache folder (and removes it at the end)
 if os.environ.get("TOLERAX_TEST_CACHE", "").strip().lower() in ("0", "off", "no", "false"):
     os.environ["TOLERAX_CACHE"] = "off"
 elif "TOLERAX_CACHE_DIR" not in os.environ or os.environ.get(_OWNER) != os.environ.get("TOLERAX_CACHE_DIR"):
@@ -21,8 +22,6 @@ elif "TOLERAX_CACHE_DIR" not in os.environ or os.environ.get(_OWNER) != os.envir
     os.environ["TOLERAX_CACHE_DIR"] = os.environ[_OWNER] = tempfile.mkdtemp(prefix="tolerax-test-cache-")
     os.environ.pop("TOLERAX_CACHE", None)
     _MADE_HERE = True
-else:
-    _MADE_HERE = False
 
 jax.config.update("jax_enable_x64", True)
 
