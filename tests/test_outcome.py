@@ -165,3 +165,39 @@ def test_a_stalled_tangent_design_is_finished_on_secant_slopes():
     else:
         assert float(report.result.cost) == pytest.approx(float(again.cost), rel=1e-12)
         assert int(np.asarray(report.result.history.steps)[-1]) == steps + int(np.asarray(again.history.steps)[-1])
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.25])
+def test_an_unreachable_requirement_is_answered_before_optimising(factor):
+    """Infeasible first: `propose_design` evaluates the tightest designs the bounds allow (every
+    band and lower limit at its smallest; and on the bounds the baseline's sensitivities say
+    lower the output) before it optimises. A requirement below their reach (x 0.8) is answered
+    infeasible from them: the optimiser never runs (its callback is never called), the reach
+    named is the tightest design's value of the design problem, and the report says it was
+    answered first. A requirement above it (x 1.25) is designed as before."""
+    import _responses as R
+    import tolerax as tx
+    from tolerax.design import propose as P
+
+    slopes = np.array([4.0e6, 8.0e6, 0.5e6, -0.2e6])  # arcsec/m: the last feature lowers the output as it opens
+    line = R.Line(R.scan_scene(), 300.0, slopes, 5e-6)
+    problem = P.design_problem(line)
+    reach = min(float(problem.value(tightest(problem.lower, problem.upper, s))) for s in (None, slopes))
+    calls = []
+    report = tx.propose_design(line, factor * reach, callback=lambda *args: calls.append(args))
+    if factor < 1:
+        assert report.status == "infeasible" and calls == []
+        assert f"reach {reach:.4g} arcsec at best" in report.diagnosis
+        assert any(note.startswith("Answered before optimising") for note in report.notes)
+        assert float(report.objective) == pytest.approx(reach, rel=1e-12)
+        # Honest words: the report never says the design meets what it misses, and its figure
+        # says first that it is not a proposal.
+        plain = report.plain()
+        assert "It meets" not in plain and f"It misses RMS pointing error <= {factor * reach:g} arcsec" in plain
+        figure = report.plot()
+        assert figure.axes[0].get_title().startswith("NOT A PROPOSAL (infeasible): best design reached for")
+        assert "best design reached: cost" in [t.get_text() for t in figure.axes[0].get_legend().get_texts()][1]
+    else:
+        assert report.status == "converged" and len(calls) > 1
+        assert not any(note.startswith("Answered before optimising") for note in report.notes)
+        assert "It meets RMS pointing error" in report.plain() and "misses" not in report.plain()

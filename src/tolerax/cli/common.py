@@ -241,3 +241,6 @@ def scene_options(parser, what):
 
 
 EPILOG = "Exit codes: 0 done, 2 bad input (the message names the scene file's key and line), 3 a simulation failed."
+# design and tradeoff: also 4, the answer is not a proposal.
+DESIGN_EPILOG = EPILOG[:-1] + (", 4 the answer is not a proposal (not converged, infeasible, noise-limited, or its Monte Carlo "
+                               "check missed: the report says why first; --allow-unconverged writes it as proposal.toml and exits 0).")

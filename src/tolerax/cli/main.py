@@ -38,7 +38,7 @@ import textwrap
 
 from .. import __version__
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
-from .common import DEFAULT_SCENE, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
+from .common import DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
 from .demo import demo_command
 
 # What an interrupted command has kept, and how to go on.
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
             "or with --yield Y in a fraction Y of all units (tolerax.propose_design). Starts from the scene's zones (its design and "
             "its [tolerances] bands). Writes scene.toml, design.md, design.png, design_history.png and proposal.toml (the scene with the proposed "
             "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", 100),
-        epilog=PATH + "\n\n" + EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=PATH + "\n\n" + DESIGN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     scene_options(design, "design")
     design.add_argument("--requirement", type=positive, default=None,
@@ -185,7 +185,7 @@ def main(argv=None) -> int:
         description="One proposal (as `tolerax design`) per requirement: writes tradeoff.md (the table), tradeoff.json, "
         "tradeoff.png (cost against requirement) and each proposal as proposal-R.toml (verify one with "
         "`tolerax montecarlo OUT/proposal-R.toml --out OUT/montecarlo-R`). Every point reuses the compiled simulation: only the requirement changes.",
-        epilog=EPILOG,
+        epilog=DESIGN_EPILOG,
     )
     scene_options(tradeoff, "design")
     tradeoff.add_argument("--requirements", type=positive, nargs="+", required=True, metavar="R",

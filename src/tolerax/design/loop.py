@@ -132,14 +132,15 @@ def solve_design(problem: ConstrainedDesign, solver: AbstractDesignSolver, x0: D
 
     - `problem`: a `ConstrainedDesign`; `solver`: an `AbstractDesignSolver`; `x0`: the start
       (`Design(lower limit, band)`, m).
-    - `max_steps`: iterations at most (for the sequential solver, one gradient evaluation each).
+    - `max_steps`: iterations at most (for the sequential solver, one gradient evaluation each);
+      0: the start evaluated and reported, no step taken.
     - `progress`: a tqdm bar over the steps, with the cost and the constraints' values.
     - `callback(evaluations, x, cost, objective)`: after the start's evaluation (if
       `first_callback`) and after every step, with the design that step evaluated (a trial
       point, kept or not).
     """
-    if int(max_steps) < 1:
-        raise ValueError(f"solve_design: max_steps must be >= 1, got {max_steps!r}.")
+    if int(max_steps) < 0:
+        raise ValueError(f"solve_design: max_steps must be >= 0, got {max_steps!r}.")
     state = solver.init(problem, x0)
     if callback is not None and first_callback:
         callback(*_reordered(solver.last(problem, state)))

@@ -22,12 +22,12 @@ from .features import design_names, lost_motion_weights
 from .objectives import AbstractObjective
 from .drawable import round_to_grades
 from .fidelity import check_fidelity
-from .outcome import MODEL_OFF, diagnose
+from .outcome import MODEL_OFF, diagnose, tightest
 from .loop import tolerance_worth
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
-from .subproblem import objective_value as _objective_value
+from .subproblem import _value_and_grad, _value_and_jacobian, objective_value as _objective_value
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -106,6 +106,12 @@ def propose_design(
     nominal $l + b$ (`FromLowerLimit`). Only the bands cost; the lower limits may not go below
     `min_clearance`, the functional minimum (thermal growth over the orbit's temperature swing,
     the lubricant film, no jamming) — without it the optimum would be a zero-clearance nominal.
+
+    Infeasible first: before optimising, the objective is evaluated at the tightest designs the
+    bounds allow (every band and lower limit at its smallest, and on the bounds the baseline's
+    sensitivities say lower each output: `tolerax.design.outcome.tightest`). Where both miss a
+    requirement no design within the bounds meets it: the report is that design's, `status`
+    `"infeasible"`, with the requirement that would be met, and no optimiser runs.
 
     **Arguments:**
 
@@ -201,11 +207,22 @@ def propose_design(
     proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=allow_proxy))
     problem = design_problem(pointing, **options)
     widths = tuple(float(w) for w in widths)
-    baseline = np.atleast_1d(np.asarray(_objective_value(problem.objective, problem.x0, problem.draws, jnp.asarray(widths[-1])),
-                                        dtype=float))
+    baseline, slopes = _value_and_sensitivity(problem, problem.x0, widths[-1])
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
-    if method == "sequential":
+    out_of_reach = _tightest_first(problem, slopes, requirements, tol, widths[-1])
+    if out_of_reach is not None:
+        # Infeasible first: the tightest designs the bounds allow miss a requirement, so no design
+        # within them meets it; the optimiser is not run. The report is that design's, evaluated.
+        result = sequential_design(
+            problem.objective, problem.features, requirement=_as_requirement(requirements), lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=out_of_reach, cost_model=problem.cost_model, width=widths[-1], max_iterations=0, tol=tuple(tol),
+            zone_upper=problem.zone_upper)
+        targets = requirements
+        notes += ("Answered before optimising: the tightest designs the bounds allow (every band and lower limit at its smallest, "
+                  "and on the bounds the baseline's sensitivities say lower each output) already miss the requirement, so no "
+                  "design within the bounds meets it; the optimiser was not run.",)
+    elif method == "sequential":
         key = jax.random.key(1) if check_key is None else check_key
         rounds = None if options.get("surface_box") is None else (int(surface_rounds), options.get("surface_width"),
                                                                    options.get("secant_reach"))
@@ -263,6 +280,31 @@ def propose_design(
         noise_band=None if twin_costs is None else twin_costs[:2], notes=notes, cost_unit=problem.cost_model.unit,
         grade_range=problem.cost_model.grade_range, drawable=drawable,
     )
+
+
+def _value_and_sensitivity(problem, x, width):
+    """`(values, sensitivity)` of the design objective at `x` (`Design(lower limit, band)`, m) and
+    smoothing `width` (m): each requirement's value (m,) and its derivative over the lower
+    limits (m, n; output unit per m), from the program the optimiser differentiates."""
+    width = jnp.asarray(width, dtype=jnp.float64)
+    output = getattr(problem.objective.objective, "output", None)
+    several = isinstance(output, tuple) and len(output) > 1
+    value, gradient = (_value_and_jacobian if several else _value_and_grad)(problem.objective, x, problem.draws, width)
+    return np.atleast_1d(np.asarray(value, dtype=float)), np.atleast_2d(np.asarray(gradient.nominal, dtype=float))
+
+
+def _tightest_first(problem, slopes, requirements, tol, width):
+    """Infeasible first (before any optimising): the objective at the tightest designs the
+    bounds allow (`tightest`: every band and lower limit at its smallest; and on the bounds the
+    baseline's sensitivities `slopes` (m, n) say lower the outputs), two evaluations. Returns
+    the one nearer to meeting every requirement where both miss one (to its relative tolerance
+    `tol`): no design within the bounds meets it (the test `diagnose` makes after a design);
+    else `None`."""
+    tried = [tightest(problem.lower, problem.upper), tightest(problem.lower, problem.upper, slopes / requirements[:, None])]
+    values = [_value_and_sensitivity(problem, x, width)[0] for x in tried]
+    if np.all(np.min(values, axis=0) <= requirements * (1 + tol)):
+        return None
+    return tried[int(np.argmin([np.max(v / requirements) for v in values]))]
 
 
 def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units, widths, key):

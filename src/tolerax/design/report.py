@@ -213,8 +213,16 @@ class DesignReport:
             if math.isfinite(lost):
                 why = (f"; {lost:.0%} of the output's spread over these zones is lost motion through the gear ratios (what "
                        f"a stack-up of the drawings sees) and {dynamics:.0%} dynamics the geometry does not see")
-        return (f"{verb}: {'; '.join(zones)}. It meets {' and '.join(requirements)}{where} by the design's "
-                f"{'linear model' if self.yield_ is not None else 'statistic over its simulated units'}.{checked} "
+        model = "linear model" if self.yield_ is not None else "statistic over its simulated units"
+        met = [o for o in self.outcomes if o.met] if self.outcomes else None
+        if met is None or len(met) == len(self.outcomes):
+            verdict = f"It meets {' and '.join(requirements)}{where} by the design's {model}."
+        else:  # say what it misses, never "meets" for all (an infeasible or unconverged design)
+            missed = [f"{o.requirement.text()}{where} (by the design's {model}: {o.objective:.4g} {o.requirement.unit})"
+                      for o in self.outcomes if not o.met]
+            verdict = (f"It meets {' and '.join(o.requirement.text() for o in met)}{where} but misses " if met else "It misses ") + (
+                " and ".join(missed) + ".")
+        return (f"{verb}: {'; '.join(zones)}. {verdict}{checked} "
                 f"Cost {cost:.3g} ({self.cost_unit}){change}. Why these zones: the pointing is most sensitive to "
                 f"{self.names[k]} ({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal){why}.")
 
@@ -341,7 +349,7 @@ class DesignReport:
         base_nominal, base_band = np.asarray(self.baseline[0]), np.asarray(self.baseline[1])
         d = self.drawable
         rows = [(base_nominal, base_band, "0.7", f"baseline: cost {self.baseline[2]:.3g}")]
-        rows.append((self.nominal, self.band, "C0", f"proposal: cost {self.cost:.3g}"))
+        rows.append((self.nominal, self.band, "C0", f"{'proposal' if self.accepted else 'best design reached'}: cost {self.cost:.3g}"))
         if d is not None:
             rows.append((d.nominal, d.band, "C2", f"drawable: cost {d.cost:.3g}"))
         height = 0.8 / len(rows)
@@ -365,6 +373,8 @@ class DesignReport:
             checks = d.checks if d is not None and d.checks else self.checks[-1:]
             checked = ("; checked: " + ", ".join(f"{c.yield_simulated:.1%} of {c.n - c.n_failed} units" for c in checks)) if checks else ""
             title = f"tolerance zones for {met}{where}{checked}"
+            if not self.accepted:  # the status first: an infeasible or unconverged run proposes nothing
+                title = f"NOT A PROPOSAL ({self.status}): best design reached for {met}{where}{checked}"
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=7, loc="upper center", ncol=len(rows))
         ax.grid(alpha=0.3, axis="x")

@@ -329,8 +329,12 @@ class SequentialSolver(AbstractDesignSolver):
     def postprocess(self, problem, state):
         flat, n = state.flat, state.flat.n
         rows, z, f, grad, lam = state.rows, state.z, state.f, state.grad, state.opt_state.multipliers
-        chosen = len(rows) - 1
         R, tol = problem.requirements, problem.tol
+        if not rows:  # no step taken (`max_steps=0`): the start, evaluated, is the history's one row
+            reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
+            width = np.nan if problem.width is None else float(problem.width)
+            rows = [(flat.cost(z), reported(f), reported(f - R), reported(np.zeros_like(f)), np.nan, width, state.opt_state.evaluations)]
+        chosen = len(rows) - 1
         # A converged design met to `tol` but over its requirements by more than a tenth of it
         # gives way to the cheapest iterate within that tenth where the two costs differ by no
         # more than the tolerance is worth (the problem does not resolve them): one answer on
