@@ -345,6 +345,10 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     assert math.isclose(summary["metrics"]["pointing_jitter_arcsec"], jitter, rel_tol=1e-12)
     assert summary["metrics"]["jitter_band_hz"] == [20.0, pytest.approx(100.0)]
     assert "| jitter (RMS of the pointing error over 20-100 Hz) |" in (out / "summary.md").read_text()
+    # ... read by a lumped joint, which does not read it as the full stage does: said beside it.
+    assert summary["metrics"]["jitter_read_by"] == {"azimuth": "lumped"}
+    assert "arcsec (not the full stage's: the azimuth joint is lumped; the jitter is read at planetary fidelity" in (
+        out / "summary.md").read_text()
 
     # Tolerances no solver can meet: the error control wants a step below dtmin. Only values
     # change, so the compiled program is reused.

@@ -84,6 +84,11 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
     except ValueError as err:
         out["pointing_jitter_arcsec"] = None
         out["jitter_not_resolved"] = str(err)
+    # The jitter is the stage's vibration: read as the full stage does only at planetary
+    # fidelity (tolerax.design.fidelity); the joints that model their play more coarsely.
+    from ..design.fidelity import proxies
+
+    out["jitter_read_by"] = proxies(scene_file.build(), "planetary")
     for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
         out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
@@ -198,6 +203,10 @@ def summary_md(s: dict) -> str:
              f"{m['pointing_jitter_arcsec']:.4g} arcsec |" if m.get("pointing_jitter_arcsec") is not None else
              f"| jitter above {JITTER_CUTOFF:g} Hz | not resolved by these saves: raise `n_save` |"),
         ]
+        if m.get("jitter_read_by"):  # a proxy's jitter: say so beside the number
+            joints = ", ".join(f"the {joint} joint is {f}" for joint, f in m["jitter_read_by"].items())
+            lines[-1] = lines[-1][:-1] + (f"(not the full stage's: {joints}; the jitter is read at planetary fidelity, "
+                                          "the scene file's `[scene] fidelity`) |")
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             lines += [
