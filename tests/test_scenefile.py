@@ -577,3 +577,21 @@ def test_life_comparison_shows_the_wear_allowance(tmp_path):
         met = np.mean(rms <= 400.0)
         assert f"(cost {cost}): pointing_rms " in text and f"pointing_rms_eol {met:.3f}" in text
     assert np.all(both.dataset["pointing_rms"].values < alone.dataset["pointing_rms"].values)  # the same draws, tighter zones
+
+
+def test_an_unlikely_amplitude_is_noted_with_its_line_not_refused():
+    """A scan amplitude of 1.0 (rad: 57 deg; meant as 1 deg) is valid but unlikely: a
+    `SceneFileNote` names the file, line and key and the radians for that many degrees, before
+    any work; the scene is built as given. A plausible amplitude says nothing."""
+    import warnings
+
+    text = tx.load_scene("scan-azimuth").to_toml()
+    lines = text.splitlines()
+    (k,) = [i for i, line in enumerate(lines) if line.startswith("amplitude =")]
+    lines[k] = "amplitude = 1.0"
+    with pytest.warns(tx.SceneFileNote, match=rf"my_scan.toml:{k + 1}: \[scene\] amplitude: 1 rad is 57.3 deg.*for 1 deg write 0.0174533"):
+        scene = tx.parse_scene("\n".join(lines), source="my_scan.toml")
+    assert float(scene.build().azimuth.drive.amplitude) == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        tx.parse_scene(text, source="my_scan.toml")

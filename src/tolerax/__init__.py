@@ -54,6 +54,7 @@ from .mechanism.scenes import antenna as antenna, scan as scan
 from .io.scenefile import (
     SceneFile as SceneFile,
     SceneFileError as SceneFileError,
+    SceneFileNote as SceneFileNote,
     builtin_scenes as builtin_scenes,
     load_scene as load_scene,
     parse_scene as parse_scene,

@@ -35,8 +35,10 @@ TOLERAX_CACHE=off to turn it off): a second command on the same scene structure 
 import argparse
 import sys
 import textwrap
+import warnings
 
 from .. import __version__
+from ..io.schema import SceneFileNote
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
 from .common import DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
 from .demo import demo_command
@@ -234,7 +236,14 @@ def main(argv=None) -> int:
 
     enable_compilation_cache()  # a later command on the same scene structure skips its compilation (TOLERAX_CACHE=off: not)
     try:
-        return command(command_parser, args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", SceneFileNote)
+            shown = warnings.showwarning
+            # A scene file's note (a valid but unlikely value) as a line of its own, not a Python warning.
+            warnings.showwarning = lambda message, category, *rest, **kw: (
+                print(f"tolerax {args.command}: note: {message}", file=sys.stderr) if issubclass(category, SceneFileNote)
+                else shown(message, category, *rest, **kw))
+            return command(command_parser, args)
     except KeyboardInterrupt:
         print(f"\ntolerax {args.command}: interrupted; " + RESUME.get(args.command, "nothing was written after the last 'wrote' line"),
               file=sys.stderr)

@@ -27,7 +27,7 @@ import tomli_w
 from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
 from . import schema as S
-from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError
+from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError, SceneFileNote  # noqa: F401 (SceneFileNote: the face's)
 from .schema import life as _life
 
 # ---------------------------------------------------------------------------------------------

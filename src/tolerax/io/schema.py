@@ -10,6 +10,7 @@ the text for it inside its table. The schema is documented in docs/scene_files.m
 import difflib
 import inspect
 import math
+import warnings
 import re
 import types
 import typing
@@ -206,6 +207,12 @@ def _suggest(word, choices) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
+class SceneFileNote(UserWarning):
+    """A value a scene file may hold but that is unlikely to be what was meant (a scan amplitude
+    of a radian: degrees typed where the file wants radians); said before any work, with the
+    file, line and key, and not refused."""
+
+
 class Checker:
     def __init__(self, text: str, source: str):
         self.text, self.source = text, source
@@ -213,6 +220,10 @@ class Checker:
     def error(self, message, table: tuple[str, ...] = (), key=None):
         line = _line_of(self.text, table, key)
         return SceneFileError(message, self.source, line, ".".join(table), key)
+
+    def note(self, message, table: tuple[str, ...] = (), key=None):
+        """Say `message` about a valid but unlikely value (`SceneFileNote`), located as `error`."""
+        warnings.warn(str(self.error(message, table, key)), SceneFileNote, stacklevel=2)
 
     def keys(self, data: dict, table: tuple[str, ...], allowed, required=()):
         for key in data:
@@ -323,10 +334,18 @@ def build(chk: Checker, scene: dict):
     return model
 
 
+PLAUSIBLE_AMPLITUDE = 0.3  # rad (17 deg): a scan amplitude above it is noted (`SceneFileNote`), likely degrees typed as radians
+
+
 def _check_motion_keys(chk: Checker, scene: dict, table):
     """Refuse a motion key the scene's motion ignores (it would be dropped without a word): a
     scan's `amplitude`/`period` beside a tabulated profile; an antenna's `scan_*` keys unless
     `drive = "scan"`, its `profile_*` keys unless `drive = "profile"`."""
+    for key in ("amplitude", "scan_amplitude"):
+        value = scene.get(key)
+        if isinstance(value, (int, float)) and abs(value) > PLAUSIBLE_AMPLITUDE:
+            chk.note(f"{value:g} rad is {math.degrees(value):.4g} deg, a wide scan for a pointing mechanism: the file's "
+                     f"angles are in radians (for {value:g} deg write {math.radians(value):.6g}). Running it as given.", table, key)
     if scene["kind"] == "scan":
         if "profile_times" in scene or "profile_angles" in scene:
             for key in ("amplitude", "period"):
