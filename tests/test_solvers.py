@@ -120,4 +120,12 @@ def test_the_loop_calls_back_and_refuses_a_bad_problem():
     with pytest.raises(ValueError, match="tol must be in"):
         dataclasses.replace(PROBLEM, tol=(0.01, 0.01))
     with pytest.raises(ValueError, match="max_steps"):
-        solve_design(PROBLEM, SequentialSolver(), x0, max_steps=0)
+        solve_design(PROBLEM, SequentialSolver(), x0, max_steps=-1)
+    # No step (what `propose_design` reports where the tightest designs miss the requirement):
+    # the start, evaluated, is the result and its history's one row; the callback sees it once.
+    seen.clear()
+    start = solve_design(PROBLEM, SequentialSolver(), x0, max_steps=0, callback=lambda *a: seen.append(a))
+    np.testing.assert_array_equal(np.asarray(start.x.band), np.asarray(x0.band))
+    assert float(start.objective) == pytest.approx(float(_stack(x0, None, None)), rel=1e-12)
+    assert len(np.asarray(start.history.cost)) == 1 and int(start.history.steps[-1]) == 1 and len(seen) == 1
+    assert not bool(start.converged)

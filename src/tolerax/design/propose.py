@@ -27,7 +27,7 @@ from .loop import tolerance_worth
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
-from .subproblem import _value_and_grad, _value_and_jacobian, objective_value as _objective_value
+from .subproblem import objective_value as _objective_value, objective_value_and_gradient
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -286,10 +286,7 @@ def _value_and_sensitivity(problem, x, width):
     """`(values, sensitivity)` of the design objective at `x` (`Design(lower limit, band)`, m) and
     smoothing `width` (m): each requirement's value (m,) and its derivative over the lower
     limits (m, n; output unit per m), from the program the optimiser differentiates."""
-    width = jnp.asarray(width, dtype=jnp.float64)
-    output = getattr(problem.objective.objective, "output", None)
-    several = isinstance(output, tuple) and len(output) > 1
-    value, gradient = (_value_and_jacobian if several else _value_and_grad)(problem.objective, x, problem.draws, width)
+    value, gradient = objective_value_and_gradient(problem.objective, x, problem.draws, width)
     return np.atleast_1d(np.asarray(value, dtype=float)), np.atleast_2d(np.asarray(gradient.nominal, dtype=float))
 
 

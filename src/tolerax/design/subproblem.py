@@ -45,16 +45,22 @@ def _value_and_jacobian(objective, x, draws, width):
     return f(x), jax.jacrev(f)(x)
 
 
-def objective_value(objective, x, draws, width):
-    """The design objective at `x`: the value part of the program the optimiser differentiates
-    (`_value_and_grad`, or `_value_and_jacobian` for several requirements), so that a design
-    compiles one program through its simulations, not two (each is a solve carrying the
-    slopes' tangents: the value alone would be a second program of about the same size)."""
+def objective_value_and_gradient(objective, x, draws, width):
+    """`(value, gradient)` of the design objective at `x`: the program the optimiser
+    differentiates (`_value_and_grad`, or `_value_and_jacobian` for several requirements: then a
+    value and a gradient row per requirement)."""
     output = getattr(getattr(objective, "objective", objective), "output", None)
     width = None if width is None else jnp.asarray(width, dtype=jnp.float64)  # not weakly typed: the optimiser's program
-    if isinstance(output, tuple) and len(output) > 1:
-        return _value_and_jacobian(objective, x, draws, width)[0]
-    return _value_and_grad(objective, x, draws, width)[0]
+    several = isinstance(output, tuple) and len(output) > 1
+    return (_value_and_jacobian if several else _value_and_grad)(objective, x, draws, width)
+
+
+def objective_value(objective, x, draws, width):
+    """The design objective at `x`: the value part of the program the optimiser differentiates
+    (`objective_value_and_gradient`), so that a design compiles one program through its
+    simulations, not two (each is a solve carrying the slopes' tangents: the value alone would
+    be a second program of about the same size)."""
+    return objective_value_and_gradient(objective, x, draws, width)[0]
 
 
 @exported_jit
