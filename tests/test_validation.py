@@ -174,3 +174,22 @@ def test_step_size_collapse_is_reported():
     assert "dt_min_reached" in line and f"t = {t:.6g} s of 0.25 s" in line and "smoothing_width" in line
     with pytest.raises(tx.SimulationError, match="dt_min_reached"):
         tx.simulate(bench, 0.25, n_save=N_SAVE, dt0=2e-5, dtmin=4e-6)
+
+
+def test_the_face_exports_what_the_docs_call():
+    """`tolerax.__all__` holds every public name the package exports (no private one, each
+    resolves) and every `tx.NAME` the README, docs/ and the notebooks call (a dotted path into a
+    subpackage, `tx.design.propose...`, is a path, not a face name)."""
+    import pathlib
+    import re
+    import types
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    assert tx.__all__ == sorted(set(tx.__all__)) and not any(n.startswith("_") for n in tx.__all__)
+    for name in tx.__all__:
+        assert hasattr(tx, name), name
+    texts = [root / "README.md", *sorted((root / "docs").glob("*.md")), *sorted((root / "notebooks").glob("*.ipynb"))]
+    called = {(m, path.name) for path in texts for m in re.findall(r"\btx\.([A-Za-z_][A-Za-z0-9_]*)", path.read_text())}
+    missing = sorted((name, where) for name, where in called
+                     if name not in tx.__all__ and not isinstance(getattr(tx, name, None), types.ModuleType))
+    assert not missing, f"called as tx.NAME but not exported: {missing}"

@@ -6,6 +6,8 @@ The public API is what this module exports. Low-level kernels stay under their m
 deflections, forces, mass matrix).
 """
 
+import types as _types
+
 import jax as _jax
 
 # SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
@@ -100,3 +102,10 @@ from .design.optimise import (
 )
 
 __version__ = "0.1.0"
+
+# The face: every public name above and the four kernel modules the docstring names (what
+# `from tolerax import *` gives; tests/test_validation.py checks it against what the README and
+# docs/ call). Subpackages bound here by their imports (`tolerax.design`, ...) stay importable by
+# their paths but are not the face.
+__all__ = sorted(name for name, value in dict(globals()).items() if not name.startswith("_")
+                 and (not isinstance(value, _types.ModuleType) or name in ("smooth", "contact", "mesh", "planetary")))
