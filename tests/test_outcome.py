@@ -201,3 +201,10 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
         assert report.status == "converged" and len(calls) > 1
         assert not any(note.startswith("Answered before optimising") for note in report.notes)
         assert "It meets RMS pointing error" in report.plain() and "misses" not in report.plain()
+        # The history from the baseline: iteration 0 is the starting zones' cost and objective.
+        history = report.plot_history()
+        cost, objective = history.axes[0].get_lines()[0], history.axes[1].get_lines()[0]
+        assert cost.get_xdata()[0] == 0 and cost.get_ydata()[0] == pytest.approx(float(report.baseline[2]), rel=1e-12)
+        assert objective.get_xdata()[0] == 0 and objective.get_ydata()[0] == pytest.approx(report.outcomes[0].baseline, rel=1e-12)
+        assert len(cost.get_xdata()) == len(np.asarray(report.result.history.cost)) + 1
+        assert history.axes[1].get_ylabel() == "RMS pointing error: objective (arcsec)"

@@ -398,25 +398,30 @@ class DesignReport:
         return fig
 
     def plot_history(self):
-        """The optimiser's history: cost and each requirement's objective per iteration, the
-        proposed iterate marked; returns the matplotlib figure."""
+        """The optimiser's history from the baseline (iteration 0: the starting zones' cost and
+        objective) on: cost and each requirement's objective (what the design holds to its
+        limit: the linearised quantile with a yield) per iteration, the proposed iterate marked;
+        returns the matplotlib figure."""
         import matplotlib.pyplot as plt
 
         fig, hist_ax = plt.subplots(figsize=(6.5, 3.5))
         hist = self.result.history
         first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
-        it = np.arange(1, len(np.asarray(hist.cost)) + 1)
-        hist_ax.plot(it, np.asarray(hist.cost), "o-", label="cost")
+        it = np.arange(0, len(np.asarray(hist.cost)) + 1)
+        hist_ax.plot(it, np.r_[float(self.baseline[2]), np.asarray(hist.cost)], "o-", label="cost (0: the baseline)")
         ax2 = hist_ax.twinx()
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         objective = np.asarray(hist.objective)
+        start = np.array([o.baseline for o in self.outcomes]) if self.outcomes else None
         if objective.ndim == 1:
-            ax2.plot(it, objective, "s--", color="C1", label=f"{what}, {first.unit}")
+            values = objective if start is None else np.r_[start[:1], objective]
+            ax2.plot(it[-len(values):], values, "s--", color="C1", label=f"{what}, {first.unit}")
             ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
-            ax2.set_ylabel(f"{first.name} ({first.unit})", fontsize=8)
+            ax2.set_ylabel(f"{first.name}: {what} ({first.unit})", fontsize=8)
         else:  # requirements of different sizes: each over its own
             for k, (o, marker) in enumerate(zip(self.outcomes, "s^vD<>ph")):
-                ax2.plot(it, objective[:, k] / o.requirement.limit, f"{marker}--", color=f"C{k + 1}", label=f"{o.requirement.name} / limit")
+                ax2.plot(it, np.r_[o.baseline, objective[:, k]] / o.requirement.limit, f"{marker}--", color=f"C{k + 1}",
+                         label=f"{o.requirement.name} / limit")
             ax2.axhline(1.0, color="0.3", lw=0.8, ls=":", label="requirement")
             ax2.set_ylabel("objective / requirement", fontsize=8)
         hist_ax.axvline(int(self.result.iteration) + 1, color="0.5", lw=0.8, ls="--", label="proposed iterate")
