@@ -48,6 +48,15 @@ def tightest(lower: Design, upper: Design, sensitivity=None) -> Design:
     return Design(limit, np.asarray(lower.band))
 
 
+def tightest_reach(evaluate, lower: Design, upper: Design, sensitivity=None) -> tuple[list[Design], np.ndarray]:
+    """The tightest designs (`tightest`: without `sensitivity`, and with it where given) and the
+    values `evaluate(x)` gives there (one row per design, one column per output): what the
+    bounds allow at best, the test of infeasibility before a design (`propose_design`) and after
+    one (`diagnose`)."""
+    designs = [tightest(lower, upper)] + ([] if sensitivity is None else [tightest(lower, upper, sensitivity)])
+    return designs, np.array([np.atleast_1d(np.asarray(evaluate(x), dtype=float)) for x in designs])
+
+
 MODEL_OFF = 0.5  # a check whose linear and simulated quantiles differ by more than this fraction of the requirement
 
 
@@ -78,8 +87,7 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     if np.any(missing) and evaluate is not None:
         # The tightest designs: every lower limit at its minimum, and on the bounds its sensitivity
         # says lower the output (which may be noise); the best of them and of the design reached.
-        tried = [tightest(lower, upper)] + ([] if sensitivity is None else [tightest(lower, upper, sensitivity)])
-        reach = np.min([np.atleast_1d(np.asarray(evaluate(x), dtype=float)) for x in tried] + [f], axis=0)
+        reach = np.min(np.vstack([tightest_reach(evaluate, lower, upper, sensitivity)[1], f]), axis=0)
         out = reach > r * (1 + t)
         if np.any(out):
             k = int(np.argmax(np.where(out, reach / r, -np.inf)))

@@ -11,6 +11,7 @@ whether its answer is a proposal (`tolerax.design.outcome`).
 
 
 import dataclasses
+import functools
 
 import equinox as eqx
 import jax
@@ -22,12 +23,12 @@ from .features import design_names, lost_motion_weights
 from .objectives import AbstractObjective
 from .drawable import round_to_grades
 from .fidelity import check_fidelity
-from .outcome import MODEL_OFF, diagnose, tightest
+from .outcome import MODEL_OFF, diagnose, tightest_reach
 from .loop import tolerance_worth
 from .optimise import optimise_design
 from .reliability import secant_standard_error, yield_check
 from .sequential import sequential_design
-from .subproblem import objective_value as _objective_value, objective_value_and_gradient
+from .subproblem import objective_value_and_gradient
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -210,7 +211,8 @@ def propose_design(
     baseline, slopes = _value_and_sensitivity(problem, problem.x0, widths[-1])
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, problem, widths[-1])
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
-    out_of_reach = _tightest_first(problem, slopes, requirements, tol, widths[-1])
+    evaluate = _memoised_values(widths[-1])
+    out_of_reach = _tightest_first(evaluate, problem, slopes, requirements, tol)
     if out_of_reach is not None:
         # Infeasible first: the tightest designs the bounds allow miss a requirement, so no design
         # within them meets it; the optimiser is not run. The report is that design's, evaluated.
@@ -252,7 +254,7 @@ def propose_design(
     status, diagnosis = diagnose(
         objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
         iterations=int(np.asarray(result.history.steps)[-1]), labels=[r.name + what for r in requirements_],
-        evaluate=lambda x: _objective_value(problem.objective, x, problem.draws, jnp.asarray(widths[-1])), lower=problem.lower,
+        evaluate=functools.partial(evaluate, problem), lower=problem.lower,
         upper=problem.upper, sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=problem.gradient_noise is not None,
         bounds_text=" (min_clearance and band_range; a scene file's [tolerances])", stalled=bool(result.stalled is not None and result.stalled))
@@ -290,18 +292,33 @@ def _value_and_sensitivity(problem, x, width):
     return np.atleast_1d(np.asarray(value, dtype=float)), np.atleast_2d(np.asarray(gradient.nominal, dtype=float))
 
 
-def _tightest_first(problem, slopes, requirements, tol, width):
+def _memoised_values(width):
+    """`evaluate(problem, x)`: the objective's values at `x` (`Design`, m) and smoothing `width`
+    (m) through the program the optimiser differentiates (`_value_and_sensitivity`), each design
+    evaluated once per problem: the tightest designs are asked for before optimising
+    (`_tightest_first`) and again by `diagnose` where a design misses."""
+    memo = {}
+
+    def evaluate(problem, x):
+        key = (id(problem), np.asarray(x.nominal).tobytes(), np.asarray(x.band).tobytes())
+        if key not in memo:  # the problem is kept with its values: its id is not reused while the memo lives
+            memo[key] = (problem, _value_and_sensitivity(problem, x, width)[0])
+        return memo[key][1]
+
+    return evaluate
+
+
+def _tightest_first(evaluate, problem, slopes, requirements, tol):
     """Infeasible first (before any optimising): the objective at the tightest designs the
-    bounds allow (`tightest`: every band and lower limit at its smallest; and on the bounds the
-    baseline's sensitivities `slopes` (m, n) say lower the outputs), two evaluations. Returns
-    the one nearer to meeting every requirement where both miss one (to its relative tolerance
-    `tol`): no design within the bounds meets it (the test `diagnose` makes after a design);
-    else `None`."""
-    tried = [tightest(problem.lower, problem.upper), tightest(problem.lower, problem.upper, slopes / requirements[:, None])]
-    values = [_value_and_sensitivity(problem, x, width)[0] for x in tried]
+    bounds allow (`tightest_reach`: every band and lower limit at its smallest; and on the bounds
+    the baseline's sensitivities `slopes` (m, n) say lower the outputs), two evaluations of
+    `evaluate(problem, x)`. Returns the one nearer to meeting every requirement where both miss
+    one (to its relative tolerance `tol`): no design within the bounds meets it (the test
+    `diagnose` makes after a design); else `None`."""
+    tried, values = tightest_reach(functools.partial(evaluate, problem), problem.lower, problem.upper, slopes / requirements[:, None])
     if np.all(np.min(values, axis=0) <= requirements * (1 + tol)):
         return None
-    return tried[int(np.argmin([np.max(v / requirements) for v in values]))]
+    return tried[int(np.argmin(np.max(values / requirements, axis=1)))]
 
 
 def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units, widths, key):

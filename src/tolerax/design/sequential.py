@@ -241,6 +241,15 @@ class _SequentialState:
     rejected: int = 0  # steps rejected in a row at the smallest trust region
 
 
+def _row(problem, cost, f, multipliers, evaluations) -> tuple:
+    """One `History` row: cost, objective, constraint (objective - requirement), multiplier
+    (each a float for one requirement, an array for several), penalty (NaN: the method has
+    none), continuation (the smoothing width, NaN without one) and the evaluations so far."""
+    reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
+    width = np.nan if problem.width is None else float(problem.width)
+    return (cost, reported(f), reported(f - problem.requirements), reported(multipliers), np.nan, width, evaluations)
+
+
 class SequentialSolver(AbstractDesignSolver):
     """Sequential linearisation in a trust region (the module docstring), as a solver of the one
     design loop (`solve_design`).
@@ -286,9 +295,7 @@ class SequentialSolver(AbstractDesignSolver):
         state.rejected = 0 if opt.accepted or tried_at > MIN_RADIUS else state.rejected + 1
         state.z, state.f, state.grad, state.opt_state = z, opt.value, opt.grad, opt
         f, n = state.f, flat.n
-        reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
-        width = np.nan if problem.width is None else float(problem.width)
-        state.rows.append((cost, reported(f), reported(f - R), reported(opt.multipliers), np.nan, width, opt.evaluations))
+        state.rows.append(_row(problem, cost, f, opt.multipliers, opt.evaluations))
         if np.all(f <= R * (1 + 0.1 * tol)) and (state.best is None or state.rows[-1][0] <= state.best[0]):
             state.best = (state.rows[-1][0], len(state.rows) - 1, z, f, state.grad, opt.multipliers)
         met, active = bool(np.all(f <= R * (1 + tol))), bool(np.any(f >= R * (1 - tol)))
@@ -331,9 +338,7 @@ class SequentialSolver(AbstractDesignSolver):
         rows, z, f, grad, lam = state.rows, state.z, state.f, state.grad, state.opt_state.multipliers
         R, tol = problem.requirements, problem.tol
         if not rows:  # no step taken (`max_steps=0`): the start, evaluated, is the history's one row
-            reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
-            width = np.nan if problem.width is None else float(problem.width)
-            rows = [(flat.cost(z), reported(f), reported(f - R), reported(np.zeros_like(f)), np.nan, width, state.opt_state.evaluations)]
+            rows = [_row(problem, flat.cost(z), f, np.zeros_like(f), state.opt_state.evaluations)]
         chosen = len(rows) - 1
         # A converged design met to `tol` but over its requirements by more than a tenth of it
         # gives way to the cheapest iterate within that tenth where the two costs differ by no
