@@ -368,12 +368,13 @@ def monte_carlo(
     from `(key, i)` alone), so a run's *inputs* do not depend on the backend, the chunk size,
     interruptions or extensions. Its *outputs* are bitwise identical across backends, resumptions
     and extensions at the same chunk size on one device. Across chunk sizes (and device counts)
-    they agree within the solver's own error, not bitwise: a vmapped batch of another size is
-    another program that rounds otherwise, and in an adaptive solve a rounding-level difference
-    can flip one step's accept/reject decision, after which the two runs take different step
-    sequences and differ by the integration error (`benchmarks/monte_carlo_throughput.py` sets the
-    difference beside the solver's own error, per scene). A resumed or extended run
-    keeps the chunk size of its manifest.
+    they agree to the size of the solver's own error, not bitwise: a vmapped batch of another
+    size is another program that rounds otherwise, and in an adaptive solve a rounding-level
+    difference can flip one step's accept/reject decision, after which the two runs take
+    different step sequences and differ by the integration error; where the response is chaotic
+    (rattling joints at loose tolerances) that difference can exceed the error against a tighter
+    solve (`benchmarks/monte_carlo_throughput.py` sets the difference beside the solver's own
+    error, per scene). A resumed or extended run keeps the chunk size of its manifest.
 
     **Backends** (each runs the samples in chunks of `chunk_size`, with a tqdm bar over chunks):
 
