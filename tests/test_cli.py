@@ -4,6 +4,8 @@ antenna), and bad input. `run` is tested with the scene files (tests/test_scenef
 the numbers, which the modules' own tests check."""
 
 import re
+import subprocess
+import sys
 import json
 
 import numpy as np
@@ -62,6 +64,20 @@ def test_bad_options_print_usage_and_exit_2(argv, capsys):
         cli.main(argv)
     assert info.value.code == 2
     assert "usage: tolerax" in capsys.readouterr().err
+
+
+def test_a_bad_option_is_answered_before_the_simulator_is_imported():
+    """`tolerax/__init__.py` imports names on first use and the command line its commands after
+    parsing (issue 61): a bad option or `--help` answers without loading the simulator, JAX, or
+    the plotting and data libraries (a fresh process: this one has them all)."""
+    code = ("import sys\nfrom tolerax.cli.main import main\n"
+            "try:\n    main(['design', '--yield', '2', '--bogus'])\nexcept SystemExit as e:\n    assert e.code == 2, e.code\n"
+            "print([m for m in ('tolerax.mechanism', 'tolerax.design', 'tolerax.io', 'jax', 'diffrax', 'equinox', 'matplotlib', 'xarray') "
+            "if m in sys.modules])")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+    assert "unrecognized arguments: --bogus" in done.stderr
 
 
 def test_help_names_every_command_and_option(capsys):

@@ -4,108 +4,81 @@ The public API is what this module exports. Low-level kernels stay under their m
 `tolerax.smooth` (smoothing primitives), `tolerax.contact` (contact kinematics and forces),
 `tolerax.mesh` (mesh stiffness and dynamic backlash), `tolerax.planetary` (stage physics:
 deflections, forces, mass matrix).
+
+Names are imported on first use (PEP 562): `import tolerax` sets float64 and XLA's compile
+flag and loads nothing else (not even JAX), so that a command line's argument errors and
+`--help` answer before the simulator's modules and JAX are imported.
 """
 
-import types as _types
+import importlib as _importlib
 
-import jax as _jax
+from ._xla import enable_x64 as _enable_x64, prefer_fast_compiles as _prefer_fast_compiles
 
 # SI units with 10 µm clearances next to 1e8 N/m stiffnesses: float64 is the default.
-_jax.config.update("jax_enable_x64", True)
-
-from .cache import enable_compilation_cache as enable_compilation_cache
-from .physics import contact as contact, mesh as mesh, planetary as planetary, smooth as smooth
-from .physics.contact import (
-    AbstractContactLaw as AbstractContactLaw,
-    AdamsImpact as AdamsImpact,
-    BaiZhao as BaiZhao,
-    Flores as Flores,
-    HertzLN as HertzLN,
-    JournalBearing as JournalBearing,
-)
-from .physics.stage import Mesh as Mesh, PlanetaryStage as PlanetaryStage, Support as Support
-from .physics.gears import default_stage as default_stage
-from .physics.planetary import AddedInertia as AddedInertia
-from .physics.modes import Modes as Modes, natural_frequencies as natural_frequencies
-from .mechanism.drives import (
-    AbstractServo as AbstractServo,
-    ProfileServo as ProfileServo,
-    ScanServo as ScanServo,
-    SpeedServo as SpeedServo,
-    TorqueDrive as TorqueDrive,
-)
-from .mechanism import FIDELITIES as FIDELITIES
-from .mechanism.joints import (
-    AbstractJoint as AbstractJoint,
-    IdealJoint as IdealJoint,
-    LumpedJoint as LumpedJoint,
-    LumpedMesh as LumpedMesh,
-    lumped_mesh as lumped_mesh,
-)
-from .mechanism.stage_joints import (
-    MassScaledPlanetaryJoint as MassScaledPlanetaryJoint,
-    PlanetaryJoint as PlanetaryJoint,
-)
-from .solve import SimulationError as SimulationError, SolverReport as SolverReport
-from .mechanism.scene import AbstractScene as AbstractScene, simulate as simulate
-from .mechanism.bench import BenchResult as BenchResult, TestBench as TestBench
-from .mechanism.mechanism import Mechanism as Mechanism
-from .mechanism.structure import Geometry as Geometry, Inertias as Inertias
-from .mechanism.outputs import ARCSEC as ARCSEC, MechanismResult as MechanismResult, vibration_amplitude as vibration_amplitude
-from .mechanism.scenes import antenna as antenna, scan as scan
-from .io.scenefile import (
-    SceneFile as SceneFile,
-    SceneFileError as SceneFileError,
-    SceneFileNote as SceneFileNote,
-    builtin_scenes as builtin_scenes,
-    load_scene as load_scene,
-    parse_scene as parse_scene,
-    save_scene as save_scene,
-)
-from .design.features import (
-    design_names as design_names,
-    design_of as design_of,
-    lost_motion_weights as lost_motion_weights,
-    tolerances_of as tolerances_of,
-    with_design as with_design,
-)
-from .design.objectives import (
-    AbstractMetric as AbstractMetric,
-    AbstractObjective as AbstractObjective,
-    PointingObjective as PointingObjective,
-)
-from .design.propose import DesignReport as DesignReport, JitterRequirement as JitterRequirement, propose_design as propose_design
-from .design.report import RequirementOutcome as RequirementOutcome
-from .design.requirements import Requirement as Requirement
-from .design.reliability import LinearisedYield as LinearisedYield, YieldCheck as YieldCheck, yield_check as yield_check
-from .design.sequential import sequential_design as sequential_design
-from .uncertainty.sampling import Tolerances as Tolerances, apply_draws as apply_draws, sample as sample, unit_draws as unit_draws
-from .uncertainty.montecarlo import monte_carlo as monte_carlo
-from .uncertainty.results import MonteCarloResult as MonteCarloResult, wilson_interval as wilson_interval
-from .uncertainty.sensitivity import SobolResult as SobolResult, sobol_indices as sobol_indices
-from .design.cost import (
-    AbstractCostModel as AbstractCostModel,
-    Exponential as Exponential,
-    GradeTable as GradeTable,
-    IsoGrade as IsoGrade,
-    ReciprocalPower as ReciprocalPower,
-    grade_of as grade_of,
-    it_tolerance as it_tolerance,
-)
-from .design.optimise import (
-    Design as Design,
-    Features as Features,
-    OptimisationResult as OptimisationResult,
-    optimise_design as optimise_design,
-    realise as realise,
-    robust as robust,
-)
+_enable_x64()
+_prefer_fast_compiles()  # XLA's faster-compiling CPU code generator, before JAX starts its backend
 
 __version__ = "0.1.0"
 
-# The face: every public name above and the four kernel modules the docstring names (what
+# Where each public name lives (module under `tolerax`: names). One table: `__getattr__` imports
+# from it, `__all__` lists it.
+_FACE = {
+    "cache": ("enable_compilation_cache",),
+    "physics.contact": ("AbstractContactLaw", "AdamsImpact", "BaiZhao", "Flores", "HertzLN", "JournalBearing"),
+    "physics.stage": ("Mesh", "PlanetaryStage", "Support"),
+    "physics.gears": ("default_stage",),
+    "physics.planetary": ("AddedInertia",),
+    "physics.modes": ("Modes", "natural_frequencies"),
+    "mechanism.drives": ("AbstractServo", "ProfileServo", "ScanServo", "SpeedServo", "TorqueDrive"),
+    "mechanism": ("FIDELITIES",),
+    "mechanism.joints": ("AbstractJoint", "IdealJoint", "LumpedJoint", "LumpedMesh", "lumped_mesh"),
+    "mechanism.stage_joints": ("MassScaledPlanetaryJoint", "PlanetaryJoint"),
+    "solve": ("SimulationError", "SolverReport"),
+    "mechanism.scene": ("AbstractScene", "simulate"),
+    "mechanism.bench": ("BenchResult", "TestBench"),
+    "mechanism.mechanism": ("Mechanism",),
+    "mechanism.structure": ("Geometry", "Inertias"),
+    "mechanism.outputs": ("ARCSEC", "MechanismResult", "vibration_amplitude"),
+    "mechanism.scenes": ("antenna", "scan"),
+    "io.scenefile": ("SceneFile", "SceneFileError", "SceneFileNote", "builtin_scenes", "load_scene", "parse_scene", "save_scene"),
+    "design.features": ("design_names", "design_of", "lost_motion_weights", "tolerances_of", "with_design"),
+    "design.objectives": ("AbstractMetric", "AbstractObjective", "PointingObjective"),
+    "design.propose": ("DesignReport", "JitterRequirement", "propose_design"),
+    "design.report": ("RequirementOutcome",),
+    "design.requirements": ("Requirement",),
+    "design.reliability": ("LinearisedYield", "YieldCheck", "yield_check"),
+    "design.sequential": ("sequential_design",),
+    "uncertainty.sampling": ("Tolerances", "apply_draws", "sample", "unit_draws"),
+    "uncertainty.montecarlo": ("monte_carlo",),
+    "uncertainty.results": ("MonteCarloResult", "wilson_interval"),
+    "uncertainty.sensitivity": ("SobolResult", "sobol_indices"),
+    "design.cost": ("AbstractCostModel", "Exponential", "GradeTable", "IsoGrade", "ReciprocalPower", "grade_of", "it_tolerance"),
+    "design.optimise": ("Design", "Features", "OptimisationResult", "optimise_design", "realise", "robust"),
+}
+_KERNELS = ("smooth", "contact", "mesh", "planetary")  # modules of `tolerax.physics`, on the face as modules
+_WHERE = {name: module for module, names in _FACE.items() for name in names}
+
+# The face: every public name and the four kernel modules the docstring names (what
 # `from tolerax import *` gives; tests/test_validation.py checks it against what the README and
-# docs/ call). Subpackages bound here by their imports (`tolerax.design`, ...) stay importable by
-# their paths but are not the face.
-__all__ = sorted(name for name, value in dict(globals()).items() if not name.startswith("_")
-                 and (not isinstance(value, _types.ModuleType) or name in ("smooth", "contact", "mesh", "planetary")))
+# docs/ call). Subpackages (`tolerax.design`, ...) stay importable by their paths but are not the face.
+__all__ = sorted([*_WHERE, *_KERNELS])
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        value = getattr(_importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    elif name in _KERNELS:
+        value = _importlib.import_module(f".physics.{name}", __name__)
+    else:
+        try:  # a subpackage or module by its path (`tolerax.design`, `tolerax.io.scenefile`)
+            value = _importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as error:
+            if error.name != f"{__name__}.{name}":
+                raise
+            raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    globals()[name] = value  # once: later lookups do not come here
+    return value
+
+
+def __dir__():
+    return sorted({*globals(), *__all__})

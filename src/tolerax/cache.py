@@ -31,7 +31,7 @@ import equinox as eqx
 import jax
 import jax.export
 
-OFF = ("0", "off", "no", "false")
+from ._xla import OFF
 
 
 def default_cache_dir() -> pathlib.Path:

@@ -37,8 +37,7 @@ import sys
 import textwrap
 import warnings
 
-from .. import __version__
-from ..io.schema import SceneFileNote
+from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
 from .common import DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
 from .demo import demo_command
@@ -226,6 +225,10 @@ def main(argv=None) -> int:
                          help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
     args = parser.parse_args(argv)
     args.argv = argv
+    # The simulator's modules only now (the commands import theirs when they run): a bad option
+    # or --help answers before they load.
+    from ..io.schema import SceneFileNote
+
     commands = {
         "demo": (demo, demo_command), "run": (run, run_command), "design": (design, design_command), "montecarlo": (mc, montecarlo_command),
         "tradeoff": (tradeoff, tradeoff_command),
