@@ -3,6 +3,8 @@ antenna), and bad input. `run` is tested with the scene files (tests/test_scenef
 `demo --bench` with the bench (tests/test_bench.py). Sizes are tiny: these check the wiring, not
 the numbers, which the modules' own tests check."""
 
+import argparse
+import hashlib
 import re
 import subprocess
 import sys
@@ -280,17 +282,16 @@ def test_own_mechanism_design_writes_a_proposal_that_montecarlo_verifies(tmp_pat
     table = (design / "design.md").read_text()
     # The printed verification hint writes into a folder of its own: following it keeps this report.
     assert f"--out {design / 'montecarlo'}`: its own folder" in table
-    # Beside the continuous zones, the drawable ones: whole ISO grades.
-    assert "Drawable design (whole ISO 286 grades" in table and "| azimuth.carrier_clearance | IT" in table
-    drawable_file = tx.load_scene(design / "proposal_drawable.toml")
-    drawable = drawable_file.tolerances()
-    assert "On whole grades, as drawn: azimuth.carrier_clearance " in drawable_file.data["description"]  # the callouts
-    bands = np.asarray(drawable.band)
-    grades = np.asarray(tx.grade_of(2 * bands, np.asarray(tx.design.propose.feature_sizes(proposal.build()))))
+    # One proposal: the zones written are the ones to draw (whole ISO grades, with their
+    # callouts), shown first in the report; the continuous optimum follows as their bound.
+    assert "On the drawing (whole ISO 286 grades" in table and "| azimuth.carrier_clearance | IT" in table
+    assert table.index("On the drawing") < table.index("Continuous optimum (the bound the drawn zones round from)")
+    assert not (design / "proposal_drawable.toml").exists()
+    assert "On whole grades, as drawn: azimuth.carrier_clearance " in proposal.data["description"]  # the callouts
+    grades = np.asarray(tx.grade_of(2 * np.asarray(zones.band), np.asarray(tx.design.propose.feature_sizes(proposal.build()))))
     assert np.allclose(grades[1:], np.round(grades[1:]), atol=1e-6)  # whole grades but the given feature's
     for name, nominal, band in zip(zones.names, np.asarray(zones.nominal), np.asarray(zones.band)):
-        given = " (given)" if name == "azimuth.carrier_clearance" else ""
-        assert f"| {name}{given} | {nominal * 1e6:.1f} | {band * 1e6:.1f} |" in table
+        assert f"| {name} | IT" in table and f" | {nominal * 1e6:.1f} | {band * 1e6:.1f} | " in table
     assert np.allclose([zones.nominal[0], zones.band[0]], [60e-6, 8e-6], rtol=1e-12)
     # The scene's bounds: lower limits >= 4 um, half-widths within 1-30 um.
     assert np.all(np.asarray(zones.nominal - zones.band) >= 4e-6 * (1 - 1e-9)) and np.all(np.asarray(zones.band) <= 30e-6 * (1 + 1e-9))
@@ -384,6 +385,61 @@ def test_design_takes_further_requirements_and_a_jitter_as_data(tmp_path, capsys
     assert refused.value.code == 2 and "--jitter needs --yield" in capsys.readouterr().err and not (tmp_path / "no").exists()
 
 
+def _checksums(folder):
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("argv", [["demo"], ["run", "scan-azimuth"], ["design", "--requirement", "500"],
+                                  ["tradeoff", "--requirements", "500"], ["montecarlo", "--n", "2"], ["studies", "speed"]],
+                         ids=lambda argv: argv[0])
+def test_every_command_refuses_an_output_folder_it_must_not_write_before_any_work(argv, tmp_path, capsys):
+    """Issue 61's folder contract, per command: into a folder holding another command's results
+    (marked, and one written before folders were marked, known by its files): exit 2, the
+    command that owns it named, every file unchanged and nothing added; into a folder that
+    cannot be written (a path under a file): exit 2 with the reason, no traceback."""
+    command = argv[0]
+    other = "design" if command == "run" else "run"
+    marked, unmarked = tmp_path / "marked", tmp_path / "unmarked"
+    for folder in (marked, unmarked):
+        folder.mkdir()
+        (folder / "summary.json").write_text('{"pointing_rms": 1.0}\n')
+        (folder / ("design.md" if other == "design" else "timeseries.nc")).write_bytes(b"results")
+    (marked / ".tolerax-command").write_text(other + "\n")
+    for folder in (marked, unmarked):
+        before = _checksums(folder)
+        with pytest.raises(SystemExit) as info:
+            cli.main([*argv, "--out", str(folder)])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and f"holds the results of `tolerax {other}`" in err and f"--out {folder / command}" in err
+        assert _checksums(folder) == before
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    with pytest.raises(SystemExit) as info:
+        cli.main([*argv, "--out", str(blocked / "out")])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "cannot be written" in err and "Traceback" not in err
+    assert blocked.read_text() == ""
+
+
+def test_an_interrupted_write_leaves_the_old_file_whole(tmp_path):
+    """Every result file is written to a temporary file and renamed over the old one
+    (`tolerax._files.atomic_write`): a writer that fails half-way leaves the old file as it was
+    and no temporary file behind."""
+    from tolerax._files import atomic_write
+
+    path = tmp_path / "summary.json"
+    atomic_write(path, '{"old": true}\n')
+
+    def interrupted(tmp):
+        tmp.write_text('{"new": ')
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write(path, interrupted)
+    assert path.read_text() == '{"old": true}\n'
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
 def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     """An --out that is a file, a band reaching below zero, a misspelt scene name: exit 2 with
     a message saying what to change, nothing computed."""
@@ -401,8 +457,8 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     assert not (tmp_path / "mc" / "chunks").exists()
     assert cli.main(["montecarlo", "scan-azimut", "--out", str(tmp_path / "mc")]) == 2
     assert "(did you mean 'scan-azimuth'?)" in capsys.readouterr().err
-    # A folder holding another command's report is refused (it would be overwritten), with the
-    # folder to use instead; the same command may write there again.
+    # A folder holding another command's results is refused (it would be overwritten), with the
+    # folder to use instead; the same command's own is refused without --force, or resumed.
     shared = tmp_path / "shared"
     shared.mkdir()
     (shared / "report.md").write_text("# Tolerance proposal\n")
@@ -410,10 +466,16 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
         cli.main(["montecarlo", "--n", "2", "--out", str(shared)])
     err = capsys.readouterr().err
-    assert info.value.code == 2 and "holds the report of `tolerax design`" in err and f"--out {shared / 'montecarlo'}" in err
+    assert info.value.code == 2 and "holds the results of `tolerax design`" in err and f"--out {shared / 'montecarlo'}" in err
     from tolerax.cli.common import check_out
 
-    assert check_out(None, shared, "design") == shared
+    parser = argparse.ArgumentParser(prog="tolerax design")
+    with pytest.raises(SystemExit):
+        check_out(parser, shared, "design")
+    assert "earlier `tolerax design`: --force overwrites them" in capsys.readouterr().err
+    assert check_out(parser, shared, "design", force=True) == shared
+    (shared / ".tolerax-command").write_text("montecarlo\n")
+    assert check_out(parser, shared, "montecarlo", resumes=True) == shared
     with pytest.raises(SystemExit) as info:
         cli.main(["--version"])
     assert info.value.code == 0 and capsys.readouterr().out.strip() == f"tolerax {tx.__version__}"

@@ -196,7 +196,8 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
         assert "It meets" not in plain and f"It misses RMS pointing error <= {factor * reach:g} arcsec" in plain
         figure = report.plot()
         assert figure.axes[0].get_title().startswith("NOT A PROPOSAL (infeasible): best design reached for")
-        assert "best design reached: cost" in [t.get_text() for t in figure.axes[0].get_legend().get_texts()][1]
+        legend = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
+        assert legend[1].startswith("continuous optimum (bound)") and legend[2].startswith("best design reached, whole grades: cost")
     else:
         assert report.status == "converged" and len(calls) > 1
         assert not any(note.startswith("Answered before optimising") for note in report.notes)
@@ -208,3 +209,45 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
         assert objective.get_xdata()[0] == 0 and objective.get_ydata()[0] == pytest.approx(report.outcomes[0].baseline, rel=1e-12)
         assert len(cost.get_xdata()) == len(np.asarray(report.result.history.cost)) + 1
         assert history.axes[1].get_ylabel() == "RMS pointing error: objective (arcsec)"
+
+
+def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grades():
+    """One proposal (issue 61): what the report says to draw (the continuous optimum on whole
+    ISO grades) is the proposal: `report.tolerances`, its cost, its own check, shown first. On a
+    closed-form response (linear in the zones, tests/_responses.py) the rounded grades meet at
+    once. With a kink the linear model cannot see (the output jumps by 200 arcsec per µm of pin
+    clearance above 90 µm, a zone the rounding opened to 94.8 µm while the continuous optimum
+    stops below it), the rounded design's own check misses, so the grades are rounded from one
+    lower: the pin zone closes below the knee and that design, checked on the same units, is
+    the proposal."""
+    import _responses as R
+    import tolerax as tx
+    from tolerax.design import propose as P
+    from tolerax.design.features import lost_motion_weights
+
+    scene = R.scan_scene()
+    slopes = 0.5 * np.asarray(lost_motion_weights(scene))
+    line = R.Line(scene, 600.0, slopes, 60e-6)
+    requirement = 0.8 * float(P.design_problem(line, yield_=0.99).value(width=1e-6))
+    plain = tx.propose_design(line, requirement, yield_=0.99, widths=(1e-6,), check_units=100)
+    d = plain.drawable
+    assert plain.accepted and d.tightened == 0 and d.checks[0].interval[1] >= 0.99
+    zones = plain.tolerances
+    assert np.array_equal(np.asarray(zones.nominal), d.nominal) and np.array_equal(np.asarray(zones.band), d.band)
+    assert np.array_equal(np.asarray(plain.continuous.band), plain.band) and plain.proposal_cost == d.cost
+    grades = np.asarray(tx.grade_of(2 * d.band, np.asarray(P.feature_sizes(scene))))
+    assert np.allclose(grades, np.round(grades), atol=1e-9)
+    table = plain.table()
+    assert table.index("On the drawing") < table.index("Continuous optimum (the bound the drawn zones round from)")
+    pin_top = 1e6 * (d.nominal[1] + d.band[1])
+    assert 1e6 * (plain.nominal[1] + plain.band[1]) < 90.0 < pin_top  # the knee lies between the two zones' tops
+
+    kink, knee = np.zeros((1, 4)), np.array([1.0, 90e-6, 1.0, 1.0])
+    kink[0, 1] = 2e8  # arcsec/m above the knee
+    report = tx.propose_design(R.Line(scene, 600.0, slopes, 60e-6, kink=kink, knee=knee), requirement, yield_=0.99,
+                               widths=(1e-6,), check_units=100)
+    drawn = report.drawable
+    assert report.accepted and drawn.tightened == 1 and drawn.checks[0].interval[1] >= 0.99
+    assert 1e6 * (drawn.nominal[1] + drawn.band[1]) < 90.0
+    assert "after the check of the rounded grades missed" in report.table()
+    assert np.array_equal(np.asarray(report.tolerances.band), drawn.band)

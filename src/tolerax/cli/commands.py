@@ -8,8 +8,8 @@ import pathlib
 import sys
 import time
 
-from .common import (check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
-                     read_scene_file, rough_wall, settings, versions, with_tolerances)
+from .common import (atomic_write, check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
+                     read_scene_file, rough_wall, save_figure, settings, versions, with_tolerances)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
@@ -27,8 +27,8 @@ def studies_command(parser, args) -> int:
         S.size_spec(args.size, args.duration, args.settle)
     except ValueError as err:
         parser.error(str(err))
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_out(parser, args.out, "studies", force=args.force, resumes=args.resume)
+    claim_out(out, "studies")
     for name in names:
         path = out / f"{name}-{args.size}.json"
         done = json.loads(path.read_text()) if args.resume and path.exists() else []
@@ -37,9 +37,7 @@ def studies_command(parser, args) -> int:
             # Every row so far, and the earlier run's rows this run has not reached yet, so an
             # interrupted run loses only the scene it was on.
             later = [r for r in done if not any(r is k for k in rows)]
-            tmp = path.with_suffix(".json.tmp")
-            tmp.write_text(json.dumps(rows + later, indent=1))
-            tmp.replace(path)
+            atomic_write(path, json.dumps(rows + later, indent=1))
 
         rows = S.run(name, args.size, duration=args.duration, settle=args.settle, done=done, on_row=save)
         save(rows, done=[])
@@ -48,7 +46,7 @@ def studies_command(parser, args) -> int:
 
 
 def montecarlo_command(parser, args) -> int:
-    out = check_out(parser, args.out, "montecarlo")
+    out = check_out(parser, args.out, "montecarlo", resumes=True)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return 2
@@ -84,7 +82,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     pointing = scene_file.objective(jitter_cutoff=jitter_cutoff)
     tolerances = scene_file.tolerances(pointing.scene)
     check_clipping(parser, tolerances, allow_clip)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_out(out, "montecarlo")  # design's --verify writes here too: its folder is montecarlo's
     bands = ", ".join(f"{name} {m * 1e6:.4g} +- {b * 1e6:.3g}" for name, m, b in
                       zip(tolerances.names, tolerances.nominal.tolist(), tolerances.band.tolist()))
     print(f"tolerax {command}: {n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
@@ -109,9 +107,9 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     F.save_scene(scene_file, out / "scene.toml")  # after the checkpoints were accepted as this run's
     res.save(out / "montecarlo.nc")
     summary = res.summary()
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float))
     fig = res.plot_histogram("pointing_rms", requirement=requirement).figure
-    fig.savefig(out / "histogram.png", dpi=120)
+    save_figure(fig, out / "histogram.png", dpi=120)
     plt.close(fig)
     print(res.report())
     _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed, command)
@@ -142,8 +140,7 @@ def _write_montecarlo_report(out, scene_file, res, summary, requirement, n, seed
         *_scene_and_settings(scene_file, f"- {load_average()}",
                              f"- `tolerax {command}`; rerun the same command to resume, or with a larger --n to extend"),
     ]
-    claim_out(out, "montecarlo")
-    (out / "report.md").write_text("\n".join(sections))
+    atomic_write(out / "report.md", "\n".join(sections))
 
 
 def _scene_and_settings(scene_file, *lines) -> list[str]:
@@ -158,7 +155,7 @@ def _design_setup(parser, args, command):
     options), or `None` after printing why (exit 2)."""
     from ..io import scenefile as F
 
-    out = check_out(parser, args.out, args.command)
+    out = check_out(parser, args.out, args.command, force=args.force)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return None
@@ -342,15 +339,13 @@ def design_command(parser, args) -> int:
         return proposed
     report, wall = proposed
     life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if args.life is not None else None
-    out.mkdir(parents=True, exist_ok=True)
+    claim_out(out, "design")
     F.save_scene(scene_file, out / "scene.toml")
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
     # never written as the answer unless the user allows it.
     as_answer = report.accepted or args.allow_unconverged
     written = scene_file.with_proposal(report)
-    proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))
-    if as_answer and report.drawable is not None:  # the same proposal on whole ISO grades, as a scene file too
-        F.save_scene(written.with_drawable(report.drawable), out / "proposal_drawable.toml")
+    proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))  # the zones as drawn
     text = "\n".join([report.table(), "", *([life_text, ""] if life_text else []),
                       f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
                       "Reproduce with:", "", "```", command_line(args), "```", "",
@@ -358,9 +353,9 @@ def design_command(parser, args) -> int:
                        f"The best design reached as a scene file ({report.status}, not a proposal): `{proposal}`")
                       + f" (verify it with `tolerax montecarlo {proposal} --n 200 --out {out / 'montecarlo'}`: its own folder, "
                       "so this report is kept)."])
-    (out / "design.md").write_text(text + "\n")
+    atomic_write(out / "design.md", text + "\n")
     for fig, name in ((report.plot(), "design.png"), (report.plot_history(), "design_history.png")):
-        fig.savefig(out / name, dpi=120)
+        save_figure(fig, out / name, dpi=120)
         plt.close(fig)
     print(text)
     sections = [
@@ -415,8 +410,7 @@ def _write_report(out, sections, scene_file, args, wall):
         *sections, *_scene_and_settings(scene_file, f"- {wall:.1f} s of wall time for the design (compilation included); {load_average()}",
                                         f"- reproduce with: `{command_line(args)}`"),
     ])
-    claim_out(out, args.command)
-    (out / "report.md").write_text(text)
+    atomic_write(out / "report.md", text)
 
 
 def _feature_names(scene_file):
@@ -465,6 +459,8 @@ def tradeoff_command(parser, args) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    import numpy as np
+
     from ..io import scenefile as F
 
     setup = _design_setup(parser, args, "tradeoff")
@@ -475,7 +471,7 @@ def tradeoff_command(parser, args) -> int:
     pointing = scene_file.objective(life=None)  # the requirements are the beginning of life's
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
-    out.mkdir(parents=True, exist_ok=True)
+    claim_out(out, "tradeoff")
     points, rows = [], []
     for requirement in requirements:
         proposed = _propose(pointing, requirement, options, "tradeoff")
@@ -484,32 +480,36 @@ def tradeoff_command(parser, args) -> int:
         report, wall = proposed
         path = F.save_scene(scene_file.with_proposal(report),
                             out / f"{'proposal' if report.accepted or args.allow_unconverged else 'best_reached'}-{requirement:g}.toml")
-        check = report.checks[-1] if report.checks else None
+        # The proposal is the zones as drawn (whole grades) and their own check, where there are some.
+        drawn = report.drawable.checks if report.drawable is not None and report.drawable.checks else ()
+        check = drawn[0] if drawn else report.checks[-1] if report.checks else None
+        zones = report.tolerances
         points.append(dict(
-            requirement=requirement, target=report.target, objective=report.objective, cost=report.cost,
-            baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
+            requirement=requirement, target=report.target, objective=report.objective, cost=report.proposal_cost,
+            continuous_cost=report.cost, baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
             diagnosis=report.diagnosis, names=list(report.names), cost_unit=report.cost_unit, extrapolated=list(report.extrapolated),
-            nominal_um=(report.nominal * 1e6).tolist(), band_um=(report.band * 1e6).tolist(), proposal=str(path), wall_s=wall,
+            nominal_um=(np.asarray(zones.nominal) * 1e6).tolist(), band_um=(np.asarray(zones.band) * 1e6).tolist(), proposal=str(path),
+            wall_s=wall,
             check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
         ))
-        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.cost:.3f} | {report.status} | "
-                    + ", ".join(f"{b * 1e6:.1f}" for b in report.band) + " | "
+        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.proposal_cost:.3f} | {report.status} | "
+                    + ", ".join(f"{b * 1e6:.1f}" for b in np.asarray(zones.band)) + " | "
                     + ("" if check is None else f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}]")
                     + f" | {path.name} | {wall:.0f} |")
         # Written after every point: an interrupted run keeps the points it finished.
-        (out / "tradeoff.json").write_text(json.dumps(dict(command=command_line(args), scene=scene_file.source, points=points), indent=1))
+        atomic_write(out / "tradeoff.json", json.dumps(dict(command=command_line(args), scene=scene_file.source, points=points), indent=1))
     what = "objective (arcsec)" if args.yield_ is None else f"linearised {args.yield_:.1%} quantile (arcsec)"
     text = "\n".join([
         f"# Tolerance cost against the pointing requirement: {scene_file.title}", "",
         f"RMS pointing, {_statistic(args)}; cost in {points[0]['cost_unit']} (baseline {points[0]['baseline_cost']:.3f}). "
         f"Features: {', '.join(points[0]['names'])}.", "",
         *[line for p in points if p["extrapolated"] for line in (f"At {p['requirement']:g} arcsec: {' '.join(p['extrapolated'])}", "")],
-        f"| requirement (arcsec) | {what} | cost | outcome | bands +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
+        f"| requirement (arcsec) | {what} | cost (as drawn) | outcome | bands as drawn +- (um) | Monte Carlo check: yield [95 % Wilson] | proposal | wall (s) |",
         "|---|---|---|---|---|---|---|---|", *rows, "",
         "![cost against requirement](tradeoff.png)", "",
         f"Solver (`[run]`): {settings(scene_file)}. {versions()}. {load_average()}. Reproduce with:", "", "```", command_line(args), "```",
     ])
-    (out / "tradeoff.md").write_text(text + "\n")
+    atomic_write(out / "tradeoff.md", text + "\n")
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     req = [p["requirement"] for p in points]
     cost = [p["cost"] for p in points]
@@ -525,7 +525,7 @@ def tradeoff_command(parser, args) -> int:
     ax.set_title(_statistic(args).split(":")[0], fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "tradeoff.png", dpi=120)
+    save_figure(fig, out / "tradeoff.png", dpi=120)
     plt.close(fig)
     print(text)
     print(f"wrote {out / 'tradeoff.md'}, {out / 'tradeoff.json'}, {out / 'tradeoff.png'} and {len(points)} proposal-R.toml "
@@ -548,7 +548,7 @@ def run_command(parser, args) -> int:
     scene_file = read_scene_file(parser, args, n_save=args.n_save, start=args.start)
     if scene_file is None:
         return 2
-    out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name)
+    out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name, "run", force=args.force)
     estimate = rough_wall(scene_file.build(), scene_file.run["duration"])
     guess = "" if estimate is None else f", roughly {human_seconds(max(estimate, 1.0))} on one core plus compilation"
     print(f"tolerax run: {scene_file.title} ({scene_file.source}); {scene_file.run['duration']} s simulated{guess}; results in {out}/")
@@ -561,6 +561,7 @@ def run_command(parser, args) -> int:
         print(f"tolerax run: {err}", file=sys.stderr)
         return 2
     wall = time.perf_counter() - start
+    claim_out(out, "run")
     summary = R.write_results(scene_file, result, out, wall_s=wall, command=command_line(args))
     print(R.summary_md(summary))
     if not result.success:
@@ -570,7 +571,7 @@ def run_command(parser, args) -> int:
         life = scene_file.life
         print(f"tolerax run: [life] {life.points + 1} more runs of the window (the clearances worn over the life) ...", flush=True)
         text = life_summary(scene_file)
-        (out / "life.md").write_text(text)
+        atomic_write(out / "life.md", text)
         print(text)
     return 0
 

@@ -10,6 +10,9 @@ import pathlib
 import re
 import shlex
 import sys
+import tempfile
+
+from .._files import atomic_write, save_figure  # noqa: F401  (save_figure: for the commands)
 
 DEFAULT_SCENE = "scan-azimuth"
 
@@ -105,31 +108,82 @@ def human_seconds(seconds: float) -> str:
     return f"{seconds:.0f} s"
 
 
-OWNER = ".tolerax-command"  # in an output folder: the command whose report.md it holds
+OWNER = ".tolerax-command"  # in an output folder: the command whose results it holds
+# Results written before folders were marked: the files by which each command's folder is known.
+_SIGNS = (("demo.md", "demo"), ("bench.png", "demo"), ("design.md", "design"), ("tradeoff.json", "tradeoff"),
+          ("montecarlo.nc", "montecarlo"), ("chunks", "montecarlo"), ("timeseries.nc", "run"), ("life.md", "run"))
+_STUDY = re.compile(r"^[a-z0-9_]+-(small|full)\.json$")
 
 
-def check_out(parser, out, command: str | None = None) -> pathlib.Path:
-    """The output folder `out`, refused (exit 2, before any work) where it names an existing
-    file: results must never be computed and then lost for want of a place to write them. With
-    `command` (one that writes `report.md`): refused too where the folder holds another
-    command's report (`claim_out`), which this one would overwrite."""
+def out_owner(path: pathlib.Path) -> str | None:
+    """The command whose results the folder `path` holds: its mark (`OWNER`), else the files it
+    has (`_SIGNS`, a study's table); `None` for a folder with no results (missing, empty, or
+    only the mark: a command stopped before writing)."""
+    if not path.is_dir():
+        return None
+    entries = [e.name for e in path.iterdir() if e.name != OWNER and not e.name.endswith(".tmp")]
+    if not entries:
+        return None
+    mark = path / OWNER
+    if mark.is_file() and mark.read_text().strip():
+        return mark.read_text().strip()
+    for name, command in _SIGNS:
+        if name in entries:
+            return command
+    return "studies" if any(_STUDY.match(e) for e in entries) else None
+
+
+def check_out(parser, out, command: str, *, force: bool = False, resumes: bool = False) -> pathlib.Path:
+    """The output folder `out` of `tolerax command`, checked before any work, the one contract
+    of every command (exit 2 with what to type instead, nothing written or lost):
+
+    - an existing file, not a folder: refused;
+    - a folder holding another command's results (`out_owner`): refused, naming that command
+      and a folder of this one's own;
+    - a folder holding this command's results: kept where the command goes on from them
+      (`resumes`: montecarlo's chunks, studies' `--resume`), overwritten with `force`
+      (`--force`), else refused, naming `--force`;
+    - a folder that cannot be created or written (read-only, a path under a file): refused with
+      the system's reason, before any simulation.
+
+    Nothing is created here (a command refused later for its scene leaves nothing behind): the
+    command marks the folder as its own when its work starts (`claim_out`). Returns the path."""
     path = pathlib.Path(out)
     if path.exists() and not path.is_dir():
         parser.error(f"--out {str(out)!r} is an existing file, not a folder: name a folder (created if missing)")
-    owner = path / OWNER
-    if command is not None and owner.is_file() and (path / "report.md").is_file():
-        other = owner.read_text().strip()
-        if other and other != command:
-            parser.error(f"--out {str(out)!r} holds the report of `tolerax {other}`, which this `tolerax {command}` would "
-                         f"overwrite: give it its own folder, e.g. --out {path / command}")
+    owner = out_owner(path)
+    if owner is not None and owner != command:
+        parser.error(f"--out {str(out)!r} holds the results of `tolerax {owner}`, which this `tolerax {command}` would overwrite "
+                     f"or mix with its own: give it a folder of its own, e.g. --out {path / command}")
+    if owner == command and not (resumes or force):
+        parser.error(f"--out {str(out)!r} holds the results of an earlier `tolerax {command}`: --force overwrites them, or give "
+                     "another --out")
+    try:
+        _probe(path)
+    except OSError as err:
+        parser.error(f"--out {str(out)!r} cannot be written ({err.strerror or err}): name a folder you can write to")
     return path
 
 
+def _probe(path: pathlib.Path) -> None:
+    """Raise `OSError` where the folder `path` cannot be written, or, where it does not exist
+    yet, created: a file made and removed in it, or a folder in its nearest existing parent."""
+    if path.is_dir():
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".tolerax-probe-"):
+            return
+    parent = path.absolute()
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise NotADirectoryError(20, "a parent of it is a file, not a folder", str(parent))
+    os.rmdir(tempfile.mkdtemp(dir=parent, prefix=".tolerax-probe-"))
+
+
 def claim_out(out, command: str) -> None:
-    """Mark `out` as holding `tolerax command`'s report (`check_out` reads it)."""
+    """Mark the folder `out` as holding `tolerax command`'s results (`out_owner` reads it)."""
     path = pathlib.Path(out)
     path.mkdir(parents=True, exist_ok=True)
-    (path / OWNER).write_text(command + "\n")
+    atomic_write(path / OWNER, command + "\n")
 
 
 def check_clipping(parser, tolerances, allow: bool):
@@ -231,16 +285,29 @@ def count(minimum):
     return count
 
 
-def scene_options(parser, what):
+def out_options(parser, command: str, default: str | None = None):
+    """`--out` (default `./tolerax-out/COMMAND`: each command its own folder, `check_out`) and,
+    for a command that does not resume from its folder, `--force`."""
+    default_text = default or f"./tolerax-out/{command}"
+    parser.add_argument("--out", default=None if default else f"tolerax-out/{command}",
+                        help=f"output folder (default {default_text}); a folder holding another command's results is refused"
+                        + ("; rerun into it to resume" if command == "montecarlo" else ""))
+    if command != "montecarlo":
+        parser.add_argument("--force", action="store_true",
+                            help="overwrite the results of an earlier `tolerax " + command + "` in --out (refused otherwise)")
+
+
+def scene_options(parser, what, command: str):
     parser.add_argument("scene", nargs="?", default=DEFAULT_SCENE,
                         help=f"built-in scene name (`tolerax run --list`) or path to a .toml scene file (default {DEFAULT_SCENE}); "
                         f"its [run] settings set the {what} horizon and window, its [tolerances] the bands and requirement")
     parser.add_argument("--duration", type=positive, default=None, help="override run.duration (simulated time per unit), s")
     parser.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
-    parser.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    out_options(parser, command)
 
 
-EPILOG = "Exit codes: 0 done, 2 bad input (the message names the scene file's key and line), 3 a simulation failed."
+EPILOG = ("Exit codes: 0 done, 2 bad input (the message names the scene file's key and line; an output folder refused before "
+          "any work: another command's, an earlier run's without --force, or not writable), 3 a simulation failed.")
 # design and tradeoff: also 4, the answer is not a proposal.
 DESIGN_EPILOG = EPILOG[:-1] + (", 4 the answer is not a proposal (not converged, infeasible, noise-limited, or its Monte Carlo "
                                "check missed: the report says why first; --allow-unconverged writes it as proposal.toml and exits 0).")

@@ -7,11 +7,11 @@ import pathlib
 import sys
 import time
 
-from .common import DEFAULT_SCENE, check_out, command_line, load_average
+from .common import DEFAULT_SCENE, atomic_write, check_out, claim_out, command_line, load_average, save_figure
 
 
 def demo_command(parser, args) -> int:
-    check_out(parser, args.out)
+    check_out(parser, args.out, "demo", force=args.force)
     if args.bench:
         return _demo_bench(parser, args)
     given = [f"--{n}" for n in ("rate", "clearance", "backlash") if getattr(args, n) is not None]
@@ -26,7 +26,7 @@ def demo_command(parser, args) -> int:
     from ..io import results as R, scenefile as F
 
     out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_out(out, "demo")
     command = command_line(args)
     load_before = load_average()
     # The scan scene's window starts after the first 0.3 s; a shorter demo summarises all of it.
@@ -69,9 +69,9 @@ def demo_command(parser, args) -> int:
         lines += ["", f"## 2. Tolerance proposal on `{DEFAULT_SCENE}` (lumped azimuth scan, pitch ideal)", ""]
         if report is not None:
             (out / "design").mkdir(exist_ok=True)
-            (out / "design" / "design.md").write_text(report.table() + "\n")
+            atomic_write(out / "design" / "design.md", report.table() + "\n")
             for fig, name in ((report.plot(), "design.png"), (report.plot_history(), "design_history.png")):
-                fig.savefig(out / "design" / name, dpi=120)
+                save_figure(fig, out / "design" / name, dpi=120)
                 plt.close(fig)
             used = int(report.result.history.steps[-1])
             lines += [f"{used} {'gradients' if args.method == 'sequential' else 'optimiser steps'} over {args.draws} units "
@@ -80,10 +80,10 @@ def demo_command(parser, args) -> int:
         else:
             lines.append(f"Failed after {design_wall:.1f} s (see the message above).")
     fig = _demo_figure(result, scene_file, report)
-    fig.savefig(out / "demo.png", dpi=100)
+    save_figure(fig, out / "demo.png", dpi=100)
     plt.close(fig)
     lines += ["", f"Figure: `demo.png`. Machine: {load_before} before, {load_average()} after."]
-    (out / "demo.md").write_text("\n".join(lines) + "\n")
+    atomic_write(out / "demo.md", "\n".join(lines) + "\n")
     print("\n".join(lines))
     return code
 
@@ -158,7 +158,7 @@ def _demo_bench(parser, args) -> int:
     result = _scene.simulate(bench, duration, n_save=int(round(1000 * duration)) + 1, progress=args.progress)
     wall = time.perf_counter() - start
     out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_out(out, "demo")
     angle = np.degrees(np.asarray(result.output_angle))
     force = np.asarray(result.contact_force)
     fig, axes = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
@@ -175,7 +175,7 @@ def _demo_bench(parser, args) -> int:
     axes[2].set_xlabel("output (carrier) angle (deg)")
     axes[2].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "bench.png", dpi=120)
+    save_figure(fig, out / "bench.png", dpi=120)
     plt.close(fig)
     summary = {
         "simulated_s": duration,
@@ -187,7 +187,7 @@ def _demo_bench(parser, args) -> int:
         "final_transmission_error_arcsec": float(np.degrees(result.transmission_error[-1]) * 3600),
         "result": "successful" if result.success else str(result.result),
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2))
     print(json.dumps(summary, indent=2))
     print(f"wrote {out / 'bench.png'} and {out / 'summary.json'}")
     return 0

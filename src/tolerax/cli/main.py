@@ -14,8 +14,8 @@
 
 The engineer's path in three commands (design, verify, trade off):
 
-    tolerax design my_drive.toml --requirement 700 --yield 0.99 --verify 200   # writes proposal.toml
-    tolerax montecarlo tolerax-out/proposal.toml --n 1000 --out tolerax-out/montecarlo   # verify it further
+    tolerax design my_drive.toml --requirement 700 --yield 0.99 --verify 200   # writes tolerax-out/design/proposal.toml
+    tolerax montecarlo tolerax-out/design/proposal.toml --n 1000   # verify it further (into tolerax-out/montecarlo)
     tolerax tradeoff my_drive.toml --yield 0.99 --requirements 400 700 1000   # what tighter pointing costs
 
 SCENE is a built-in scene name (`tolerax run --list`) or a path to a .toml scene file (schema:
@@ -23,7 +23,8 @@ docs/scene_files.md); design, montecarlo and tradeoff default to `scan-azimuth`.
 lists a command's options.
 
 Exit codes: 0 done, 2 bad input (a bad option, an unreadable or invalid scene file: the message
-names the file, line and key), 3 a simulation or optimisation failed, 4 (design, tradeoff) the answer
+names the file, line and key; an output folder holding another command's results, or an earlier
+run's without --force, or one that cannot be written: refused before any work), 3 a simulation or optimisation failed, 4 (design, tradeoff) the answer
 is not a proposal: not converged, infeasible, noise-limited, or its Monte Carlo check missed (the best
 design reached is written as best_reached.toml, the report says why first; --allow-unconverged
 writes it as proposal.toml and exits 0).
@@ -39,7 +40,8 @@ import warnings
 
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
-from .common import DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, positive, positive_length, scene_options
+from .common import (DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
+                     scene_options)
 from .demo import demo_command
 
 # What an interrupted command has kept, and how to go on.
@@ -119,7 +121,7 @@ def main(argv=None) -> int:
                       help="with --bench: every radial clearance, um (or with a unit: 0.1mm; default 100)")
     demo.add_argument("--backlash", type=length_in("um"), default=None,
                       help="with --bench: every mesh backlash, um (or with a unit: 0.1mm; default 100)")
-    demo.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    out_options(demo, "demo")
     demo.add_argument("--progress", action="store_true", help="show the integrator's progress")
     run = sub.add_parser(
         "run", help="simulate a scene file: netCDF time series, plots and a markdown summary",
@@ -130,7 +132,7 @@ def main(argv=None) -> int:
     )
     run.add_argument("scene", nargs="?", help="built-in scene name (see --list) or path to a .toml scene file")
     run.add_argument("--list", action="store_true", help="list the built-in scenes and exit")
-    run.add_argument("--out", default=None, help="output folder (default ./tolerax-out/SCENE_NAME)")
+    out_options(run, "run", default="./tolerax-out/SCENE_NAME")
     run.add_argument("--duration", type=positive, default=None, help="override run.duration, s")
     run.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
     run.add_argument("--n-save", type=count(2), default=None, help="override run.n_save (saved times)")
@@ -146,7 +148,7 @@ def main(argv=None) -> int:
             "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", 100),
         epilog=PATH + "\n\n" + DESIGN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    scene_options(design, "design")
+    scene_options(design, "design", "design")
     design.add_argument("--requirement", type=positive, default=None,
                         help="RMS pointing requirement, arcsec (default: the scene's [tolerances] requirement)")
     optimiser_options(design)
@@ -188,7 +190,7 @@ def main(argv=None) -> int:
         "`tolerax montecarlo OUT/proposal-R.toml --out OUT/montecarlo-R`). Every point reuses the compiled simulation: only the requirement changes.",
         epilog=DESIGN_EPILOG,
     )
-    scene_options(tradeoff, "design")
+    scene_options(tradeoff, "design", "tradeoff")
     tradeoff.add_argument("--requirements", type=positive, nargs="+", required=True, metavar="R",
                           help="RMS pointing requirements, arcsec, e.g. --requirements 400 550 700 1000")
     optimiser_options(tradeoff)
@@ -200,7 +202,7 @@ def main(argv=None) -> int:
         "rerun the same command to resume, or with a larger --n to extend a finished run (its first units kept, bitwise).",
         epilog=EPILOG,
     )
-    scene_options(mc, "per-unit")
+    scene_options(mc, "per-unit", "montecarlo")
     mc.add_argument("--n", type=count(1), default=64, help="manufactured units (default 64)")
     mc.add_argument("--band", type=band_um, default=None,
                     help="override the tolerance half-width of every feature, um, e.g. 10 (or 10um, 0.01mm) for +-10 um (default: the scene's "
@@ -216,7 +218,7 @@ def main(argv=None) -> int:
     studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
-    studies.add_argument("--out", default="tolerax-out", help="output folder (default ./tolerax-out)")
+    out_options(studies, "studies")
     studies.add_argument("--duration", type=positive, default=None,
                          help="simulated time per scene, s (default: the size's, full 3 s)")
     studies.add_argument("--settle", type=float, default=None,

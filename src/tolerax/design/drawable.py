@@ -61,6 +61,9 @@ class DrawableDesign:
     - `fits`: per feature, the ISO 286 fit a drawing calls the zone out as (`journal_fits`):
       `"H8/e7 (20.0-45.5 µm)"` with its radial clearance zone, `"none inside the zone"`, or `""`
       for a feature that is not a journal's clearance (a backlash).
+    - `tightened`: how far below the continuous design's grades the whole grades were chosen
+      (0: rounded from them, the cheapest combination its linear model allows; `propose_design`
+      rounds from every grade one lower where the check of the rounded design misses).
     """
 
     names: tuple[str, ...]
@@ -75,6 +78,7 @@ class DrawableDesign:
     extrapolated: tuple[str, ...] = ()
     kept: tuple[str, ...] = ()
     fits: tuple[str, ...] = ()
+    tightened: int = 0
 
     @property
     def met(self) -> bool:
@@ -108,8 +112,10 @@ class DrawableDesign:
             rows.append(f"| {name} | {grade} | {1e6 * self.nominal[k]:.1f} | {1e6 * self.band[k]:.1f} | "
                         f"{lo:.1f}–{hi:.1f} | {fits[k] or '- (a backlash: its IT grade)'} |")
         outputs = ", ".join(f"{float(o):.1f} against {float(r):.1f}" for o, r in zip(self.objective, self.limit))
-        head = (f"Drawable design (whole ISO 286 grades, each zone on the continuous design's lower limit): cost {self.cost:.4g} "
-                f"({unit}), {self.rounding_cost:+.3g} for rounding; linearised output(s) {outputs}"
+        head = (f"On the drawing (whole ISO 286 grades, each zone on the continuous design's lower limit"
+                + (f", each grade chosen from {self.tightened} below the continuous one after the check of the rounded grades "
+                   "missed" if self.tightened else "") + f"): cost {self.cost:.4g} "
+                f"({unit}), {self.rounding_cost:+.3g} for rounding the continuous optimum; linearised output(s) {outputs}"
                 + ("" if self.met or self.checks else "; the linear model says it misses") + ".")
         if self.checks:
             head += " " + " ".join(c.text() + "." for c in self.checks)

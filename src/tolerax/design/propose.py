@@ -267,6 +267,10 @@ def propose_design(
     if method == "sequential":
         drawable = _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units if status == "converged" else 0,
                              widths, jax.random.key(2) if check_key is None else jax.random.fold_in(check_key, 1))
+        if status == "converged" and not drawable.met:
+            # One proposal: what the drawing carries is the answer, so a continuous optimum whose
+            # whole grades miss is not a proposal.
+            status, diagnosis = "check missed", _drawable_missed(drawable, yield_)
     jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = problem.features, problem.x0
     return DesignReport(
@@ -321,22 +325,48 @@ def _tightest_first(evaluate, problem, slopes, requirements, tol):
     return tried[int(np.argmin(np.max(values / requirements, axis=1)))]
 
 
+TIGHTER_GRADES = 2  # how many grades below the continuous ones the drawable design is rounded from, at most
+
+
 def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check_units, widths, key):
-    """The design on whole ISO grades next to the continuous one (`round_to_grades`, from its
-    grades `grade`, with its linear model against what it was solved for), checked on
-    `check_units` simulated units against the requirements where there is a yield."""
+    """The proposal as drawn: the continuous design on whole ISO grades (`round_to_grades`,
+    from its grades `grade`, with its linear model against what it was solved for), checked on
+    `check_units` simulated units against the requirements where there is a yield. Where it
+    misses (its check short of the yield, or its linear model over a requirement), tighter
+    grades are tried: rounded from every continuous grade one lower, then two (`TIGHTER_GRADES`),
+    each checked on the same units; the first that meets is returned, else the last tried, its
+    `tightened` saying how far."""
     size, lower, upper = np.asarray(problem.features.size_mm), problem.lower, problem.upper
     band, limit = np.asarray(result.x.band, dtype=float), np.asarray(result.x.nominal, dtype=float)
     given = np.asarray(lower.band) == np.asarray(upper.band)
     fixed = tuple(n for n, g in zip(problem.features.names, given) if g)
-    d = round_to_grades(problem.features.names, size, limit, band, grade,
-                        [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
-                        lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
-                        band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
-    if yield_ is None or not check_units:
-        return d
-    got = yield_check(problem.objective.objective, Design(d.nominal, d.band), _as_requirement(requirements), check_units, key, widths[-1])
-    return dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
+    for shift in range(TIGHTER_GRADES + 1):
+        d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade, dtype=float) - shift,
+                            [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
+                            lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
+                            band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
+        d = dataclasses.replace(d, tightened=shift)
+        if yield_ is not None and check_units:
+            got = yield_check(problem.objective.objective, Design(d.nominal, d.band), _as_requirement(requirements), check_units,
+                              key, widths[-1])
+            d = dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
+        if d.met:
+            return d
+    return d
+
+
+def _drawable_missed(d, yield_) -> str:
+    """The diagnosis of a converged design whose drawable twin (whole grades) misses."""
+    if not d.checks:
+        return ("The continuous optimum meets the requirements, but on whole ISO grades (what a drawing carries) the linear "
+                "model says it misses: " + ", ".join(f"{float(o):.4g} against {float(r):.4g}" for o, r in zip(d.objective, d.limit))
+                + ". To change it: a wider band range (band_range), or a looser requirement.")
+    c = next(c for c in d.checks if c.interval[1] < c.q)
+    return (f"The continuous optimum meets the requirements, but its design on whole ISO grades (what a drawing carries), "
+            f"rounded from up to {d.tightened} grade(s) below the continuous ones after its checks, does not: {c.text()}, against "
+            f"{yield_:.1%} asked. To change "
+            "it: fit the slopes over units (secant_units, --secant-units), more check units (check_units, --check), or a "
+            "looser requirement.")
 
 
 def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:

@@ -94,9 +94,13 @@ class JitterRequirement:
 class DesignReport:
     """What `propose_design` proposes, and why.
 
-    - `names`: the features; `nominal`, `band` (m): the proposed design; `grade`: the ISO 286
-      grade of each band on its feature's size (fractional); `feature_cost`, `cost` (model
-      units): per feature and total.
+    One proposal: the zones to draw are `tolerances` (the drawable design's, on whole ISO
+    grades, where there is one), its cost `proposal_cost`, its check `drawable.checks`; the
+    fields below describe the optimiser's continuous optimum they round from (`continuous`).
+
+    - `names`: the features; `nominal`, `band` (m): the continuous optimum; `grade`: the ISO
+      286 grade of each band on its feature's size (fractional); `feature_cost`, `cost` (model
+      units): per feature and total, of the continuous optimum.
     - `baseline`: `(nominal, band, cost, objective)` of the starting design.
     - `objective` (arcsec): the robust statistic at the proposal over the fixed draws;
       `requirement` (arcsec); `constraint_active`; `multiplier` (cost per arcsec: what one more
@@ -124,9 +128,10 @@ class DesignReport:
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
     - `notes`: what the method did beyond the problem as posed (e.g. finished on secant slopes
       where the tangents stalled), one sentence each.
-    - `drawable`: the design on whole ISO grades next to this one (`DrawableDesign`: grades,
-      zones, cost and the rounding's cost, the linear model's outputs and, with a yield, its
-      own Monte Carlo check), from `propose_design`'s sequential method; else `None`.
+    - `drawable`: the proposal as drawn, the continuous optimum on whole ISO grades
+      (`DrawableDesign`: grades, zones, journal fits, cost and the rounding's cost, the linear
+      model's outputs and, with a yield, its own Monte Carlo check), from `propose_design`'s
+      sequential method; else `None`. `status` is `"converged"` only where it meets too.
     - `cost_unit`: what one unit of `cost` is (the cost model's `unit`); `grade_range`: the
       grades a shop's price table covers (`GradeTable`), outside which `table()` flags a
       feature's cost as extrapolated, else `None`.
@@ -170,10 +175,26 @@ class DesignReport:
 
     @property
     def tolerances(self) -> Tolerances:
-        """The proposed zones as a `Tolerances` (nominal ± band per feature, m; drawn uniformly,
-        as the design assumed): what `monte_carlo` draws units from and
-        `SceneFile.with_tolerances` writes."""
+        """The proposal's zones as a `Tolerances` (nominal ± band per feature, m; drawn
+        uniformly, as the design assumed): the drawable design's (`drawable`: whole ISO grades,
+        what the report says to put on the drawing and what its own check simulated) where there
+        is one, else the continuous optimum's (`continuous`). What `monte_carlo` draws units
+        from and `SceneFile.with_proposal` writes."""
+        if self.drawable is not None:
+            return Tolerances(self.names, np.asarray(self.drawable.nominal), np.asarray(self.drawable.band), "uniform")
+        return self.continuous
+
+    @property
+    def continuous(self) -> Tolerances:
+        """The continuous optimum's zones (`nominal`, `band`): the bound the drawable design
+        rounds from (the difference in cost is `drawable.rounding_cost`)."""
         return Tolerances(self.names, self.nominal, self.band, "uniform")
+
+    @property
+    def proposal_cost(self) -> float:
+        """The cost of the proposal's zones (`tolerances`): the drawable design's where there is
+        one, else the continuous optimum's `cost`."""
+        return float(self.drawable.cost) if self.drawable is not None else float(self.cost)
 
     @property
     def target(self) -> float:
@@ -214,12 +235,17 @@ class DesignReport:
                 why = (f"; {lost:.0%} of the output's spread over these zones is lost motion through the gear ratios (what "
                        f"a stack-up of the drawings sees) and {dynamics:.0%} dynamics the geometry does not see")
         model = "linear model" if self.yield_ is not None else "statistic over its simulated units"
-        met = [o for o in self.outcomes if o.met] if self.outcomes else None
+        if d is not None and self.outcomes:  # the drawn zones' own linear model, not the continuous optimum's
+            ok = list(np.asarray(d.objective) <= np.asarray(d.limit) * (1 + 1e-9))
+            values = [float(v) for v in d.objective]
+        else:
+            ok, values = [o.met for o in self.outcomes], [o.objective for o in self.outcomes]
+        met = [o for o, good in zip(self.outcomes, ok) if good] if self.outcomes else None
         if met is None or len(met) == len(self.outcomes):
             verdict = f"It meets {' and '.join(requirements)}{where} by the design's {model}."
         else:  # say what it misses, never "meets" for all (an infeasible or unconverged design)
-            missed = [f"{o.requirement.text()}{where} (by the design's {model}: {o.objective:.4g} {o.requirement.unit})"
-                      for o in self.outcomes if not o.met]
+            missed = [f"{o.requirement.text()}{where} (by the design's {model}: {v:.4g} {o.requirement.unit})"
+                      for o, v, good in zip(self.outcomes, values, ok) if not good]
             verdict = (f"It meets {' and '.join(o.requirement.text() for o in met)}{where} but misses " if met else "It misses ") + (
                 " and ".join(missed) + ".")
         return (f"{verb}: {'; '.join(zones)}. {verdict}{checked} "
@@ -227,8 +253,10 @@ class DesignReport:
                 f"{self.names[k]} ({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal){why}.")
 
     def table(self) -> str:
-        """A Markdown table of the proposal, one row per feature, after a paragraph on each
-        requirement; `plain` first (after what makes it not a proposal, where it is not)."""
+        """The proposal in Markdown: `plain` first (after what makes it not a proposal, where it
+        is not), then the zones on the drawing (`drawable`'s table, with its check), then the
+        continuous optimum they round from, a paragraph on each requirement and a row per
+        feature."""
         geometric, more = self.lost_motion is not None, self.outcomes[1:]
         rows = [
             "| feature | nominal (µm) | band ± (µm) | zone (µm) | ISO grade | cost | d obj / d nominal (arcsec/µm) |"
@@ -250,8 +278,12 @@ class DesignReport:
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         unit = self.outcomes[0].requirement.unit if self.outcomes else "arcsec"
         banner = "" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n"
+        if self.drawable is not None:
+            name = "Continuous optimum (the bound the drawn zones round from)"
+        else:
+            name = "Proposed design" if self.accepted else "Best design reached"
         head = (
-            f"{'Proposed design' if self.accepted else 'Best design reached'}: cost {self.cost:.4g} ({self.cost_unit}; baseline {self.baseline[2]:.4g}); {what} "
+            f"{name}: cost {self.cost:.4g} ({self.cost_unit}; baseline {self.baseline[2]:.4g}); {what} "
             f"{self.objective:.1f} {unit} against a requirement of {self.requirement:.1f} {unit} "
             + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
             + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
@@ -267,8 +299,8 @@ class DesignReport:
                      "independent set.")
         for o in more:
             head += "\n\n" + o.text(what + (", secants" if o.requirement.secants else ""))
-        tail = "" if self.drawable is None else "\n\n" + self.drawable.table(self.cost_unit)
-        return banner + self.plain() + "\n\n" + head + "\n\n" + "\n".join(rows) + tail
+        drawing = "" if self.drawable is None else self.drawable.table(self.cost_unit) + "\n\n"
+        return banner + self.plain() + "\n\n" + drawing + head + "\n\n" + "\n".join(rows)
 
     @property
     def extrapolated(self) -> tuple[str, ...]:
@@ -349,9 +381,12 @@ class DesignReport:
         base_nominal, base_band = np.asarray(self.baseline[0]), np.asarray(self.baseline[1])
         d = self.drawable
         rows = [(base_nominal, base_band, "0.7", f"baseline: cost {self.baseline[2]:.3g}")]
-        rows.append((self.nominal, self.band, "C0", f"{'proposal' if self.accepted else 'best design reached'}: cost {self.cost:.3g}"))
-        if d is not None:
-            rows.append((d.nominal, d.band, "C2", f"drawable: cost {d.cost:.3g}"))
+        answer = "proposal" if self.accepted else "best design reached"
+        if d is None:
+            rows.append((self.nominal, self.band, "C0", f"{answer}: cost {self.cost:.3g}"))
+        else:  # the drawn zones are the answer; the continuous optimum the bound they round from
+            rows.append((self.nominal, self.band, "C0", f"continuous optimum (bound): cost {self.cost:.3g}"))
+            rows.append((d.nominal, d.band, "C2", f"{answer}, whole grades: cost {d.cost:.3g}"))
         height = 0.8 / len(rows)
         offsets = (np.arange(len(rows))[::-1] - (len(rows) - 1) / 2) * height
         for (nominal, band, color, label), off in zip(rows, offsets):

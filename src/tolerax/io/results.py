@@ -7,6 +7,7 @@ import pathlib
 
 import numpy as np
 
+from .._files import atomic_write, save_figure
 from .schema import SERIES
 from ..design import features as _design
 from ..mechanism.mechanism import Mechanism
@@ -144,12 +145,12 @@ def write_results(scene_file: SceneFile, result, out: str | os.PathLike, *, wall
     out.mkdir(parents=True, exist_ok=True)
     save_scene(scene_file, out / "scene.toml")
     ds = timeseries(scene_file, result)
-    ds.to_netcdf(out / "timeseries.nc", engine="h5netcdf")
+    atomic_write(out / "timeseries.nc", lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
     settings = scene_file.outputs
     plots = []
     for name in settings["plots"]:
         fig = _plot(name, result, scene_file.run["settle"], f"{scene_file.name}: {name.replace('_', ' ')}")
-        fig.savefig(out / f"{name}.png", dpi=settings["dpi"])
+        save_figure(fig, out / f"{name}.png", dpi=settings["dpi"])
         plt.close(fig)
         plots.append(f"{name}.png")
     model = scene_file.build()
@@ -169,8 +170,8 @@ def write_results(scene_file: SceneFile, result, out: str | os.PathLike, *, wall
         files=["scene.toml", "timeseries.nc", *plots, "summary.json", "summary.md"],
         command=command,
     )
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    (out / "summary.md").write_text(summary_md(summary))
+    atomic_write(out / "summary.json", json.dumps(summary, indent=2))
+    atomic_write(out / "summary.md", summary_md(summary))
     return summary
 
 

@@ -24,6 +24,7 @@ import tomllib
 import numpy as np
 import tomli_w
 
+from .._files import atomic_write
 from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
 from . import schema as S
@@ -152,32 +153,25 @@ class SceneFile:
 
     def with_proposal(self, report) -> "SceneFile":
         """This scene with a tolerance proposal (`tolerax.propose_design`'s `DesignReport`)
-        filled in: the nominal clearances and backlash under `[design]`, the half-widths under
-        `[tolerances.bands]`, the requirement, uniform manufacturing (what the design assumed),
-        and a description with the cost. `tolerax design` writes it as `proposal.toml`;
+        filled in: its zones (`report.tolerances`: on whole ISO grades where the report has a
+        drawable design, the zones it says to draw) as the nominal clearances and backlash under
+        `[design]` and the half-widths under `[tolerances.bands]`, the requirement, uniform
+        manufacturing (what the design assumed), and a description with the cost and each
+        zone's callout (grade, journal fit). `tolerax design` writes it as `proposal.toml`;
         `tolerax run`, `montecarlo` and `design` read it back as any scene file."""
         data = self._data_with(report.tolerances)
         data["tolerances"]["requirement"] = float(report.requirement)
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
+        d = getattr(report, "drawable", None)
+        cost = report.cost if d is None else d.cost
         data["title"] = f"Proposal: {self.title}"
-        data["description"] = (f"Written by tolerax design from {self.source}: cost {report.cost:.4g} (baseline "
+        data["description"] = (f"Written by tolerax design from {self.source}: cost {cost:.4g} (baseline "
                                f"{report.baseline[2]:.4g}; {getattr(report, 'cost_unit', 'relative, 1 per feature at IT7')}), RMS pointing requirement {report.requirement:g} arcsec "
                                f"({what})" + "".join(f", {o.requirement.text()}" for o in getattr(report, "outcomes", ())[1:])
-                               + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + ".")
+                               + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + "."
+                               + ("" if d is None else f" On whole grades, as drawn: {'; '.join(d.callouts())} (continuous optimum's "
+                                  f"cost {report.cost:.4g})."))
         return SceneFile.from_data(data, "proposal", "<proposal>")
-
-    def with_drawable(self, drawable) -> "SceneFile":
-        """This scene (a proposal, `with_proposal`) with the zones of its drawable twin
-        (`DrawableDesign`: whole ISO grades) written in and their callouts (zone, grade, each
-        journal's ISO 286 fit) added to its description. `tolerax design` writes it as
-        `proposal_drawable.toml`."""
-        from ..uncertainty.sampling import Tolerances
-
-        d = drawable
-        data = self._data_with(Tolerances(d.names, d.nominal, d.band))
-        data["description"] = (data.get("description", "") + f" On whole grades, as drawn: {'; '.join(d.callouts())} "
-                               f"(cost {d.cost:.4g}).")
-        return SceneFile.from_data(data, self.name, self.source)
 
     @property
     def requirement(self) -> float | None:
@@ -252,7 +246,7 @@ def builtin_titles() -> dict[str, str]:
 def save_scene(scene_file: SceneFile, path: str | os.PathLike) -> pathlib.Path:
     """Write `scene_file` as TOML to `path` (comments of the original are not kept)."""
     path = pathlib.Path(path)
-    path.write_text(scene_file.to_toml(), encoding="utf-8")
+    atomic_write(path, scene_file.to_toml())
     return path
 
 

@@ -2,12 +2,11 @@
 resume) and one netCDF file per finished chunk, each written atomically."""
 
 import json
-import os
 import pathlib
-import uuid
-from collections.abc import Callable
 
 import xarray as xr
+
+from .._files import atomic_write
 
 
 def chunk_path(out: pathlib.Path, k: int) -> pathlib.Path:
@@ -54,9 +53,3 @@ def _differences(there: dict, now: dict, prefix: str = "") -> list[str]:
         elif old != new:
             lines.append(f"{prefix}{key}: {old!r} there, {new!r} now")
     return lines
-
-
-def atomic_write(path: pathlib.Path, write: Callable[[pathlib.Path], object]) -> None:
-    tmp = path.with_name(f"{path.name}.{uuid.uuid4().hex[:8]}.tmp")
-    write(tmp)
-    os.replace(tmp, path)  # atomic: a chunk file exists whole or not at all
