@@ -467,7 +467,7 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
         cli.main(["montecarlo", "--n", "2", "--out", str(shared)])
     err = capsys.readouterr().err
     assert info.value.code == 2 and "holds the results of `tolerax design`" in err and f"--out {shared / 'montecarlo'}" in err
-    from tolerax.cli.common import check_out
+    from tolerax.cli.common import check_out, out_owner
 
     parser = argparse.ArgumentParser(prog="tolerax design")
     with pytest.raises(SystemExit):
@@ -476,6 +476,19 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     assert check_out(parser, shared, "design", force=True) == shared
     (shared / ".tolerax-command").write_text("montecarlo\n")
     assert check_out(parser, shared, "montecarlo", resumes=True) == shared
+    # --force replaces: when the new work is written, the earlier results of that command go
+    # (a stale best_reached.toml is not left beside a new proposal.toml); another command's never.
+    from tolerax.cli.common import claim_out
+
+    (shared / ".tolerax-command").write_text("design\n")
+    (shared / "best_reached.toml").write_text("title = 'earlier'\n")
+    (shared / "verify").mkdir()
+    (shared / "verify" / "summary.json").write_text("{}")
+    claim_out(shared, "run", fresh=True)  # not its folder: nothing removed
+    assert {p.name for p in shared.iterdir()} == {"report.md", "best_reached.toml", "verify", ".tolerax-command"}
+    (shared / ".tolerax-command").write_text("design\n")
+    claim_out(shared, "design", fresh=True)
+    assert [p.name for p in shared.iterdir()] == [".tolerax-command"] and out_owner(shared) is None
     with pytest.raises(SystemExit) as info:
         cli.main(["--version"])
     assert info.value.code == 0 and capsys.readouterr().out.strip() == f"tolerax {tx.__version__}"

@@ -339,7 +339,7 @@ def design_command(parser, args) -> int:
         return proposed
     report, wall = proposed
     life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if args.life is not None else None
-    claim_out(out, "design")
+    claim_out(out, "design", fresh=args.force)
     F.save_scene(scene_file, out / "scene.toml")
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
     # never written as the answer unless the user allows it.
@@ -471,7 +471,7 @@ def tradeoff_command(parser, args) -> int:
     pointing = scene_file.objective(life=None)  # the requirements are the beginning of life's
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
-    claim_out(out, "tradeoff")
+    claim_out(out, "tradeoff", fresh=args.force)
     points, rows = [], []
     for requirement in requirements:
         proposed = _propose(pointing, requirement, options, "tradeoff")
@@ -561,7 +561,7 @@ def run_command(parser, args) -> int:
         print(f"tolerax run: {err}", file=sys.stderr)
         return 2
     wall = time.perf_counter() - start
-    claim_out(out, "run")
+    claim_out(out, "run", fresh=args.force)
     summary = R.write_results(scene_file, result, out, wall_s=wall, command=command_line(args))
     print(R.summary_md(summary))
     if not result.success:

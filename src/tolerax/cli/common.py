@@ -9,6 +9,7 @@ import os
 import pathlib
 import re
 import shlex
+import shutil
 import sys
 import tempfile
 
@@ -141,8 +142,9 @@ def check_out(parser, out, command: str, *, force: bool = False, resumes: bool =
     - a folder holding another command's results (`out_owner`): refused, naming that command
       and a folder of this one's own;
     - a folder holding this command's results: kept where the command goes on from them
-      (`resumes`: montecarlo's chunks, studies' `--resume`), overwritten with `force`
-      (`--force`), else refused, naming `--force`;
+      (`resumes`: montecarlo's chunks, studies' `--resume`), replaced with `force` (`--force`:
+      the earlier results are removed when the new ones are written, `claim_out`), else
+      refused, naming `--force`;
     - a folder that cannot be created or written (read-only, a path under a file): refused with
       the system's reason, before any simulation.
 
@@ -179,9 +181,16 @@ def _probe(path: pathlib.Path) -> None:
     os.rmdir(tempfile.mkdtemp(dir=parent, prefix=".tolerax-probe-"))
 
 
-def claim_out(out, command: str) -> None:
-    """Mark the folder `out` as holding `tolerax command`'s results (`out_owner` reads it)."""
+def claim_out(out, command: str, *, fresh: bool = False) -> None:
+    """Mark the folder `out` as holding `tolerax command`'s results (`out_owner` reads it).
+    With `fresh` (`--force`), first remove what an earlier `tolerax command` left there (its
+    results are replaced, not mixed with the new ones: an earlier `best_reached.toml` beside a
+    new `proposal.toml`, an earlier verification's chunks); a folder holding another command's
+    results is never emptied."""
     path = pathlib.Path(out)
+    if fresh and out_owner(path) == command:
+        for entry in path.iterdir():
+            shutil.rmtree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
     path.mkdir(parents=True, exist_ok=True)
     atomic_write(path / OWNER, command + "\n")
 

@@ -26,7 +26,7 @@ def demo_command(parser, args) -> int:
     from ..io import results as R, scenefile as F
 
     out = pathlib.Path(args.out)
-    claim_out(out, "demo")
+    claim_out(out, "demo", fresh=args.force)
     command = command_line(args)
     load_before = load_average()
     # The scan scene's window starts after the first 0.3 s; a shorter demo summarises all of it.
@@ -158,7 +158,7 @@ def _demo_bench(parser, args) -> int:
     result = _scene.simulate(bench, duration, n_save=int(round(1000 * duration)) + 1, progress=args.progress)
     wall = time.perf_counter() - start
     out = pathlib.Path(args.out)
-    claim_out(out, "demo")
+    claim_out(out, "demo", fresh=args.force)
     angle = np.degrees(np.asarray(result.output_angle))
     force = np.asarray(result.contact_force)
     fig, axes = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
