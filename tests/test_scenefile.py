@@ -228,6 +228,9 @@ def test_good_text_parses():
         # Inputs a newcomer gets wrong without a word otherwise: a module in the wrong unit, a
         # scan amplitude beside the profile that replaces it.
         ("sun_teeth = 20", "sun_teeth = 20\nmodule = 1e9", 10, "scene.azimuth_stage", "module", "ISO 54"),
+        # A check of one key against another names the one it is about, at its line (issue 61:
+        # a backlash typed in um was reported at the module's line).
+        ("sun_teeth = 20", "module = 1e-3\nsun_teeth = 20\nbacklash = 80", 11, "scene.azimuth_stage", "backlash", "below the module"),
         ('mode = "azimuth"', 'mode = "azimuth"\namplitude = 0.01\nprofile_times = [0.0, 0.2]\nprofile_angles = [0.0, 0.01]', 6,
          "scene", "amplitude", "ignores 'amplitude'"),
     ],

@@ -239,11 +239,13 @@ class Checker:
             raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).", table, key)
 
     def wrap(self, err: Exception, table: tuple[str, ...], data: dict):
-        """A builder's error, located at the first key of `table` its message names."""
+        """A builder's error, located at the key of `table` its message names first: the
+        argument it is about (`default_stage(backlash=80) must be below the module`: the
+        backlash, not the module it is compared with)."""
         message = str(err)
-        for key in data:
-            if re.search(rf"\b{re.escape(key)}\b", message):
-                return self.error(message, table, key)
+        named = [(m.start(), key) for key in data if (m := re.search(rf"\b{re.escape(key)}\b", message))]
+        if named:
+            return self.error(message, table, min(named)[1])
         return self.error(message, table)
 
 
