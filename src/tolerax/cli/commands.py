@@ -8,8 +8,9 @@ import pathlib
 import sys
 import time
 
-from .common import (atomic_write, check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
-                     read_scene_file, rough_wall, save_figure, settings, versions, with_tolerances)
+from .._files import atomic_write, save_figure
+from .common import (check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
+                     read_scene_file, rough_wall, settings, versions, with_tolerances)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 

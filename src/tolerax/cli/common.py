@@ -13,7 +13,7 @@ import shutil
 import sys
 import tempfile
 
-from .._files import atomic_write, save_figure  # noqa: F401  (save_figure: for the commands)
+from .._files import atomic_write
 
 DEFAULT_SCENE = "scan-azimuth"
 
@@ -125,9 +125,9 @@ def out_owner(path: pathlib.Path) -> str | None:
     entries = [e.name for e in path.iterdir() if e.name != OWNER and not e.name.endswith(".tmp")]
     if not entries:
         return None
-    mark = path / OWNER
-    if mark.is_file() and mark.read_text().strip():
-        return mark.read_text().strip()
+    mark = (path / OWNER).read_text().strip() if (path / OWNER).is_file() else ""
+    if mark:
+        return mark
     for name, command in _SIGNS:
         if name in entries:
             return command

@@ -7,7 +7,8 @@ import pathlib
 import sys
 import time
 
-from .common import DEFAULT_SCENE, atomic_write, check_out, claim_out, command_line, load_average, save_figure
+from .._files import atomic_write, save_figure
+from .common import DEFAULT_SCENE, check_out, claim_out, command_line, load_average
 
 
 def demo_command(parser, args) -> int:

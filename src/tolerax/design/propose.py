@@ -356,12 +356,14 @@ def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, c
 
 
 def _drawable_missed(d, yield_) -> str:
-    """The diagnosis of a converged design whose drawable twin (whole grades) misses."""
-    if not d.checks:
+    """The diagnosis of a converged design whose drawable twin (whole grades) misses: by a check
+    short of the yield where one is, else by its linear model."""
+    missed = [c for c in d.checks if c.interval[1] < c.q]
+    if not missed:
         return ("The continuous optimum meets the requirements, but on whole ISO grades (what a drawing carries) the linear "
                 "model says it misses: " + ", ".join(f"{float(o):.4g} against {float(r):.4g}" for o, r in zip(d.objective, d.limit))
                 + ". To change it: a wider band range (band_range), or a looser requirement.")
-    c = next(c for c in d.checks if c.interval[1] < c.q)
+    c = missed[0]
     return (f"The continuous optimum meets the requirements, but its design on whole ISO grades (what a drawing carries), "
             f"rounded from up to {d.tightened} grade(s) below the continuous ones after its checks, does not: {c.text()}, against "
             f"{yield_:.1%} asked. To change "
