@@ -110,10 +110,29 @@ def test_journal_clearances_get_the_loosest_iso_286_fit_inside_their_zone():
     assert got[0].startswith(f"{first} (") and Fit("H7", "g6") in fits_covering(3.5e-6, 20.5e-6, 30.0)
     lo, hi = first.radial_clearance(30.0)
     assert 3.5e-6 - 1e-12 <= lo and hi <= 20.5e-6 + 1e-12 and hi - lo >= 17e-6 - 1e-12  # as wide as H7/g6's zone
-    assert got[1] == "" and got[2] == "none inside the zone"
+    assert got[1] == "" and got[2].startswith("none inside the zone: too narrow")
     grade = np.array([7.4, 8.5])
     band = 0.5 * np.asarray(width_of_grade(7, SIZES[:2])) * 1.5848931924611136 ** (grade - 7)
     cost = lambda b: np.asarray(IsoGrade()(2 * np.asarray(b), SIZES[:2]))  # noqa: E731
     d = round_to_grades(["carrier_clearance", "ring_backlash"], SIZES[:2], np.full(2, 20e-6), band,
                         np.asarray(grade_of(2 * band, SIZES[:2])), [500.0], [1e9], np.ones((1, 2)), cost)
     assert len(d.fits) == 2 and d.fits[1] == "" and "ISO 286 fit" in d.table()
+
+
+def test_backlash_zones_are_drawn_as_tooth_thickness_allowances():
+    """With the meshes' pressure angles, a stage's sun and ring backlash are called out together
+    as sun, planet and ring tooth-thickness allowances (the planet's the same in both), each
+    mesh's normal backlash inside its zone; a clearance keeps its fit; without angles, nothing."""
+    import re
+
+    from tolerax.design.drawable import journal_fits
+
+    names = ["az.sun_backlash", "az.ring_backlash", "az.planet_clearance"]
+    lo, hi, alpha = [20e-6, 30e-6, 5e-6], [45e-6, 80e-6, 30e-6], math.radians(20.0)
+    got = journal_fits(names, [40.0, 120.0, 12.0], lo, hi, [alpha] * 3)
+    planet = {re.search(r"planet (\S+)", t).group(1) for t in got[:2]}
+    assert len(planet) == 1 and got[2].startswith("H")
+    for text, a, b in zip(got[:2], lo, hi):
+        jn = [float(v) for v in re.match(r"jn ([\d.]+)–([\d.]+) µm", text).groups()]
+        assert a * 1e6 - 0.05 <= jn[0] <= jn[1] <= b * 1e6 + 0.05
+    assert journal_fits(names, [40.0, 120.0, 12.0], lo, hi)[:2] == ("", "")

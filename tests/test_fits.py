@@ -13,6 +13,9 @@ from tolerax.design.fits import (
     DEFAULT_HOLES,
     DEFAULT_SHAFTS,
     IT_TABLE_UM,
+    ABC_STEPS,
+    HOLE_LETTERS,
+    SHAFT_ES_ABC_UM,
     SHAFT_ES_UM,
     SHAFT_K_EI_UM,
     Fit,
@@ -21,6 +24,7 @@ from tolerax.design.fits import (
     nearest_fit,
     size_step,
     standard_tolerance,
+    why_no_fit,
 )
 
 # ISO 286-2:2010 limit deviations (upper, lower) in µm at a diameter (mm) of its size step.
@@ -31,6 +35,14 @@ ISO_286_2 = [
     (50.0, "H7", 25, 0), (50.0, "g6", -9, -25), (50.0, "f7", -25, -50),
     (10.0, "H7", 15, 0), (10.0, "g6", -5, -14),
     (2.0, "f7", -6, -16), (2.0, "k6", 6, 0), (100.0, "k6", 25, 3), (100.0, "H8", 54, 0),
+    # a, b, c on ISO 286's intermediate steps (30-40 and 40-50, 50-65 and 65-80, ... differ)
+    (5.0, "a11", -270, -345), (15.0, "b11", -150, -260), (45.0, "c11", -130, -290), (36.0, "c9", -120, -182),
+    (36.0, "c8", -120, -159), (110.0, "a9", -410, -497), (170.0, "b9", -310, -410), (210.0, "c11", -260, -550),
+    (240.0, "a11", -820, -1110), (55.0, "b11", -190, -380), (70.0, "b11", -200, -390),
+    (60.0, "d9", -100, -174), (150.0, "e8", -85, -148), (200.0, "f7", -50, -96), (4.0, "g6", -4, -12),
+    (150.0, "h9", 0, -100),
+    # holes of the shaft-basis system (EI = -es of the shaft letter)
+    (36.0, "C11", 280, 120), (25.0, "D9", 117, 65), (12.0, "F7", 34, 16), (40.0, "E8", 89, 50), (30.0, "G7", 28, 7),
 ]
 
 
@@ -162,3 +174,58 @@ def test_fits_covering_refuses_bad_arguments():
         fits_covering(5e-6, 40e-6, 30.0, holes=("g6",))
     with pytest.raises(ValueError, match="empty"):
         fits_covering(5e-6, 40e-6, 30.0, shafts=())
+
+
+def test_abc_tables_are_ordered_like_the_standard():
+    """A typo check of the a, b, c rows (their ISO 286-1 formulas are rounded to 10-20 µm steps,
+    too coarse for a formula check): each grows with size, a below b below c below d on every
+    step, and the intermediate steps refine the main ones (each main step's upper limit is one)."""
+    assert set(SIZE_STEPS) <= set(ABC_STEPS)
+    for letter in "abc":
+        row = SHAFT_ES_ABC_UM[letter]
+        assert len(row) == len(ABC_STEPS) and all(x >= y for x, y in itertools.pairwise(row))
+    for k, upper in enumerate(ABC_STEPS):
+        d = SHAFT_ES_UM["d"][next(j for j, u in enumerate(SIZE_STEPS) if upper <= u)]
+        assert SHAFT_ES_ABC_UM["a"][k] < SHAFT_ES_ABC_UM["b"][k] < SHAFT_ES_ABC_UM["c"][k] < d
+
+
+def test_the_carrier_journal_gets_a_fit():
+    """The zone issue 61 found without one: a Ø36 mm carrier journal, 41-141 µm radial. H8/c8
+    (60-99 µm) and H9/c9 (60-122 µm) lie inside it (ISO 286-2 at 30-40 mm: c es -120 µm, IT8 39,
+    IT9 62), and the loosest fit chosen is a c fit inside the zone."""
+    found = fits_covering(41e-6, 141e-6, 36.0)
+    assert Fit("H8", "c8") in found and Fit("H9", "c9") in found
+    assert [1e6 * v for v in Fit("H9", "c9").radial_clearance(36.0)] == pytest.approx([60.0, 122.0])
+    best = nearest_fit(41e-6, 141e-6, 36.0)
+    lo, hi = best.radial_clearance(36.0)
+    assert best.shaft.startswith("c") and 41e-6 <= lo and hi <= 141e-6 + 1e-12
+    assert why_no_fit(41e-6, 141e-6, 36.0) == ""
+
+
+def test_shaft_basis_fits_mirror_the_hole_basis():
+    """A-H holes with an h shaft have the clearance of H with the same letter's shaft (EI = -es),
+    grades swapped: C9/h8 is H8/c9's zone; the shaft-basis search lists only X/h fits."""
+    for letter in HOLE_LETTERS:
+        for d in (5.0, 36.0, 130.0, 230.0):
+            assert Fit(f"{letter}9", "h8").radial_clearance(d) == pytest.approx(
+                Fit("H8", f"{letter.lower()}9").radial_clearance(d), abs=1e-12)
+    found = fits_covering(41e-6, 141e-6, 36.0, basis="shaft")
+    assert found and all(f.shaft.startswith("h") for f in found) and Fit("C9", "h9") in found
+    with pytest.raises(ValueError, match="basis"):
+        fits_covering(41e-6, 141e-6, 36.0, basis="both")
+
+
+def test_why_no_fit_names_the_reason():
+    """Each reason is checked against the candidates themselves: too narrow (no pair's zone is
+    that narrow), too loose (every position's smallest clearance is below the zone), between
+    positions (the zone's lower limit falls between two letters' smallest clearances)."""
+    pairs = [Fit(h, s) for h, s in itertools.product(DEFAULT_HOLES, DEFAULT_SHAFTS)]
+    reason = why_no_fit(41e-6, 50e-6, 36.0)
+    assert reason.startswith("too narrow") and fits_covering(41e-6, 50e-6, 36.0) == []
+    assert min(f.radial_clearance(36.0)[1] - f.radial_clearance(36.0)[0] for f in pairs) > 9e-6
+    reason = why_no_fit(200e-6, 400e-6, 36.0)
+    assert reason.startswith("too loose") and "155 µm" in reason  # a at 30-40 mm: es -310 µm
+    assert max(f.radial_clearance(36.0)[0] for f in pairs) == pytest.approx(155e-6)
+    reason = why_no_fit(41e-6, 65e-6, 36.0)  # d allows 40 µm (es -80), c starts at 60 µm and needs >= 73.5
+    assert reason.startswith("between positions") and "60 µm" in reason and "73.5 µm" in reason and "40 µm" in reason
+    assert fits_covering(41e-6, 65e-6, 36.0) == []

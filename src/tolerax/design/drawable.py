@@ -17,10 +17,11 @@ follow other formulae) as `grade_of` extrapolates, said as such.
 
 A journal bearing's radial clearance is not made to a grade of its own but by a bore and a
 journal, each toleranced: for every clearance feature the drawable design also names the
-loosest ISO 286 hole-basis fit (H6-H9 with d-k shafts of grades 5-9) whose whole clearance
-zone lies inside the drawable zone (`tolerax.design.fits.nearest_fit`), or says that none does.
-A backlash is called out as its whole IT grade on the backlash itself; a gear tooth-thickness
-tolerance (ISO 21771, DIN 3967) is not chosen here.
+loosest ISO 286 hole-basis fit (H6-H11 with a-k shafts of grades 5-11) whose whole clearance
+zone lies inside the drawable zone (`tolerax.design.fits.nearest_fit`), or says why none does.
+A backlash is called out as the gears' tooth-thickness allowances whose normal backlash lies
+inside the zone (`tolerax.design.backlash`: the sun, planet and ring of a stage allotted
+together), with its whole IT grade.
 """
 
 import dataclasses
@@ -29,7 +30,8 @@ import math
 import numpy as np
 
 from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, SIZE_STEPS, it_tolerance
-from .fits import SMALLEST_SIZE, nearest_fit
+from .backlash import callout_text, stage_allowances
+from .fits import SMALLEST_SIZE, nearest_fit, why_no_fit
 
 EXHAUSTIVE = 16  # features up to which every combination of the two grades is tried
 
@@ -59,8 +61,10 @@ class DrawableDesign:
       where `propose_design` made them, else `()`.
     - `extrapolated`: the features whose grade lies outside IT5-IT11 (R5 progression).
     - `fits`: per feature, the ISO 286 fit a drawing calls the zone out as (`journal_fits`):
-      `"H8/e7 (20.0-45.5 µm)"` with its radial clearance zone, `"none inside the zone"`, or `""`
-      for a feature that is not a journal's clearance (a backlash).
+      `"H8/e7 (20.0-45.5 µm)"` with its radial clearance zone, `"none inside the zone: <why>"`;
+      for a backlash the gears' tooth-thickness allowances (`"jn 20.7–44.2 µm: sun -11/-24,
+      planet -11/-23 µm tooth thickness (jt ...)"`) where the meshes' pressure angles were given,
+      else `""`.
     - `tightened`: how far below the continuous design's grades the whole grades were chosen
       (0: rounded from them, the cheapest combination its linear model allows; `propose_design`
       rounds from every grade one lower where the check of the rounded design misses).
@@ -88,7 +92,9 @@ class DrawableDesign:
         return ok and all(c.interval[1] >= c.q for c in self.checks)  # each check reached its yield within its noise
 
     def callout(self, k: int) -> str:
-        """Feature `k`'s grade, with the ISO 286 fit inside its zone for a journal: `"IT8, H8/f7"`
+        """Feature `k`'s grade, with the ISO 286 fit inside its zone for a journal (`"IT8, H8/f7"`)
+        or the tooth-thickness allowances for a backlash (`"IT9, jn 20.7–44.2 µm: sun -11/-24,
+        planet -11/-23 µm tooth thickness"`)
         (`"IT5.2, kept"` for a feature that keeps its continuous grade)."""
         name, text = self.names[k], self.fits[k] if self.fits else ""
         grade = f"IT{self.grades[k]:.1f}, kept" if name in self.kept else f"IT{int(self.grades[k])}"
@@ -103,7 +109,8 @@ class DrawableDesign:
 
     def table(self, unit: str = "cost units") -> str:
         """The drawable zones as a Markdown table with a sentence of what rounding cost."""
-        rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) | ISO 286 fit inside the zone (radial clearance, µm) |",
+        rows = ["| feature | ISO grade | nominal (µm) | band ± (µm) | zone (µm) | drawn as: ISO 286 fit inside the zone (radial "
+                "clearance, µm), or the gears' tooth-thickness allowances (backlash) |",
                 "|---|---|---|---|---|---|"]
         fits = self.fits or ("",) * len(self.names)
         for k, name in enumerate(self.names):
@@ -124,29 +131,62 @@ class DrawableDesign:
         return head + "\n\n" + "\n".join(rows)
 
 
-def journal_fits(names, size_mm, lower_limit, upper_limit) -> tuple[str, ...]:
-    """Per feature: the loosest ISO 286 fit (`tolerax.design.fits.nearest_fit`) whose radial
-    clearance zone lies inside [`lower_limit`, `upper_limit`] (m) at the journal diameter
-    `size_mm` (mm), as `"H8/e7 (20.0-45.5 µm)"`; `"none inside the zone"` where no H6-H9 fit
-    does (a zone too narrow or too tight for a standard fit: call out bore and journal
-    diameters yourself); `""` for a feature that is not a clearance (a backlash)."""
+def journal_fits(names, size_mm, lower_limit, upper_limit, pressure_angle=None) -> tuple[str, ...]:
+    """Per feature, how a drawing calls out its zone [`lower_limit`, `upper_limit`] (m):
+
+    - a journal's clearance: the loosest ISO 286 fit (`tolerax.design.fits.nearest_fit`) whose
+      radial clearance zone lies inside it at the journal diameter `size_mm` (mm), as
+      `"H8/e7 (20.0-45.5 µm)"`; `"none inside the zone: <why>"` where no H6-H11 fit with a
+      shaft a-k of grades 5-11 does (`tolerax.design.fits.why_no_fit`: too narrow, too loose,
+      or between positions);
+    - a backlash, where `pressure_angle` (rad, one per feature) is given: the gears'
+      tooth-thickness allowances (`tolerax.design.backlash.stage_allowances`, the sun and ring
+      backlash of one stage (and planet) split together, the planet sharing both), as
+      `"jn 20.5-44.9 µm: sun -11/-23, planet -11/-23 µm tooth thickness (jt ...)"`; else `""`.
+    """
+    n = len(names)
+    angle = None if pressure_angle is None else np.broadcast_to(np.asarray(pressure_angle, dtype=float), (n,))
     out = []
-    for name, size, lo, hi in zip(names, np.broadcast_to(np.asarray(size_mm, dtype=float), (len(names),)), lower_limit, upper_limit):
+    for name, size, lo, hi in zip(names, np.broadcast_to(np.asarray(size_mm, dtype=float), (n,)), lower_limit, upper_limit):
         if not name.endswith("_clearance") or not SMALLEST_SIZE <= size <= SIZE_STEPS[-1]:
             out.append("" if not name.endswith("_clearance") else
                        f"none: Ø{size:g} mm is outside ISO 286's {SMALLEST_SIZE:g}-{SIZE_STEPS[-1]:g} mm")
             continue
         fit = nearest_fit(float(lo), float(hi), float(size))
         if fit is None:
-            out.append("none inside the zone")
+            out.append(f"none inside the zone: {why_no_fit(float(lo), float(hi), float(size))}")
             continue
         c_lo, c_hi = fit.radial_clearance(float(size))
         out.append(f"{fit} ({1e6 * c_lo:.1f}–{1e6 * c_hi:.1f})")
+    if angle is not None:
+        for k, text in _backlash_callouts(names, lower_limit, upper_limit, angle).items():
+            out[k] = text
     return tuple(out)
 
 
+def _backlash_callouts(names, lower_limit, upper_limit, angle) -> dict[int, str]:
+    """{feature index: callout} for the backlash features, the sun and ring backlash of one
+    stage (and planet) allotted together (`stage_allowances`)."""
+    groups: dict[str, dict[str, int]] = {}  # "joint.*[i]" -> {"sun": k, "ring": k}
+    for k, name in enumerate(names):
+        for mesh in ("sun", "ring"):
+            if f"{mesh}_backlash" in name.rsplit(".", 1)[-1]:
+                groups.setdefault(name.replace(f"{mesh}_backlash", "*"), {})[mesh] = k
+    out = {}
+    for members in groups.values():
+        zone = {mesh: (float(lower_limit[k]), float(upper_limit[k])) for mesh, k in members.items()}
+        angles = {mesh: float(angle[k]) for mesh, k in members.items()}
+        try:
+            allowances = stage_allowances(zone.get("sun"), zone.get("ring"), angles.get("sun", 0.35), angles.get("ring", 0.35))
+        except ValueError as error:
+            out.update({k: f"none: {error}".replace("stage_allowances: ", "") for k in members.values()})
+            continue
+        out.update({k: callout_text(mesh, allowances, angles[mesh]) for mesh, k in members.items()})
+    return out
+
+
 def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, slopes, cost, band_range=None,
-                    fixed=()) -> DrawableDesign:
+                    fixed=(), pressure_angle=None) -> DrawableDesign:
     """The cheapest whole-grade design next to a continuous one (module docstring).
 
     **Arguments:**
@@ -162,6 +202,8 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
       feature; whole grades outside it
       are not offered, and a feature with none inside keeps its continuous band (`kept`).
     - `fixed`: names of features given, not designed: not moved (`kept`).
+    - `pressure_angle`: the meshes' pressure angles (rad, one per feature), for the backlash
+      features' tooth-thickness allowances (`journal_fits`); None: none.
     """
     names = tuple(names)
     n = len(names)
@@ -224,4 +266,4 @@ def round_to_grades(names, size_mm, lower_limit, band, grade, objective, limit, 
     lo, hi = min(GRADE_MULTIPLIERS), max(GRADE_MULTIPLIERS)
     extrapolated = tuple(f"{names[k]} (IT{grades[k]:g})" for k in range(n) if picked[k] is not None and not lo <= grades[k] <= hi)
     return DrawableDesign(names, grades, lower_limit + b, b, c, c - float(np.sum(cost(band))), f, limit, (), extrapolated, kept,
-                          journal_fits(names, size, lower_limit, lower_limit + 2 * b))
+                          journal_fits(names, size, lower_limit, lower_limit + 2 * b, pressure_angle))

@@ -1,14 +1,18 @@
 """ISO 286 fits for journal bearings: a designed radial-clearance zone as a hole/shaft fit (H7/g6).
 
 A journal of nominal diameter $D$ in a bore has the radial clearance $c = (d_\\mathrm{hole} -
-d_\\mathrm{shaft})/2$. A fit of the hole-basis system (ISO 286-1: hole H, lower deviation EI = 0)
-gives it the zone
+d_\\mathrm{shaft})/2$. A fit gives it the zone
 
 $$c_\\min = (EI - es)/2, \\qquad c_\\max = (ES - ei)/2,$$
 
 with ES, EI the hole's and es, ei the shaft's upper and lower limit deviations. `fits_covering`
 lists the fits whose whole zone lies inside a designed one (every bore and journal made to the
-fit meets the design), loosest (cheapest) first; `nearest_fit` is the first of them.
+fit meets the design), loosest (cheapest) first; `nearest_fit` is the first of them, and
+`why_no_fit` says why a zone holds none (too narrow for any grade pair, a smallest clearance
+above the loosest position's, or between two positions). Hole basis (H with shafts a-k) by
+default; shaft basis (holes A-H with an h shaft, `basis="shaft"`) where one journal carries
+several bores, as a planet pin may: for A-H the hole's EI is the shaft letter's $-es$ (ISO
+286-1's general rule), so C9/h9 has H9/c9's clearance.
 
 **Values.** Tabulated, not computed: ISO 286-1 rounds its formulas by rules that do not reproduce
 the published tables everywhere (the first size step, the tolerance grades' coarser rounding above
@@ -16,22 +20,25 @@ the published tables everywhere (the first size step, the tolerance grades' coar
 table at and below 3 mm). Here:
 
 - standard tolerances IT5-IT11: ISO 286-1:2010 Table 1;
-- fundamental deviations: ISO 286-1:2010 Table 2 (shafts), as printed in the ISO 286-2:2010
+- fundamental deviations: ISO 286-1:2010 Tables 2-3 (shafts), as printed in the ISO 286-2:2010
   Tables of limit deviations: es of d, e, f, g, h (their formulas, rounded: $-16 D^{0.44}$,
   $-11 D^{0.41}$, $-5.5 D^{0.41}$, $-2.5 D^{0.34}$, 0 µm, $D$ the geometric mean of the step);
-  ei of k, $+0.6 D^{1/3}$ µm rounded for grades 4-7 (0 up to 3 mm), 0 for the other grades; the
-  hole H's EI = 0;
+  es of a, b, c on ISO 286's intermediate size steps (10-14 and 14-18 alike, 18-24 and 24-30
+  alike, then 30-40, 40-50, 50-65, ... 450-500 mm: `ABC_STEPS`), the steps on which these
+  letters differ; ei of k, $+0.6 D^{1/3}$ µm rounded for grades 4-7 (0 up to 3 mm), 0 for the
+  other grades; the holes A-H: $EI = -es$ of the same letter;
 - js: ±IT/2, with ISO 286-1's rule for js7 to js11 that an odd IT (whole µm) is first rounded
   down to the even value below, so the limits are whole µm (js7 at 18-30 mm: ±10 µm, not ±10.5;
   js5 and js6 keep their half micrometres: js6 at 18-30 mm is ±6.5 µm), as ISO 286-2 prints them.
 
 Sizes: ISO 286's main size steps 1-3, 3-6, 6-10, 10-18, 18-30, 30-50, 50-80, 80-120, 120-180,
 180-250, 250-315, 315-400 and 400-500 mm ("over ... up to and including"; the same steps as
-`tolerax.design.cost.SIZE_STEPS`; the intermediate steps of ISO 286 split none of these values).
+`tolerax.design.cost.SIZE_STEPS`), and for a, b, c (A, B, C) the intermediate steps above.
 Sizes below 1 mm are refused although ISO's first step reads "up to 3 mm": the diameter is the one
 length this module takes in mm, and a value below 1 is far more likely a diameter in metres.
-Only hole H and shafts d, e, f, g, h, js, k of grades 5-11 are tabulated: the hole-basis clearance
-and transition fits of journal bearings.
+Tabulated: shafts a, b, c, d, e, f, g, h, js, k and holes A-H, grades 5-11 (ISO 286-2 prints
+a from grade 9 and b, c from grade 8; the finer ones follow the same rule). Not tabulated: the
+intermediate positions cd, ef, fg (sizes up to 50 mm only), and j, m-zc (interference).
 """
 
 import dataclasses
@@ -44,8 +51,8 @@ from .cost import GRADE_MULTIPLIERS, SIZE_STEPS
 
 SMALLEST_SIZE = 1.0  # mm: the lower limit of ISO 286's first size step
 GRADES = tuple(sorted(GRADE_MULTIPLIERS))  # 5 ... 11
-HOLE_LETTERS = ("H",)
-SHAFT_LETTERS = ("d", "e", "f", "g", "h", "js", "k")
+HOLE_LETTERS = ("A", "B", "C", "D", "E", "F", "G", "H")  # EI = -es of the same shaft letter; H: 0
+SHAFT_LETTERS = ("a", "b", "c", "d", "e", "f", "g", "h", "js", "k")
 
 # ISO 286-1:2010 Table 1: standard tolerance IT (µm), one value per size step of SIZE_STEPS
 # (up to 3, 3-6, 6-10, 10-18, 18-30, 30-50, 50-80, 80-120, 120-180, 180-250, 250-315, 315-400, 400-500 mm).
@@ -66,13 +73,30 @@ SHAFT_ES_UM = {
     "g": (-2, -4, -5, -6, -7, -9, -10, -12, -14, -15, -17, -18, -20),
     "h": (0,) * len(SIZE_STEPS),
 }
+# ISO 286's intermediate size steps (upper limits, mm) on which a, b and c differ: 10-14 and 14-18 share
+# their values, as do 18-24 and 24-30, so those pairs are one step here.
+ABC_STEPS = (3.0, 6.0, 10.0, 18.0, 30.0, 40.0, 50.0, 65.0, 80.0, 100.0, 120.0, 140.0, 160.0, 180.0, 200.0, 225.0,
+             250.0, 280.0, 315.0, 355.0, 400.0, 450.0, 500.0)
+# ISO 286-1:2010 Table 2 (ISO 286-2:2010 Tables): upper deviation es (µm) of shafts a, b, c on ABC_STEPS.
+SHAFT_ES_ABC_UM = {
+    "a": (-270, -270, -280, -290, -300, -310, -320, -340, -360, -380, -410, -460, -520, -580, -660, -740, -820, -920,
+          -1050, -1200, -1350, -1500, -1650),
+    "b": (-140, -140, -150, -150, -160, -170, -180, -190, -200, -220, -240, -260, -280, -310, -340, -380, -420, -480,
+          -540, -600, -680, -760, -840),
+    "c": (-60, -70, -80, -95, -110, -120, -130, -140, -150, -170, -180, -200, -210, -230, -240, -260, -280, -300, -330,
+          -360, -400, -440, -480),
+}
 # Lower deviation ei (µm) of shaft k for grades 4-7 (the same tables); 0 for the other grades.
 SHAFT_K_EI_UM = (0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 4, 5)
 K_GRADES_WITH_EI = (4, 5, 6, 7)
 JS_EVEN_GRADES = (7, 8, 9, 10, 11)  # js grades whose odd IT is rounded down to even (module docstring)
 
-DEFAULT_HOLES = ("H6", "H7", "H8", "H9")
-DEFAULT_SHAFTS = tuple(f"{letter}{grade}" for letter in SHAFT_LETTERS for grade in range(5, 10))
+# The classes `fits_covering` combines by default: hole basis, H6-H11 with shafts a-k of grades 5-11;
+# shaft basis (basis="shaft"), holes A-H of grades 6-11 with h5-h11.
+DEFAULT_HOLES = tuple(f"H{grade}" for grade in range(6, 12))
+DEFAULT_SHAFTS = tuple(f"{letter}{grade}" for letter in SHAFT_LETTERS for grade in GRADES)
+SHAFT_BASIS_HOLES = tuple(f"{letter}{grade}" for letter in HOLE_LETTERS for grade in range(6, 12))
+SHAFT_BASIS_SHAFTS = tuple(f"h{grade}" for grade in GRADES)
 SLACK = 1e-12  # m: a fit's zone counts as inside limits it passes by less (float rounding of the limits)
 
 _CLASS = re.compile(r"([A-Za-z]{1,2})(0|[1-9][0-9]?)")
@@ -137,20 +161,29 @@ def _it_um(grade: int, step: int) -> int:
     return IT_TABLE_UM[grade][step]
 
 
-def _limits_um(tolerance_class: str, step: int) -> tuple[float, float]:
-    """(lower, upper) limit deviations (µm) of a hole or shaft class in size step `step`."""
+def _es_um(letter: str, diameter: float) -> int:
+    """Upper deviation es (µm) of shaft position `letter` (a ... h) at a checked diameter (mm)."""
+    if letter in SHAFT_ES_ABC_UM:
+        return SHAFT_ES_ABC_UM[letter][next(k for k, upper in enumerate(ABC_STEPS) if diameter <= upper)]
+    return SHAFT_ES_UM[letter][_step(diameter)]
+
+
+def _limits_um(tolerance_class: str, diameter: float) -> tuple[float, float]:
+    """(lower, upper) limit deviations (µm) of a hole or shaft class at a diameter (mm) `_step` accepts."""
     kind = _kind_of(tolerance_class)
     letter, grade = _parse_class(tolerance_class, kind)
+    step = _step(diameter)
     it = _it_um(grade, step)
-    if letter == "H":
-        return 0.0, float(it)
+    if kind == "hole":  # A-H: EI = -es of the shaft letter (ISO 286-1's general rule; H: 0)
+        ei = -_es_um(letter.lower(), float(diameter))
+        return float(ei), float(ei + it)
     if letter == "js":
         half = (it - it % 2 if grade in JS_EVEN_GRADES else it) / 2
         return -half, half
     if letter == "k":
         ei = SHAFT_K_EI_UM[step] if grade in K_GRADES_WITH_EI else 0
         return float(ei), float(ei + it)
-    es = SHAFT_ES_UM[letter][step]
+    es = _es_um(letter, float(diameter))
     return float(es - it), float(es)
 
 
@@ -166,16 +199,16 @@ def standard_tolerance(grade: int, diameter_mm) -> float:
 def limit_deviations(tolerance_class: str, diameter_mm) -> tuple[float, float]:
     """Lower and upper limit deviations (m) of a tolerance class at nominal diameter `diameter_mm`
     (mm): (EI, ES) of a hole class ("H7"), (ei, es) of a shaft class ("g6", "js6", "k6")."""
-    lower, upper = _limits_um(tolerance_class, _step(diameter_mm))
+    lower, upper = _limits_um(tolerance_class, diameter_mm)
     return lower / 1e6, upper / 1e6
 
 
 def fundamental_deviation(tolerance_class: str, diameter_mm) -> float:
-    """ISO 286-1's fundamental deviation (m), the limit deviation nearest zero: EI of H, es of
-    d ... h, ei of k; of js (a zone symmetric about zero) its upper deviation +IT/2."""
+    """ISO 286-1's fundamental deviation (m), the limit deviation nearest zero: EI of A ... H,
+    es of a ... h, ei of k; of js (a zone symmetric about zero) its upper deviation +IT/2."""
     lower, upper = limit_deviations(tolerance_class, diameter_mm)
-    letter = _parse_class(tolerance_class, _kind_of(tolerance_class))[0]
-    return lower if letter in ("H", "k") else upper
+    kind = _kind_of(tolerance_class)
+    return lower if kind == "hole" or _parse_class(tolerance_class, kind)[0] == "k" else upper
 
 
 def _signed(value_um: float) -> str:
@@ -216,8 +249,7 @@ class Fit:
         return limit_deviations(self.shaft, diameter_mm)
 
     def _clearance_um(self, diameter_mm) -> tuple[float, float]:
-        step = _step(diameter_mm)
-        (ei_hole, es_hole), (ei_shaft, es_shaft) = _limits_um(self.hole, step), _limits_um(self.shaft, step)
+        (ei_hole, es_hole), (ei_shaft, es_shaft) = _limits_um(self.hole, diameter_mm), _limits_um(self.shaft, diameter_mm)
         return (ei_hole - es_shaft) / 2, (es_hole - ei_shaft) / 2
 
     def radial_clearance(self, diameter_mm) -> tuple[float, float]:
@@ -240,8 +272,7 @@ class Fit:
 
     def text(self, diameter_mm) -> str:
         """One line for a report: the limits (µm) and the radial clearance of the fit."""
-        step = _step(diameter_mm)
-        (ei_h, es_h), (ei_s, es_s) = _limits_um(self.hole, step), _limits_um(self.shaft, step)
+        (ei_h, es_h), (ei_s, es_s) = _limits_um(self.hole, diameter_mm), _limits_um(self.shaft, diameter_mm)
         low, high = self._clearance_um(diameter_mm)
         return (f"Ø{float(diameter_mm):g} {self}: hole {_signed(es_h)}/{_signed(ei_h)} µm, "
                 f"shaft {_signed(es_s)}/{_signed(ei_s)} µm, "
@@ -265,7 +296,26 @@ def _limit(value, name: str) -> float:
     return v
 
 
-def fits_covering(lower_limit, upper_limit, diameter_mm, holes=DEFAULT_HOLES, shafts=DEFAULT_SHAFTS) -> list[Fit]:
+def _candidates(lower_limit, upper_limit, diameter_mm, holes, shafts, basis, who):
+    """The checked zone (m) and the (hole, shaft) pairs to try, with their radial clearance zones (µm)."""
+    if basis not in ("hole", "shaft"):
+        raise ValueError(f"{who}: basis must be 'hole' (H with shafts a-k) or 'shaft' (holes A-H with h), got {basis!r}.")
+    holes = (DEFAULT_HOLES if basis == "hole" else SHAFT_BASIS_HOLES) if holes is None else holes
+    shafts = (DEFAULT_SHAFTS if basis == "hole" else SHAFT_BASIS_SHAFTS) if shafts is None else shafts
+    lower, upper = (_limit(v, name) for v, name in ((lower_limit, "lower_limit"), (upper_limit, "upper_limit")))
+    if lower > upper:
+        raise ValueError(f"{who}: lower_limit ({lower:g} m) is above upper_limit ({upper:g} m): give the "
+                         "designed radial clearance zone as (smallest, largest).")
+    _step(diameter_mm)  # the size checked before it is used
+    if max(abs(lower), abs(upper)) > float(diameter_mm) * 1e-3:
+        raise ValueError(f"{who}: a radial clearance limit ({lower:g}, {upper:g}) exceeds the journal diameter "
+                         f"({float(diameter_mm):g} mm): the limits are in m (3.5e-6 for 3.5 µm), the diameter in mm.")
+    pairs = [(Fit(h, sh), *Fit(h, sh)._clearance_um(diameter_mm))
+             for h in _classes(holes, "hole", "holes") for sh in _classes(shafts, "shaft", "shafts")]
+    return lower, upper, pairs
+
+
+def fits_covering(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, basis: str = "hole") -> list[Fit]:
     """The fits whose radial-clearance zone lies inside a designed one, loosest first.
 
     **Arguments:**
@@ -274,38 +324,58 @@ def fits_covering(lower_limit, upper_limit, diameter_mm, holes=DEFAULT_HOLES, sh
       to a listed fit has a clearance in it (to `SLACK`, 1 pm). A negative lower limit admits
       transition fits.
     - `diameter_mm`: the journal's nominal diameter (mm), in [1, 500].
-    - `holes`, `shafts`: the classes to combine (all pairs): H6-H9 and d, e, f, g, h, js, k of
-      grades 5-9 by default.
+    - `holes`, `shafts`: the classes to combine (all pairs). By default, for `basis="hole"`:
+      H6-H11 with a, b, c, d, e, f, g, h, js, k of grades 5-11 (`DEFAULT_HOLES`,
+      `DEFAULT_SHAFTS`); for `basis="shaft"` (one journal in several bores): A-H of grades
+      6-11 with h5-h11.
 
     **Returns:**
 
     The `Fit`s inside the zone, sorted by the width of their zone, widest (the coarsest grades,
     the cheapest) first; among equal widths the one with the larger margin to the nearer limit
-    first, then the coarser hole. Empty where none fits: widen the zone or allow finer grades.
+    first, then the coarser hole. Empty where none fits: `why_no_fit` says why.
     """
-    lower, upper = (_limit(v, name) for v, name in ((lower_limit, "lower_limit"), (upper_limit, "upper_limit")))
-    if lower > upper:
-        raise ValueError(f"fits_covering: lower_limit ({lower:g} m) is above upper_limit ({upper:g} m): give the "
-                         "designed radial clearance zone as (smallest, largest).")
-    _step(diameter_mm)  # the size checked before it is used
-    if max(abs(lower), abs(upper)) > float(diameter_mm) * 1e-3:
-        raise ValueError(f"fits_covering: a radial clearance limit ({lower:g}, {upper:g}) exceeds the journal diameter "
-                         f"({float(diameter_mm):g} mm): the limits are in m (3.5e-6 for 3.5 µm), the diameter in mm.")
+    lower, upper, pairs = _candidates(lower_limit, upper_limit, diameter_mm, holes, shafts, basis, "fits_covering")
     found = []
-    for hole in _classes(holes, "hole", "holes"):
-        for shaft in _classes(shafts, "shaft", "shafts"):
-            fit = Fit(hole, shaft)
-            low_um, high_um = fit._clearance_um(diameter_mm)
-            low, high = low_um / 1e6, high_um / 1e6
-            if low >= lower - SLACK and high <= upper + SLACK:
-                margin = min(low - lower, upper - high)
-                # The width in µm (quarter micrometres, exact): equal widths tie exactly.
-                found.append(((low_um - high_um, -margin, -_parse_class(hole, "hole")[1], str(fit)), fit))
+    for fit, low_um, high_um in pairs:
+        low, high = low_um / 1e6, high_um / 1e6
+        if low >= lower - SLACK and high <= upper + SLACK:
+            margin = min(low - lower, upper - high)
+            # The width in µm (quarter micrometres, exact): equal widths tie exactly.
+            found.append(((low_um - high_um, -margin, -_parse_class(fit.hole, "hole")[1], str(fit)), fit))
     return [fit for _, fit in sorted(found, key=lambda item: item[0])]
 
 
-def nearest_fit(lower_limit, upper_limit, diameter_mm, holes=DEFAULT_HOLES, shafts=DEFAULT_SHAFTS) -> Fit | None:
+def nearest_fit(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, basis: str = "hole") -> Fit | None:
     """The loosest fit inside the designed radial clearance zone (the first of `fits_covering`,
     same arguments), or None where none lies inside it."""
-    found = fits_covering(lower_limit, upper_limit, diameter_mm, holes, shafts)
+    found = fits_covering(lower_limit, upper_limit, diameter_mm, holes, shafts, basis)
     return found[0] if found else None
+
+
+def why_no_fit(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, basis: str = "hole") -> str:
+    """Why no fit of the classes (`fits_covering`'s arguments) lies inside the zone, in one
+    sentence: the zone is narrower than the narrowest pair's; its smallest clearance is above
+    the loosest position's; or it falls between two positions (the tighter one allows less
+    clearance than the zone's lower limit, the looser one needs the zone to reach higher). ""
+    where a fit lies inside."""
+    lower, upper, pairs = _candidates(lower_limit, upper_limit, diameter_mm, holes, shafts, basis, "why_no_fit")
+    if fits_covering(lower_limit, upper_limit, diameter_mm, holes, shafts, basis):
+        return ""
+    lo_um, hi_um, d = 1e6 * lower, 1e6 * upper, float(diameter_mm)
+    narrow = min(pairs, key=lambda p: (p[2] - p[1], abs(p[1] - lo_um)))  # of the narrowest, the one nearest the zone
+    if hi_um - lo_um < narrow[2] - narrow[1] - 1e6 * SLACK:
+        return (f"too narrow: the zone is {hi_um - lo_um:.1f} µm wide, the narrowest fit of these grades ({narrow[0]} at "
+                f"Ø{d:g} mm) spans {narrow[2] - narrow[1]:g} µm of radial clearance; widen the zone or allow finer grades")
+    loosest = max(pairs, key=lambda p: p[1])
+    if lo_um > loosest[1] + 1e6 * SLACK:
+        return (f"too loose: the zone's smallest clearance {lo_um:.1f} µm is above the loosest position's ({loosest[0]}: "
+                f"{loosest[1]:g} µm at Ø{d:g} mm); call out bore and journal diameters directly")
+    above = min((p for p in pairs if p[1] >= lo_um - 1e6 * SLACK), key=lambda p: (p[1], p[2]))
+    at = [p for p in pairs if p[1] == above[1]]
+    reach = min(at, key=lambda p: p[2])
+    below = [p for p in pairs if p[1] < lo_um - 1e6 * SLACK]
+    tighter = f"; the next tighter ({max(below, key=lambda p: p[1])[0]}) allows {max(p[1] for p in below):g} µm" if below else ""
+    return (f"between positions: the fits whose smallest clearance is at least the zone's {lo_um:.1f} µm start at "
+            f"{above[1]:g} µm and reach at least {reach[2]:g} µm ({reach[0]} at Ø{d:g} mm), above the zone's "
+            f"{hi_um:.1f} µm{tighter}; widen the zone or move its limits")

@@ -38,6 +38,13 @@ def feature_sizes(scene) -> np.ndarray:
     return np.asarray(sizes)
 
 
+def feature_pressure_angles(scene) -> np.ndarray:
+    """Pressure angle (rad) of each design feature's mesh: the sun mesh's for a sun backlash, the
+    ring mesh's for a ring backlash, the sun mesh's for a clearance (not read there)."""
+    return np.asarray([float(stage.ring_pressure_angle if feature == "ring_backlash" else stage.sun_pressure_angle)
+                       for _, feature, stage, _ in feature_entries(scene)])
+
+
 class OnHalfWidth(AbstractCostModel):
     """A cost model of the full tolerance width $2b$ (as ISO 286 tabulates it) applied to the
     design's half-width `band` $b$ (nominal $\\pm b$)."""
@@ -322,7 +329,7 @@ def design_problem(
         draws = yield_draws(n + (1 if scatter else 0) + len(uncertain), n_yield_draws)
     return DesignProblem(
         objective=FromLowerLimit(objective),
-        features=Features(names, feature_sizes(scene)),
+        features=Features(names, feature_sizes(scene), feature_pressure_angles(scene)),
         draws=draws,
         lower=Design(lower_limit, lower_band),
         upper=Design(limit0, upper_band),

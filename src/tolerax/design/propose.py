@@ -344,7 +344,8 @@ def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, c
         d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade, dtype=float) - shift,
                             [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
                             lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
-                            band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed)
+                            band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed,
+                            pressure_angle=problem.features.pressure_angle)
         d = dataclasses.replace(d, tightened=shift)
         if yield_ is not None and check_units:
             got = yield_check(problem.objective.objective, Design(d.nominal, d.band), _as_requirement(requirements), check_units,

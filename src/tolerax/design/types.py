@@ -67,14 +67,20 @@ class Features(eqx.Module):
     - `names`: one name per feature, e.g. `("azimuth sun-bearing clearance", ...)`.
     - `size_mm`: nominal size of each feature (mm) for the cost model: the journal diameter of a
       bearing fit, the pitch diameter of a gear mesh.
+    - `pressure_angle`: optional, the pressure angle (rad) of each backlash feature's mesh (any
+      value for the others), for the drawing's tooth-thickness allowances
+      (`tolerax.design.backlash`); None: backlash is called out by its grade alone.
     """
 
     names: tuple[str, ...] = eqx.field(static=True)
     size_mm: Float[Array, " n"]
+    pressure_angle: Float[Array, " n"] | None = None
 
-    def __init__(self, names, size_mm):
+    def __init__(self, names, size_mm, pressure_angle=None):
         self.names = tuple(str(name) for name in names)
         self.size_mm = V.real("Features", "size_mm", size_mm, "mm", shape=(len(self.names),))
+        self.pressure_angle = None if pressure_angle is None else V.real(
+            "Features", "pressure_angle", pressure_angle, "rad", shape=(len(self.names),))
 
     def __check_init__(self):
         if len(set(self.names)) != len(self.names):
