@@ -34,7 +34,7 @@ import numpy as np
 import harness
 import tolerax as tx
 from tolerax.design.problem import design_problem
-from tolerax.design.reliability import secant_standard_error
+from tolerax.design.surface import secant_standard_error
 from tolerax.design.sequential import sequential_design
 
 OUTPUTS = ("pointing_rms", "pointing_jitter")

@@ -37,7 +37,8 @@ import scipy.stats
 import tolerax as tx
 from tolerax.design.features import lost_motion_weights
 from tolerax.design.propose import design_problem
-from tolerax.design.reliability import LinearisedYield, linear_quantile, yield_check
+from tolerax.design.check import yield_check
+from tolerax.design.reliability import LinearisedYield, linear_quantile
 from tolerax.design.sequential import sequential_design
 
 import harness

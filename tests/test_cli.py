@@ -5,6 +5,7 @@ the numbers, which the modules' own tests check."""
 
 import argparse
 import hashlib
+import pathlib
 import re
 import subprocess
 import sys
@@ -82,6 +83,31 @@ def test_a_bad_option_is_answered_before_the_simulator_is_imported():
     assert "unrecognized arguments: --bogus" in done.stderr
 
 
+@pytest.mark.parametrize("text, message", [
+    ('title = "x"\n[scene\n', ":2: invalid TOML"),
+    ('title = "x"\nscen = 1\n[run]\nduration = 0.1\n', ":2: scen: unknown key 'scen' (did you mean 'scene'?)"),
+    ('title = "x"\n[run]\nduration = 0.1\n', "missing table [scene]"),
+    (None, "cannot read the scene file"),
+])
+def test_a_scene_file_s_first_errors_are_answered_before_the_simulator_is_imported(tmp_path, text, message):
+    """A scene file that cannot be read, is not TOML or has an unknown or missing top-level
+    table: exit 2 with the file, line and key, in a fresh process that has not imported JAX,
+    the physics or the plotting and data libraries (issue 61 item 6; the keys inside the tables
+    are checked by the schema, which needs the simulator's classes)."""
+    path = tmp_path / "my_drive.toml"
+    if text is not None:
+        path.write_text(text)
+    code = ("import sys\nfrom tolerax.cli.main import main\n"
+            f"assert main(['design', {str(path)!r}, '--requirement', '500', '--out', {str(tmp_path / 'out')!r}]) == 2\n"
+            "print([m for m in ('tolerax.mechanism', 'tolerax.design', 'jax', 'diffrax', 'equinox', 'matplotlib', 'xarray') "
+            "if m in sys.modules])")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+    assert f"tolerax design: {path}" in done.stderr and message in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_help_names_every_command_and_option(capsys):
     with pytest.raises(SystemExit) as info:
         cli.main(["--help"])
@@ -133,6 +159,38 @@ def test_demo_at_a_tiny_size(tmp_path, capsys):
     text = (tmp_path / "demo.md").read_text()
     assert f"{summary['metrics']['pointing_rms_arcsec']:.1f} arcsec" in text and "load average" in text
     assert not (tmp_path / "design").exists()
+
+
+README = (pathlib.Path(__file__).resolve().parent.parent / "README.md").read_text()
+
+
+def _readme_number(pattern: str) -> float:
+    (value,) = re.findall(pattern, README)
+    return float(value)
+
+
+def test_the_readme_quotes_the_demo_s_pointing(tmp_path):
+    """The pointing error the README says the demo prints is what `tolerax demo` prints now."""
+    assert cli.main(["demo", "--steps", "0", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "demo.md").read_text()
+    quoted = re.search(r"The demo prints `(RMS pointing error [\d.]+ arcsec, peak [\d.]+ arcsec)`", README).group(1)
+    assert quoted in text
+
+
+@pytest.mark.slow
+def test_the_readme_quotes_the_demo_s_proposal(tmp_path):
+    """The proposal the README quotes (its drawn and continuous costs, objective, gradients) is
+    what the full `tolerax demo` prints now (a minute of design on one core)."""
+    assert cli.main(["demo", "--out", str(tmp_path)]) == 0
+    text = (tmp_path / "demo.md").read_text()
+    gradients = int(_readme_number(r"converges in (\d+) gradients"))
+    assert f"{gradients} gradients over 2 units" in text and f"`{gradients} gradients over 2 units`" in README
+    drawn = re.search(r"Put on the drawing: .*? Cost ([\d.]+) ", text).group(1)
+    assert float(drawn) == _readme_number(r"proposal on whole ISO grades at cost ([\d.]+)")
+    continuous = re.search(r"Continuous optimum \(the bound the drawn zones round from\): cost ([\d.]+) ", text).group(1)
+    assert float(continuous) == _readme_number(r"continuous optimum, cost\s+([\d.]+),")
+    objective = _readme_number(r"whose objective, ([\d.]+) arcsec")
+    assert f"objective {objective:.1f} arcsec" in text
 
 
 @pytest.mark.slow
@@ -396,7 +454,8 @@ def test_every_command_refuses_an_output_folder_it_must_not_write_before_any_wor
     """Issue 61's folder contract, per command: into a folder holding another command's results
     (marked, and one written before folders were marked, known by its files): exit 2, the
     command that owns it named, every file unchanged and nothing added; into a folder that
-    cannot be written (a path under a file): exit 2 with the reason, no traceback."""
+    cannot be written (a path under a file, a read-only folder and a new one inside it): exit 2
+    with the reason, no traceback."""
     command = argv[0]
     other = "design" if command == "run" else "run"
     marked, unmarked = tmp_path / "marked", tmp_path / "unmarked"
@@ -419,6 +478,29 @@ def test_every_command_refuses_an_output_folder_it_must_not_write_before_any_wor
     err = capsys.readouterr().err
     assert info.value.code == 2 and "cannot be written" in err and "Traceback" not in err
     assert blocked.read_text() == ""
+    # A read-only folder: permissions where they bind; as root (they do not) a read-only file
+    # system, Linux's /sys. Refused before any work, with the reason.
+    readonly = tmp_path / "readonly"
+    readonly.mkdir()
+    readonly.chmod(0o555)
+
+    def writable(folder):
+        try:
+            (folder / ".probe").touch()
+        except OSError:
+            return False
+        (folder / ".probe").unlink()
+        return True
+
+    if writable(readonly):
+        readonly = pathlib.Path("/sys")
+        if not readonly.is_dir() or writable(readonly):
+            pytest.skip("no folder here that this user cannot write")
+    for target in (readonly, readonly / "new"):
+        with pytest.raises(SystemExit) as info:
+            cli.main([*argv, "--out", str(target)])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and "cannot be written" in err and "Traceback" not in err
 
 
 def test_an_interrupted_write_leaves_the_old_file_whole(tmp_path):
@@ -457,6 +539,12 @@ def test_commands_refuse_bad_input_before_any_work(tmp_path, capsys):
     assert not (tmp_path / "mc" / "chunks").exists()
     assert cli.main(["montecarlo", "scan-azimut", "--out", str(tmp_path / "mc")]) == 2
     assert "(did you mean 'scan-azimuth'?)" in capsys.readouterr().err
+    # A table the command line added is named as such, with the flag that fixes it, not a line of
+    # the user's file (issue 61: "my_drive.toml:47: [life]" in a 39-line file).
+    assert cli.main(["design", "scan", "--requirement", "500", "--life", "10", "--out", str(tmp_path / "life")]) == 2
+    err = capsys.readouterr().err
+    assert "the [life] table that --life 10 added: nothing wears" in err and "--fidelity planetary" in err
+    assert not re.search(r"scan:\d+:", err)
     # A folder holding another command's results is refused (it would be overwritten), with the
     # folder to use instead; the same command's own is refused without --force, or resumed.
     shared = tmp_path / "shared"

@@ -18,6 +18,7 @@ from tolerax.design.fits import (
     SHAFT_ES_ABC_UM,
     SHAFT_ES_UM,
     SHAFT_K_EI_UM,
+    SLACK,
     Fit,
     fits_covering,
     limit_deviations,
@@ -142,10 +143,10 @@ def test_fits_covering_against_brute_force(diameter, lower, upper):
     assert found, "the zones here are wide enough for some fit"
     for fit in found:
         low, high = fit.radial_clearance(diameter)
-        assert lower - 1e-12 <= low <= high <= upper + 1e-12
+        assert lower - SLACK <= low <= high <= upper + SLACK
     inside = {Fit(h, s) for h, s in itertools.product(DEFAULT_HOLES, DEFAULT_SHAFTS)
-              if lower - 1e-12 <= Fit(h, s).radial_clearance(diameter)[0]
-              and Fit(h, s).radial_clearance(diameter)[1] <= upper + 1e-12}
+              if lower - SLACK <= Fit(h, s).radial_clearance(diameter)[0]
+              and Fit(h, s).radial_clearance(diameter)[1] <= upper + SLACK}
     assert set(found) == inside and len(found) == len(inside)
     widths = [f.radial_clearance(diameter)[1] - f.radial_clearance(diameter)[0] for f in found]
     assert all(a >= b - 1e-15 for a, b in itertools.pairwise(widths))
@@ -226,6 +227,13 @@ def test_why_no_fit_names_the_reason():
     reason = why_no_fit(200e-6, 400e-6, 36.0)
     assert reason.startswith("too loose") and "155 µm" in reason  # a at 30-40 mm: es -310 µm
     assert max(f.radial_clearance(36.0)[0] for f in pairs) == pytest.approx(155e-6)
-    reason = why_no_fit(41e-6, 65e-6, 36.0)  # d allows 40 µm (es -80), c starts at 60 µm and needs >= 73.5
-    assert reason.startswith("between positions") and "60 µm" in reason and "73.5 µm" in reason and "40 µm" in reason
+    # d allows 40 µm (es -80); c starts at 60 µm (es -120) and, at its finest (H6/c8: IT6 16, IT8 39), reaches 87.5
+    reason = why_no_fit(41e-6, 65e-6, 36.0)
+    assert reason.startswith("between positions") and "60 µm" in reason and "87.5 µm" in reason and "40 µm" in reason
+    assert "c5" not in "".join(DEFAULT_SHAFTS) and "a8" not in "".join(DEFAULT_SHAFTS)  # as ISO 286-2 prints them
+    # A zone that only a grade ISO 286-2 does not print fits says so (c6 at 18-30 mm: -110/-123 µm).
+    reason = why_no_fit(52e-6, 68e-6, 30.0)
+    assert reason.startswith("none of the grades ISO 286-2 prints") and "H6/c6 (55-68 µm" in reason
+    # Within SLACK (0.05 µm): H6/f5 at 6-10 mm (6.5-14 µm) is the fit of the zone 5-13.98 µm, not 5-13.9.
+    assert nearest_fit(5e-6, 13.98e-6, 8.0) == Fit("H6", "f5") and nearest_fit(5e-6, 13.9e-6, 8.0) is None
     assert fits_covering(41e-6, 65e-6, 36.0) == []

@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import pytest
 
 from tolerax.design.outcome import diagnose, tightest
-from tolerax.design.reliability import YieldCheck
+from tolerax.design.check import YieldCheck
 from tolerax.design.sequential import sequential_design
 from tolerax.design.cost import IsoGrade
 from tolerax.design.types import Design, Features

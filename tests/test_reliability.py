@@ -12,7 +12,8 @@ import pytest
 
 import tolerax as tx
 from tolerax.design import propose as _propose
-from tolerax.design import reliability as rel
+from tolerax.design import rounds as _rounds
+from tolerax.design import check as chk, reliability as rel, surface as srf
 from tolerax.design.features import lost_motion_weights
 from tolerax.design.optimise import realise
 
@@ -133,7 +134,7 @@ def test_yield_check_is_direct_simulation(scan_pointing, scan_unit):
     which the drawings weigh 0, moves it)."""
     x, key = X_SCAN, jax.random.key(7)
     pair = rel.LinearisedYield(scan_pointing, output=("pointing_rms", "pointing_jitter"), q=0.9, secant_units=8, scatter=True)
-    rms, jitter = rel.yield_check(pair, x, (1000.0, 1.0), 6, key, width=1e-6)
+    rms, jitter = chk.yield_check(pair, x, (1000.0, 1.0), 6, key, width=1e-6)
     values = realise(x, tx.unit_draws(key, 6, 4))
     units = [scan_unit(v) for v in values]
     # The same solve in two programs (one unit, a vmapped batch) rounds differently; the
@@ -263,8 +264,8 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units():
     q2 = np.asarray(eqx.filter_jit(pair)(x, draws, 1e-6))
     q1 = float(eqx.filter_jit(objective)(x, draws, 1e-6))
     assert q2.shape == (2,) and q2[0] == pytest.approx(q1, rel=1e-9) and q2[1] > q2[0]
-    one = rel.yield_check(objective, x, 150.0, 6, jax.random.key(3), width=1e-6)
-    first, second = rel.yield_check(pair, x, (150.0, 400.0), 6, jax.random.key(3), width=1e-6)
+    one = chk.yield_check(objective, x, 150.0, 6, jax.random.key(3), width=1e-6)
+    first, second = chk.yield_check(pair, x, (150.0, 400.0), 6, jax.random.key(3), width=1e-6)
     np.testing.assert_allclose(first.simulated, one.simulated, rtol=1e-12)
     np.testing.assert_allclose(first.linear, one.linear, rtol=1e-12)
     assert second.requirement == 400.0 and second.yield_simulated == pytest.approx(np.mean(second.simulated <= 400.0))
@@ -274,8 +275,8 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units():
     # slopes' units).
     resid = values - rows @ coef
     se = float(np.sqrt(resid @ resid / (8 - 5) * np.linalg.inv(rows.T @ rows)[0, 0]))
-    assert se > 0 and rel.secant_standard_error(objective, x, 1e-6) == pytest.approx(se, rel=1e-5)
-    se2 = rel.secant_standard_error(pair, x, 1e-6)
+    assert se > 0 and srf.secant_standard_error(objective, x, 1e-6) == pytest.approx(se, rel=1e-5)
+    se2 = srf.secant_standard_error(pair, x, 1e-6)
     assert se2.shape == (2,) and se2[0] == pytest.approx(se, rel=1e-5)
     scattered = rel.LinearisedYield(line, q=0.9, secant_units=8, scatter=True)
     sigma = eqx.filter_jit(lambda o, x_: o.model(x_, 1e-6)[2])(scattered, x)
@@ -283,7 +284,7 @@ def test_secant_slopes_are_the_least_squares_line_through_the_units():
     with pytest.raises(ValueError, match="needs secant_units"):
         rel.LinearisedYield(line, q=0.9, scatter=True)
     with pytest.raises(ValueError, match="fits no secant"):
-        rel.secant_standard_error(rel.LinearisedYield(line, q=0.9), x, 1e-6)
+        srf.secant_standard_error(rel.LinearisedYield(line, q=0.9), x, 1e-6)
     with pytest.raises(ValueError, match="at least 5 units"):
         rel.secant_draws(4, 4)
     with pytest.raises(ValueError, match="not both"):
@@ -300,16 +301,16 @@ def test_secant_gradient_noise_is_the_slopes_scatter_through_the_quantile():
     line = R.Line(R.scan_scene(), 100.0, SLOPES, 40e-6, sigma=[2.0])
     x = X
     objective = rel.LinearisedYield(line, q=0.99, secant_units=12)
-    runs = [rel._secant_noise(eqx.tree_at(lambda o: o.pointing.seed, objective, jnp.asarray(k)), x, None) for k in range(3000)]
+    runs = [srf._secant_noise(eqx.tree_at(lambda o: o.pointing.seed, objective, jnp.asarray(k)), x, None) for k in range(3000)]
     fits, se = np.array([r[1][0] for r in runs]), np.array([r[3][0] for r in runs])
     # Each fit's standard error rests on its own residuals (7 degrees of freedom: itself 27 %
     # uncertain); its square is unbiased for the slope's variance, so compare their mean.
     np.testing.assert_allclose(np.sqrt(np.mean(se**2, axis=0)), np.std(fits, axis=0, ddof=1), rtol=0.05)
 
     draws = rel.yield_draws(4, 4096)
-    noise = rel.secant_gradient_noise(objective, x, draws)
+    noise = srf.secant_gradient_noise(objective, x, draws)
     assert noise.shape == (8,)
-    slopes = rel._secant_noise(objective, x, None)[1][0]  # the same fit: its slopes
+    slopes = srf._secant_noise(objective, x, None)[1][0]  # the same fit: its slopes
 
     def quantile(l, b):  # the design objective of a line with these slopes, at lower limit l
         return float(rel.linear_quantile(float(slopes @ (l + b)), jnp.asarray(slopes), tx.Design(l + b, b), draws, 0.99))
@@ -415,10 +416,10 @@ def test_log_fit_is_exact_on_a_log_linear_response():
     assert q == pytest.approx(exact, rel=2e-3)  # Harrell-Davis on 4096 Sobol draws
     grad = eqx.filter_jit(jax.grad(lambda v: objective(tx.Design(v, x.band), draws, None)))(x.nominal)
     assert float(grad[0]) == pytest.approx(q * s_true, rel=1e-9)
-    check = rel.yield_check(objective, x, 0.35, 8, jax.random.key(0))
+    check = chk.yield_check(objective, x, 0.35, 8, jax.random.key(0))
     np.testing.assert_allclose(check.linear, check.simulated, rtol=1e-9)
-    assert rel.secant_standard_error(objective, x) == pytest.approx(0.0, abs=1e-9)
-    noise = rel.secant_gradient_noise(objective, x, draws)
+    assert srf.secant_standard_error(objective, x) == pytest.approx(0.0, abs=1e-9)
+    noise = srf.secant_gradient_noise(objective, x, draws)
     linear_fit = rel.LinearisedYield(response, output="pointing_jitter", q=0.9, secant_units=6, scatter=True)
     with pytest.raises(ValueError, match="needs secant_units"):
         rel.LinearisedYield(response, output="pointing_jitter", q=0.9, log_outputs=("pointing_jitter",))
@@ -441,7 +442,7 @@ def test_log_fit_is_exact_on_a_log_linear_response():
     # any middle is the line's, the quantile the same closed form, its derivative Q s. (A
     # response that counts its evaluations would have to leave the program: the surface's
     # quantile is checked here on a response that is not evaluated at all, `None` in its place.)
-    sf = rel.fit_surface(objective, jnp.full(4, 20e-6), jnp.full(4, 80e-6))
+    sf = srf.fit_surface(objective, jnp.full(4, 20e-6), jnp.full(4, 80e-6))
     assert float(sf.slopes[0, 0]) == pytest.approx(s_true, rel=1e-9) and float(sf.sigma[0]) < 1e-9
     on_surface = eqx.tree_at(lambda o: o.surface, objective, sf, is_leaf=lambda v: v is None)
     detached = eqx.tree_at(lambda o: o.pointing.value, on_surface, jnp.array([np.nan]))  # any evaluation would be NaN
@@ -449,9 +450,9 @@ def test_log_fit_is_exact_on_a_log_linear_response():
     assert q_s == pytest.approx(closed_5um, rel=2e-3)
     g_s = eqx.filter_jit(jax.grad(lambda v: detached(tx.Design(v, narrow.band), draws, None)))(narrow.nominal)
     assert float(g_s[0]) == pytest.approx(q_s * s_true, rel=1e-9)
-    assert rel.secant_standard_error(detached, narrow) == pytest.approx(0.0, abs=1e-9)
+    assert srf.secant_standard_error(detached, narrow) == pytest.approx(0.0, abs=1e-9)
     with pytest.raises(ValueError, match="0 <= lower < upper"):
-        rel.fit_surface(objective, [80e-6], [20e-6])
+        srf.fit_surface(objective, [80e-6], [20e-6])
     with pytest.raises(ValueError, match="needs secants=True"):
         tx.Requirement("pointing_rms", 10.0, log_fit=True)
 
@@ -525,7 +526,7 @@ def test_design_units_draw_the_wear_rate_of_a_life_with_spread(scan_pointing):
     f, s, sigma, t = eqx.filter_jit(lambda o, x_: o.model(x_, None))(objective, x)
     assert float(s[0]) == pytest.approx(s_true, rel=1e-9) and np.all(np.abs(np.asarray(s[1:])) < 1e-6 * s_true)
     assert float(t[0]) == pytest.approx(c_w * 0.5 * (2.5 - 0.25), rel=1e-9) and abs(float(sigma)) < 1e-9
-    surface = rel.fit_surface(objective, np.full(n, 20e-6), np.full(n, 80e-6))
+    surface = srf.fit_surface(objective, np.full(n, 20e-6), np.full(n, 80e-6))
     assert float(surface.uncertain_slopes[0, 0]) == pytest.approx(float(t[0]), rel=1e-9) and float(surface.sigma[0]) < 1e-9
     draws = rel.yield_draws(n + 2, 16384)  # the features, the scatter, the rate
     q = float(eqx.filter_jit(objective)(x, draws, None))
@@ -536,7 +537,7 @@ def test_design_units_draw_the_wear_rate_of_a_life_with_spread(scan_pointing):
     assert q == pytest.approx(exact, rel=2e-3), (q, exact)  # Harrell-Davis on 16384 Sobol draws against 400 000 random
     with pytest.raises(ValueError, match="the draws need"):
         objective(x, rel.yield_draws(n + 1, 1024), None)
-    check = rel.yield_check(objective, x, 150.0, 64, jax.random.key(1))
+    check = chk.yield_check(objective, x, 150.0, 64, jax.random.key(1))
     np.testing.assert_allclose(check.linear, check.simulated, rtol=1e-9)
     # The check's units drew the rate over the whole band.
     values = np.asarray(rel.realise(x, tx.unit_draws(jax.random.key(1), 64, n + 1)[:, :n]))
@@ -555,6 +556,6 @@ def test_the_proposal_after_checks_is_the_cheapest_accepted():
     """After several Monte Carlo checks, the proposal is the cheapest design whose simulated
     quantile met the requirement (to 1 %), not the last re-solve; none accepted: `None` (the
     last design stays)."""
-    assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
-    assert _propose._cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
-    assert _propose._cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None
+    assert _rounds._cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
+    assert _rounds._cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
+    assert _rounds._cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None

@@ -320,3 +320,9 @@ EPILOG = ("Exit codes: 0 done, 2 bad input (the message names the scene file's k
 # design and tradeoff: also 4, the answer is not a proposal.
 DESIGN_EPILOG = EPILOG[:-1] + (", 4 the answer is not a proposal (not converged, infeasible, noise-limited, or its Monte Carlo "
                                "check missed: the report says why first; --allow-unconverged writes it as proposal.toml and exits 0).")
+
+
+def scene_and_settings(scene_file, *lines) -> list[str]:
+    """A report's closing sections: the scene file, then its solver settings, the versions and `lines`."""
+    return ["## Scene", "", "```toml", scene_file.to_toml().rstrip(), "```", "",
+            "## Settings and versions", "", f"- solver (`[run]`): {settings(scene_file)}", f"- {versions()}", *lines, ""]

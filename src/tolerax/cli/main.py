@@ -39,7 +39,8 @@ import textwrap
 import warnings
 
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
-from .commands import design_command, montecarlo_command, run_command, studies_command, tradeoff_command
+from .commands import montecarlo_command, run_command, studies_command
+from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
                      scene_options)
 from .demo import demo_command
@@ -227,6 +228,16 @@ def main(argv=None) -> int:
                          help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
     args = parser.parse_args(argv)
     args.argv = argv
+    # What can be wrong with the scene file before the simulator loads (unreadable, not TOML, an
+    # unknown top-level table: tolerax.io.checker) is answered first, as the command would.
+    if getattr(args, "scene", None) is not None:
+        from ..io.checker import SceneFileError, precheck
+
+        try:
+            precheck(args.scene)
+        except SceneFileError as err:
+            print(f"tolerax {args.command}: {err}", file=sys.stderr)
+            return 2
     # The simulator's modules only now (the commands import theirs when they run): a bad option
     # or --help answers before they load.
     from ..io.schema import SceneFileNote

@@ -17,7 +17,7 @@ follow other formulae) as `grade_of` extrapolates, said as such.
 
 A journal bearing's radial clearance is not made to a grade of its own but by a bore and a
 journal, each toleranced: for every clearance feature the drawable design also names the
-loosest ISO 286 hole-basis fit (H6-H11 with a-k shafts of grades 5-11) whose whole clearance
+loosest ISO 286 hole-basis fit (H6-H11 with a-k shafts of the grades ISO 286-2 prints, 5-11) whose whole clearance
 zone lies inside the drawable zone (`tolerax.design.fits.nearest_fit`), or says why none does.
 A backlash is called out as the gears' tooth-thickness allowances whose normal backlash lies
 inside the zone (`tolerax.design.backlash`: the sun, planet and ring of a stage allotted
@@ -137,7 +137,7 @@ def journal_fits(names, size_mm, lower_limit, upper_limit, pressure_angle=None) 
     - a journal's clearance: the loosest ISO 286 fit (`tolerax.design.fits.nearest_fit`) whose
       radial clearance zone lies inside it at the journal diameter `size_mm` (mm), as
       `"H8/e7 (20.0-45.5 µm)"`; `"none inside the zone: <why>"` where no H6-H11 fit with a
-      shaft a-k of grades 5-11 does (`tolerax.design.fits.why_no_fit`: too narrow, too loose,
+      shaft a-k (`tolerax.design.fits.DEFAULT_SHAFTS`) does (`why_no_fit`: too narrow, too loose,
       or between positions);
     - a backlash, where `pressure_angle` (rad, one per feature) is given: the gears'
       tooth-thickness allowances (`tolerax.design.backlash.stage_allowances`, the sun and ring

@@ -91,13 +91,20 @@ SHAFT_K_EI_UM = (0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 4, 5)
 K_GRADES_WITH_EI = (4, 5, 6, 7)
 JS_EVEN_GRADES = (7, 8, 9, 10, 11)  # js grades whose odd IT is rounded down to even (module docstring)
 
-# The classes `fits_covering` combines by default: hole basis, H6-H11 with shafts a-k of grades 5-11;
-# shaft basis (basis="shaft"), holes A-H of grades 6-11 with h5-h11.
+# The classes `fits_covering` combines by default, the grades ISO 286-2 prints for each position (a
+# from IT9, b and c from IT8: the loose positions are not made to fine grades): hole basis, H6-H11
+# with shafts a-k; shaft basis (basis="shaft"), holes A-H of the same grades with h5-h11.
+FIRST_GRADE = {"a": 9, "b": 8, "c": 8}  # else GRADES[0]
 DEFAULT_HOLES = tuple(f"H{grade}" for grade in range(6, 12))
-DEFAULT_SHAFTS = tuple(f"{letter}{grade}" for letter in SHAFT_LETTERS for grade in GRADES)
-SHAFT_BASIS_HOLES = tuple(f"{letter}{grade}" for letter in HOLE_LETTERS for grade in range(6, 12))
+DEFAULT_SHAFTS = tuple(f"{letter}{grade}" for letter in SHAFT_LETTERS for grade in GRADES
+                       if grade >= FIRST_GRADE.get(letter, GRADES[0]))
+SHAFT_BASIS_HOLES = tuple(f"{letter}{grade}" for letter in HOLE_LETTERS for grade in range(6, 12)
+                          if grade >= FIRST_GRADE.get(letter.lower(), GRADES[0]))
 SHAFT_BASIS_SHAFTS = tuple(f"h{grade}" for grade in GRADES)
-SLACK = 1e-12  # m: a fit's zone counts as inside limits it passes by less (float rounding of the limits)
+# m: a fit's zone counts as inside limits it passes by less. A designed zone's limits come out of a
+# continuous optimum in floating point (5.0-13.98 µm where the grade's width is meant); ISO 286
+# tabulates whole micrometres, so a fit that passes a limit by under 1/20 µm is that zone's fit.
+SLACK = 0.05e-6
 
 _CLASS = re.compile(r"([A-Za-z]{1,2})(0|[1-9][0-9]?)")
 
@@ -321,13 +328,13 @@ def fits_covering(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None
     **Arguments:**
 
     - `lower_limit`, `upper_limit`: the designed radial clearance zone (m); every journal made
-      to a listed fit has a clearance in it (to `SLACK`, 1 pm). A negative lower limit admits
+      to a listed fit has a clearance in it (to `SLACK`, 0.05 µm). A negative lower limit admits
       transition fits.
     - `diameter_mm`: the journal's nominal diameter (mm), in [1, 500].
     - `holes`, `shafts`: the classes to combine (all pairs). By default, for `basis="hole"`:
-      H6-H11 with a, b, c, d, e, f, g, h, js, k of grades 5-11 (`DEFAULT_HOLES`,
-      `DEFAULT_SHAFTS`); for `basis="shaft"` (one journal in several bores): A-H of grades
-      6-11 with h5-h11.
+      H6-H11 with a9-a11, b8-b11, c8-c11 and d, e, f, g, h, js, k of grades 5-11
+      (`DEFAULT_HOLES`, `DEFAULT_SHAFTS`); for `basis="shaft"` (one journal in several
+      bores): A-H of the same grades (A from 9, B and C from 8) with h5-h11.
 
     **Returns:**
 
@@ -363,6 +370,15 @@ def why_no_fit(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, b
     if fits_covering(lower_limit, upper_limit, diameter_mm, holes, shafts, basis):
         return ""
     lo_um, hi_um, d = 1e6 * lower, 1e6 * upper, float(diameter_mm)
+    if holes is None and shafts is None:  # a fit of grades ISO 286-2 does not print (c6), by ISO 286-1's rules
+        every = [f"{letter}{grade}" for letter in (HOLE_LETTERS if basis == "shaft" else ("H",)) for grade in range(6, 12)]
+        unprinted = fits_covering(lower, upper, d, every, [f"{letter}{grade}" for letter in SHAFT_LETTERS for grade in GRADES]
+                                  if basis == "hole" else SHAFT_BASIS_SHAFTS, basis)
+        if unprinted:
+            fit = unprinted[0]
+            low, high = (1e6 * v for v in fit.radial_clearance(d))
+            return (f"none of the grades ISO 286-2 prints; {fit} ({low:g}-{high:g} µm at Ø{d:g} mm) lies inside by ISO 286-1's "
+                    "rules (a, b, c are printed from IT9, IT8, IT8: agree the finer grade with the supplier)")
     narrow = min(pairs, key=lambda p: (p[2] - p[1], abs(p[1] - lo_um)))  # of the narrowest, the one nearest the zone
     if hi_um - lo_um < narrow[2] - narrow[1] - 1e6 * SLACK:
         return (f"too narrow: the zone is {hi_um - lo_um:.1f} µm wide, the narrowest fit of these grades ({narrow[0]} at "
@@ -377,5 +393,5 @@ def why_no_fit(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, b
     below = [p for p in pairs if p[1] < lo_um - 1e6 * SLACK]
     tighter = f"; the next tighter ({max(below, key=lambda p: p[1])[0]}) allows {max(p[1] for p in below):g} µm" if below else ""
     return (f"between positions: the fits whose smallest clearance is at least the zone's {lo_um:.1f} µm start at "
-            f"{above[1]:g} µm and reach at least {reach[2]:g} µm ({reach[0]} at Ø{d:g} mm), above the zone's "
-            f"{hi_um:.1f} µm{tighter}; widen the zone or move its limits")
+            f"{above[1]:g} µm and reach at least {reach[2]:g} µm ({reach[0]} at Ø{d:g} mm), {reach[2] - hi_um:.2g} µm above "
+            f"the zone's upper limit{tighter}; widen the zone or move its limits")

@@ -17,7 +17,8 @@ from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
 from .objectives import AbstractObjective, unit_output, value_and_jacobian
 from .subproblem import objective_value
-from .reliability import LinearisedYield, fit_surface, secant_draws, secant_gradient_noise, yield_draws
+from .reliability import LinearisedYield, secant_draws, yield_draws
+from .surface import fit_surface, secant_gradient_noise
 from .types import Design, Features, realise, robust
 from ..mechanism.joints import LumpedJoint
 from ..uncertainty.sampling import Tolerances, unit_draws

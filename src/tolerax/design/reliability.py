@@ -17,28 +17,23 @@ $Q_Y \\le R$ is the yield requirement $P \\ge Y$ of the linearised response.
 
 The gradient of $Q_Y$ with respect to the design holds $s$ fixed (its own derivative would need
 second derivatives through the solve): exact where the response is linear, and the sequential
-optimiser rebuilds $s$ at every iterate. Where the response bends, `yield_check` simulates fresh
+optimiser rebuilds $s$ at every iterate. Where the response bends, `yield_check`
+(`tolerax.design.check`) simulates fresh
 units at the design and compares them with the linear model on the *same* units; the difference
 of their $Y$-quantiles is the shift by which `propose_design` tightens the requirement and solves
 again (the SORA idea: a deterministic problem with a shifted limit, Du and Chen, J. Mech. Des.
 126, 2004).
 """
 
-import dataclasses
-import math
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.scipy.special
-import numpy as np
 import scipy.stats
 from jaxtyping import Array
 
 from .objectives import AbstractObjective, unit_output, value_and_jacobian
 from .types import Design, realise, robust
-from ..uncertainty.results import wilson_interval
-from ..uncertainty.sampling import unit_draws
 
 
 def yield_draws(n_features: int, n: int = 16384, seed: int = 0) -> Array:
@@ -432,227 +427,3 @@ class LinearisedYield(eqx.Module):
                              f"{', '.join(self.pointing.uncertain_inputs)}), got {draws.shape[1]}.")
         quantile = linear_quantile(value, jax.lax.stop_gradient(slopes), x, draws, self.q, sigma, self.uncertain_term(t, draws))
         return _unfitted(quantile, self.log) if any(self.log) else quantile
-
-
-@dataclasses.dataclass(frozen=True)
-class YieldCheck:
-    """A Monte Carlo check of a design against its linearised yield model (`yield_check`).
-
-    - `n`: fresh units simulated; `n_failed`: of them, solves that failed (not counted).
-    - `simulated`, `linear` (arcsec): each unit's metric, simulated and predicted by the linear
-      model (same units; with `scatter`, each prediction carries a draw of the fit's residual).
-    - `yield_simulated`, `interval`: the fraction of units with metric $\\le R$ and its 95 %
-      Wilson interval; `yield_linear`: the same fraction for the linear predictions.
-    - `quantile_simulated`, `quantile_linear` (arcsec): Harrell–Davis `q`-quantiles of the two;
-      `shift` = their difference: how much the linear model under-reads the tail; `shift_se`
-      (arcsec): its standard error (bootstrap over the units, 400 resamples): a shift smaller
-      than twice this is not distinguishable from the check's own sampling noise.
-    """
-
-    n: int
-    n_failed: int
-    q: float
-    requirement: float
-    simulated: np.ndarray
-    linear: np.ndarray
-    yield_simulated: float
-    interval: tuple[float, float]
-    yield_linear: float
-    quantile_simulated: float
-    quantile_linear: float
-    shift: float
-    shift_se: float
-
-    def text(self) -> str:
-        return (
-            f"Monte Carlo check on {self.n - self.n_failed} fresh units: yield {self.yield_simulated:.3f} "
-            f"[{self.interval[0]:.3f}, {self.interval[1]:.3f}] (95 % Wilson) against the linear model's "
-            f"{self.yield_linear:.3f} on the same units; {self.q:.1%} quantile simulated {self.quantile_simulated:.1f} arcsec, "
-            f"linear {self.quantile_linear:.1f} (shift {self.shift:+.1f} ± {self.shift_se:.1f} arcsec)"
-        )
-
-
-@eqx.filter_jit
-def _model(objective, x, width):
-    """`objective.model(x, width)`, one program per objective structure for every check."""
-    return objective.model(x, width)
-
-
-@eqx.filter_jit
-def _simulate_units(pointing, output, values, width):
-    return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
-
-
-def _secant_noise(objective: LinearisedYield, x: Design, width):
-    """`(value, slopes, value_se, slope_se, sigma, t)` of the least-squares line `objective`'s secant fit
-    draws at the design `x` (`Design(middle, half-width)`, m), from one batch of its
-    `secant_units` forward solves: each of shape (k,) or (k, n) for the k outputs; the standard
-    errors are the residual standard deviation times $\\sqrt{\\mathrm{diag}(X^T X)^{-1}}$ ($X$ the
-    fit's design matrix), slopes' in output units per m; `sigma` the residual standard deviation.
-    All on the fitted scale: the logarithm for `objective.log_outputs`. With a `surface`, its
-    own fit, no simulation (the value's standard error is the surface's at its centre)."""
-    if objective.surface is not None:
-        sf = objective.surface
-        slopes = np.asarray(sf.slopes)
-        return (np.asarray(sf.value) + slopes @ (np.asarray(x.nominal) - np.asarray(sf.center)), slopes, np.asarray(sf.value_se),
-                np.asarray(sf.slope_se), np.asarray(sf.sigma), np.asarray(sf.uncertain_slopes))
-    if objective.secant_units is None:
-        raise ValueError("secant_standard_error: the objective fits no secant (give LinearisedYield(secant_units=...)).")
-    return _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width)
-
-
-def _fit_units(objective: LinearisedYield, middle, band, width):
-    """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
-    n = middle.shape[0]
-    positions = objective.unit_positions(n)
-    units = realise(Design(middle, band), positions[:, :n])
-    drawn = _with_uncertain(objective.pointing, units, positions)  # a life's wear rate, drawn per unit: carried by the line
-    width = None if width is None else jnp.asarray(width, dtype=float)
-    values = np.asarray(_fitted(_simulate_units(objective.pointing, objective.output, drawn, width).reshape(units.shape[0], -1),
-                                objective.log))
-    ok = np.all(np.isfinite(values), axis=1)
-    scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
-    rows = np.asarray(_design_rows(objective.pointing, units, drawn, middle, jnp.asarray(scale)))[ok]
-    dof = rows.shape[0] - np.linalg.matrix_rank(rows)
-    if dof < 1:
-        raise ValueError(f"secant_standard_error: {int(ok.sum())} successful units leave no residual to estimate the noise from "
-                         f"({n} features): use more secant_units.")
-    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]  # (1 + n + m, k)
-    sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
-    root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
-    per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
-    return (coef[0], coef[1 : 1 + n].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1 : 1 + n] * per_m, sigma,
-            coef[1 + n :].T)
-
-
-def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface:
-    """The `Surface` of `objective`'s outputs over the box `lower` <= v <= `upper` (m, scalars or
-    one per feature): `objective.secant_units` units spread over it (`secant_draws`, seed
-    `objective.secant_seed`), one batch of forward solves at smoothing `width` (m), their
-    least-squares line per output (on the log scale for `log_outputs`). Give the result to
-    `LinearisedYield(surface=...)` (`design_problem(surface_box=...)` does)."""
-    if objective.secant_units is None:
-        raise ValueError("fit_surface: give the objective secant_units (the units spread over the box).")
-    from .features import design_names
-
-    sized = [np.size(v) for v in (lower, upper) if np.ndim(v)]
-    n = sized[0] if sized else len(design_names(objective.pointing.scene))
-    lower, upper = (np.broadcast_to(np.asarray(v, dtype=float), (n,)) for v in (lower, upper))
-    if not (np.all(np.isfinite(lower)) and np.all(upper > lower) and np.all(lower >= 0)):
-        raise ValueError(f"fit_surface: the box must have 0 <= lower < upper (m), finite; got {lower} and {upper}.")
-    value, slopes, value_se, slope_se, sigma, t = _fit_units(objective, jnp.asarray(0.5 * (lower + upper)),
-                                                             jnp.asarray(0.5 * (upper - lower)), width)
-    return Surface(jnp.asarray(0.5 * (lower + upper)), jnp.asarray(0.5 * (upper - lower)), jnp.asarray(value), jnp.asarray(slopes), jnp.asarray(value_se),
-                   jnp.asarray(slope_se), jnp.asarray(sigma), jnp.asarray(t))
-
-
-def secant_standard_error(objective: LinearisedYield, x: Design, width=None):
-    """The standard error (output units) of the value $f$ that `objective`'s secant fit finds
-    at the design `x` (`Design(middle, half-width)`, m): the residual standard deviation of the
-    least-squares line through its `secant_units` units, times
-    $\\sqrt{[(X^T X)^{-1}]_{00}}$ ($X$ the fit's design matrix). Where the response scatters about
-    its trend from unit to unit (chaotic rattle: the jitter), the linearised quantile moves by
-    about this much from one design to the next for no other reason; a tolerance on that
-    constraint below it makes an optimiser chase noise (`sequential_design(tol=...)`). One batch
-    of `secant_units` forward solves; a scalar, or one value per output of a tuple `output`. For
-    an output in `objective.log_outputs` the standard error of its logarithm: a relative error."""
-    se = _secant_noise(objective, x, width)[2]
-    return se if isinstance(objective.output, tuple) else float(se[0])
-
-
-def secant_gradient_noise(objective: LinearisedYield, x: Design, draws, width=None, lower_limit: bool = True) -> np.ndarray:
-    """Standard errors of the gradient of `objective` (its linearised quantile) with respect to
-    the design variables, from the scatter of its secant fit: shape (2n,) (lower limits or
-    middles, then bands), or (k, 2n) for k outputs; arcsec/m.
-
-    The quantile's gradient is linear in the fitted slopes $s$: with the lower limit $l$ and the
-    half-width $b$ as variables (`FromLowerLimit`, `lower_limit=True`; the zone middle is
-    $l + b$), $\\partial Q/\\partial l_i = s_i$ and $\\partial Q/\\partial b_i = s_i(1 + \\bar u_i)$,
-    $\\bar u_i$ the Harrell–Davis-weighted mean of the standardised deviation $u_i$ of the units
-    at the quantile (in $[-1, 1]$; `lower_limit=False`: $s_i \\bar u_i$ for the middle held).
-    Their standard errors are those of $s$ (`_secant_noise`) times 1 and $|1 + \\bar u_i|$; the
-    dependence of $\\bar u$ on $s$ (which units sit at the quantile) is left out. Evaluated at
-    the zone `x` = `Design(middle, half-width)` (m), with the quantile draws `draws`
-    (`yield_draws`). For `sequential_design(gradient_noise=...)` and `optimality_residual`'s
-    `gradient_se`. One batch of `secant_units` forward solves. For an output in
-    `objective.log_outputs` ($Q = \\exp Q_{\\log}$) the log scale's standard errors times $Q$."""
-    value, slopes, _, slope_se, residual, t = _secant_noise(objective, x, width)
-    middle, band = jnp.asarray(x.nominal), jnp.asarray(x.band)  # the zone's units, whatever the fit spanned
-    n = middle.shape[0]
-    deltas = realise(Design(middle, band), draws[:, :n]) - middle
-    u = deltas / jnp.where(band > 0, band, 1.0)
-    sigma = residual if objective.scatter else np.zeros_like(residual)
-    z = (jax.scipy.special.ndtri(jnp.clip(0.5 * (draws[:, n] + 1.0), 1e-12, 1.0 - 1e-12)) if objective.scatter
-         else jnp.zeros(draws.shape[0]))
-
-    more = objective.uncertain_term(jnp.atleast_2d(jnp.asarray(t)) if _uncertain_count(objective.pointing) else None, draws)
-    more = jnp.zeros((draws.shape[0], np.shape(value)[0])) if more is None else more  # the drawn inputs' part (a wear rate)
-
-    def weights(f, s, sd, c):  # Q and d Q / d t at t = s * b: the HD-weighted mean of u at the quantile
-        return jax.value_and_grad(lambda t_: robust(f + u @ t_ + sd * z + c, kind="quantile", q=objective.q))(jnp.asarray(s) * band)
-
-    quantile, u_bar = (np.asarray(a) for a in jax.vmap(weights, in_axes=(0, 0, 0, 1))(jnp.asarray(value), jnp.asarray(slopes),
-                                                                                     jnp.asarray(sigma), more))
-    band_factor = np.abs(1.0 + u_bar) if lower_limit else np.abs(u_bar)
-    noise = np.concatenate([slope_se, slope_se * band_factor], axis=1)
-    noise = noise * np.where(objective.log, np.exp(np.where(objective.log, quantile, 0.0)), 1.0)[:, None]  # d exp(Q) = exp(Q) dQ
-    return noise if isinstance(objective.output, tuple) else noise[0]
-
-
-def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50):
-    """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m; draws from
-    `unit_draws(key, ...)`) with `objective`'s pointing model, and compare them with its
-    linearised model on the same units (see `YieldCheck`); each unit draws the objective's
-    uncertain inputs too (a life's wear rate: `LinearisedYield`). `width`: smoothing width (m);
-    `chunk`: units per compiled batch. A tuple `output` (two requirements, e.g. RMS and
-    jitter): `requirement` one per output, and one `YieldCheck` per output from the same units."""
-    if int(n) < 2:
-        raise ValueError(f"yield_check: n must be >= 2 units, got {n!r}.")
-    outputs = objective.output if isinstance(objective.output, tuple) else (objective.output,)
-    requirements = np.broadcast_to(np.asarray(requirement, dtype=float), (len(outputs),))
-    x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
-    width = None if width is None else jnp.asarray(width, dtype=float)
-    draws = unit_draws(key, int(n), x.nominal.shape[0] + _uncertain_count(objective.pointing))
-    values = realise(x, draws[:, : x.nominal.shape[0]])
-    drawn = _with_uncertain(objective.pointing, values, draws)  # each unit's wear rate drawn too (a life's spread)
-    f, s, sigma, t = _model(objective, x, width)
-    linear = jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T
-    if t is not None:  # each unit's own drawn inputs (a wear rate) through the line
-        linear = linear + _uncertain_columns(objective.pointing, drawn[:, x.nominal.shape[0] :]) @ jnp.atleast_2d(t).T
-    linear = np.asarray(linear).reshape(int(n), len(outputs))
-    if sigma is not None:
-        # The model's scatter cannot predict a unit's own: each unit's prediction carries an
-        # independent draw of it (seeded), so that the model's quantile over these units is the
-        # one the optimiser met.
-        linear = linear + np.atleast_1d(np.asarray(sigma)) * np.random.default_rng(0).standard_normal((int(n), len(outputs)))
-    linear = np.asarray(_unfitted(jnp.asarray(linear), objective.log))  # from the log scale for `log_outputs`
-    simulated = np.concatenate([
-        np.asarray(_simulate_units(objective.pointing, objective.output, drawn[i : i + chunk], width)).reshape(-1, len(outputs))
-        for i in range(0, int(n), chunk)
-    ])
-    ok = np.all(np.isfinite(simulated), axis=1)
-    checks = tuple(_yield_check(simulated[:, k], linear[:, k], ok, objective.q, float(requirements[k])) for k in range(len(outputs)))
-    return checks if isinstance(objective.output, tuple) else checks[0]
-
-
-def _yield_check(simulated, linear, ok, q, requirement) -> YieldCheck:
-    """One output's `YieldCheck` from its simulated and linearised units (`ok`: the units whose
-    solves succeeded)."""
-    sim, lin, used = simulated[ok], linear[ok], int(np.sum(ok))
-    met = int(np.sum(sim <= requirement))
-    low, high = wilson_interval(met, used)
-
-    def hd(v):  # the Harrell-Davis q-quantile, as `robust(kind="quantile")` computes it
-        return float(scipy.stats.mstats.hdquantiles(v, prob=[q])[0])
-
-    q_sim, q_lin, se = math.nan, math.nan, math.nan
-    if used >= 2:
-        q_sim, q_lin = hd(sim), hd(lin)
-        rows = np.random.default_rng(0).integers(0, used, size=(400, used))
-        se = float(np.std([hd(sim[r]) - hd(lin[r]) for r in rows], ddof=1))
-    return YieldCheck(
-        n=len(simulated), n_failed=int(np.sum(~ok)), q=q, requirement=float(requirement), simulated=simulated, linear=linear,
-        yield_simulated=met / max(used, 1), interval=(float(low), float(high)),
-        yield_linear=float(np.mean(lin <= requirement)) if used else math.nan,
-        quantile_simulated=q_sim, quantile_linear=q_lin, shift=q_sim - q_lin, shift_se=se,
-    )

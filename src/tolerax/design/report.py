@@ -9,7 +9,7 @@ import textwrap
 import numpy as np
 
 from .drawable import DrawableDesign
-from .reliability import YieldCheck
+from .check import YieldCheck
 from .requirements import Requirement
 from .types import Design, OptimisationResult
 from ..uncertainty.sampling import Tolerances

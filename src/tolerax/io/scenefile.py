@@ -14,11 +14,9 @@ by `tolerax.io.results`.
 
 import copy
 import dataclasses
-import importlib.resources
 import math
 import os
 import pathlib
-import re
 import tomllib
 
 import numpy as np
@@ -27,7 +25,8 @@ import tomli_w
 from .._files import atomic_write
 from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
-from . import schema as S
+from . import checker as C, schema as S
+from .checker import builtin_scenes  # noqa: F401 (the face's)
 from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError, SceneFileNote  # noqa: F401 (SceneFileNote: the face's)
 from .schema import life as _life
 
@@ -197,19 +196,9 @@ def _canonical(x):
 def parse_scene(text: str, *, name: str = "scene", source: str = "<string>") -> SceneFile:
     """A `SceneFile` from TOML `text`; `SceneFileError` (naming the line and key) if it is not a
     valid scene."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        m = re.search(r"\(at line (\d+), column \d+\)", str(err))
-        raise SceneFileError(f"invalid TOML: {err}", source, int(m.group(1)) if m else None) from None
+    data = C.parse_toml(text, source)
     model = S.validate(data, text, source)
     return SceneFile(data, name, source, model)
-
-
-def builtin_scenes() -> tuple[str, ...]:
-    """Names of the scene files shipped with tolerax (`load_scene(name)`)."""
-    folder = importlib.resources.files("tolerax") / "scenes"
-    return tuple(sorted(p.name[: -len(".toml")] for p in folder.iterdir() if p.name.endswith(".toml")))
 
 
 def load_scene(scene: str | os.PathLike) -> SceneFile:
@@ -218,29 +207,13 @@ def load_scene(scene: str | os.PathLike) -> SceneFile:
     A string is read as a path when it names an existing file, ends in `.toml` or contains a
     path separator; otherwise as a built-in name. Raises `SceneFileError` (a `ValueError`) for a
     missing or invalid file, naming the line and key."""
-    text_arg = os.fspath(scene)
-    as_path = isinstance(scene, os.PathLike) or text_arg.endswith(".toml") or os.sep in text_arg or "/" in text_arg
-    if as_path or os.path.isfile(text_arg):
-        path = pathlib.Path(text_arg)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as err:
-            raise SceneFileError(f"cannot read the scene file: {err}", str(path)) from None
-        return parse_scene(text, name=path.stem, source=str(path))
-    names = builtin_scenes()
-    if text_arg not in names:
-        raise SceneFileError(f"no built-in scene {text_arg!r} and no such file{S._suggest(text_arg, names)}; built-in scenes: "
-                             f"{', '.join(names)}.", text_arg)
-    return parse_scene(_builtin_text(text_arg), name=text_arg, source=f"builtin:{text_arg}")
-
-
-def _builtin_text(name: str) -> str:
-    return (importlib.resources.files("tolerax") / "scenes" / f"{name}.toml").read_text(encoding="utf-8")
+    text, name, source = C.read_scene_text(scene)
+    return parse_scene(text, name=name, source=source)
 
 
 def builtin_titles() -> dict[str, str]:
     """`{name: title}` of the built-in scenes, read without building them."""
-    return {name: tomllib.loads(_builtin_text(name)).get("title", name) for name in builtin_scenes()}
+    return {name: tomllib.loads(C.builtin_text(name)).get("title", name) for name in builtin_scenes()}
 
 
 def save_scene(scene_file: SceneFile, path: str | os.PathLike) -> pathlib.Path:

@@ -3,17 +3,12 @@ arguments, read from their signatures, so a builder argument added later is acce
 editing this module), types checked against the builders' annotations, ranges by the builders
 themselves, and every error naming the file, line, table and key (`SceneFileError`).
 
-`tomllib` reports no line numbers for valid keys, so `_line_of` finds a key's line by scanning
+`tomllib` reports no line numbers for valid keys, so `_line_of` (`tolerax.io.checker`) finds a key's line by scanning
 the text for it inside its table. The schema is documented in docs/scene_files.md.
 """
 
-import difflib
 import inspect
 import math
-import warnings
-import re
-import types
-import typing
 
 import jax.numpy as jnp
 
@@ -25,6 +20,7 @@ from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
 from ..solve import DEFAULT_SOLVER, PID_RULES, SOLVERS
+from .checker import TOP_KEYS, Checker, SceneFileError, SceneFileNote, _accepts, _for_call, _suggest, check_top  # noqa: F401 (the schema's tables, errors)
 
 # ---------------------------------------------------------------------------------------------
 # The schema
@@ -78,175 +74,10 @@ OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error"
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6))}
-TOP_KEYS = {"title": str, "description": str, "scene": dict, "design": dict, "run": dict, "outputs": dict, "tolerances": dict,
-            "life": dict}
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
              "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True),
              "spread": (bool, False)}
-
-
-class SceneFileError(ValueError):
-    """A scene file that cannot be read: bad TOML, an unknown key, a wrong type or value.
-
-    `source`, `line` (1-based, or `None` when it cannot be located), `table` (e.g.
-    `"scene.azimuth_stage"`) and `key` say where; the message says what is allowed."""
-
-    def __init__(self, message: str, source: str = "<string>", line: int | None = None, table: str = "", key: str | None = None):
-        self.message, self.source, self.line, self.table, self.key = message, source, line, table, key
-        where = f"{source}:{line}" if line is not None else source
-        what = f"[{table}] " if table else ""
-        what += f"{key}: " if key is not None else ""
-        super().__init__(f"{where}: {what}{message}")
-
-
-# ---------------------------------------------------------------------------------------------
-# Finding lines
-
-
-def _header(line: str) -> tuple[str, ...] | None:
-    m = re.match(r"^\[\[?\s*([^\]]*?)\s*\]\]?\s*(#.*)?$", line)
-    if m is None:
-        return None
-    return tuple(part.strip().strip("\"'") for part in m.group(1).split("."))
-
-
-def _line_of(text: str, table: tuple[str, ...], key: str | None = None) -> int | None:
-    """The line of `key` inside `[table]` (or of the table's header when `key` is None).
-
-    Scans the text: the current table is the last `[header]` seen; a key line starts with the key
-    (bare or quoted) and `=`. Keys written another way (dotted `a.b.key = `, inline tables
-    `a = { key = ... }`) fall back to the first line where the key is followed by `=`, and
-    then to the table's header line."""
-    lines = text.splitlines()
-    current: tuple[str, ...] = ()
-    header_line = None
-    quoted = re.escape(key) if key is not None else None
-    own = re.compile(rf"^([\"']?){quoted}\1\s*=") if key is not None else None
-    for i, raw in enumerate(lines, 1):
-        line = raw.strip()
-        head = _header(line) if line.startswith("[") else None
-        if head is not None:
-            current = head
-            if current == table:
-                header_line = header_line or i
-                if key is None:
-                    return i
-            continue
-        if key is not None and current == table and own.match(line):
-            return i
-    if key is not None:
-        loose = re.compile(rf"(^|[.\s{{,])([\"']?){quoted}\2\s*=")
-        for i, raw in enumerate(lines, 1):
-            if loose.search(raw.split("#", 1)[0]):
-                return i
-    return header_line
-
-
-# ---------------------------------------------------------------------------------------------
-# Types from annotations
-
-
-def _accepts(value, ann) -> bool:
-    origin = typing.get_origin(ann)
-    if origin in (typing.Union, types.UnionType):
-        return any(_accepts(value, a) for a in typing.get_args(ann) if a is not type(None))
-    if ann is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if ann is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if ann is bool:
-        return isinstance(value, bool)
-    if ann is str:
-        return isinstance(value, str)
-    if ann is list:
-        return isinstance(value, list)
-    if ann is dict:
-        return isinstance(value, dict)
-    if origin is tuple:
-        args = typing.get_args(ann)
-        return isinstance(value, list) and len(value) == len(args) and all(_accepts(v, a) for v, a in zip(value, args))
-    if origin is list:
-        (item,) = typing.get_args(ann)
-        return isinstance(value, list) and all(_accepts(v, item) for v in value)
-    return False
-
-
-def _type_text(ann) -> str:
-    origin = typing.get_origin(ann)
-    if origin in (typing.Union, types.UnionType):
-        return " or ".join(_type_text(a) for a in typing.get_args(ann) if a is not type(None))
-    if origin is tuple:
-        args = typing.get_args(ann)
-        return f"a list of {len(args)} ({', '.join(_type_text(a) for a in args)})"
-    if origin is list:
-        return f"a list of {_type_text(typing.get_args(ann)[0]).removeprefix('a ').removeprefix('an ')}s"
-    return {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list", dict: "a table"}.get(
-        ann, getattr(ann, "__name__", str(ann))
-    )
-
-
-def _toml_type(value) -> str:
-    return {bool: "a boolean", int: "an integer", float: "a float", str: "a string", list: "an array", dict: "a table"}.get(
-        type(value), type(value).__name__
-    )
-
-
-def _for_call(value):
-    """TOML arrays become tuples for the builders (pairs such as `fidelity`, `torques`)."""
-    return tuple(_for_call(v) for v in value) if isinstance(value, list) else value
-
-
-# ---------------------------------------------------------------------------------------------
-# Validation
-
-
-def _suggest(word, choices) -> str:
-    """`" (did you mean 'x'?)"` for the closest of `choices`, or nothing."""
-    close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-class SceneFileNote(UserWarning):
-    """A value a scene file may hold but that is unlikely to be what was meant (a scan amplitude
-    of a radian: degrees typed where the file wants radians); said before any work, with the
-    file, line and key, and not refused."""
-
-
-class Checker:
-    def __init__(self, text: str, source: str):
-        self.text, self.source = text, source
-
-    def error(self, message, table: tuple[str, ...] = (), key=None):
-        line = _line_of(self.text, table, key)
-        return SceneFileError(message, self.source, line, ".".join(table), key)
-
-    def note(self, message, table: tuple[str, ...] = (), key=None):
-        """Say `message` about a valid but unlikely value (`SceneFileNote`), located as `error`."""
-        warnings.warn(str(self.error(message, table, key)), SceneFileNote, stacklevel=2)
-
-    def keys(self, data: dict, table: tuple[str, ...], allowed, required=()):
-        for key in data:
-            if key not in allowed:
-                raise self.error(f"unknown key {key!r}{_suggest(key, allowed)}; allowed keys: {', '.join(allowed)}.", table, key)
-        for key in required:
-            if key not in data:
-                raise self.error(f"missing key {key!r}.", table)
-
-    def typed(self, data: dict, table: tuple[str, ...], key: str, ann):
-        value = data[key]
-        if not _accepts(value, ann):
-            raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).", table, key)
-
-    def wrap(self, err: Exception, table: tuple[str, ...], data: dict):
-        """A builder's error, located at the key of `table` its message names first: the
-        argument it is about (`default_stage(backlash=80) must be below the module`: the
-        backlash, not the module it is compared with)."""
-        message = str(err)
-        named = [(m.start(), key) for key in data if (m := re.search(rf"\b{re.escape(key)}\b", message))]
-        if named:
-            return self.error(message, table, min(named)[1])
-        return self.error(message, table)
 
 
 def _signature_keys(fn, skip=()):
@@ -486,14 +317,7 @@ def _apply_design(chk: Checker, design: dict, model):
 def validate(data: dict, text: str, source: str):
     """Check `data` (parsed from `text`); return the model it builds."""
     chk = Checker(text, source)
-    for key, value in data.items():
-        if key not in TOP_KEYS:
-            raise chk.error(f"unknown key {key!r}{_suggest(key, TOP_KEYS)}; allowed at the top level: {', '.join(TOP_KEYS)}.", (), key)
-        if not _accepts(value, TOP_KEYS[key]):
-            raise chk.error(f"must be {_type_text(TOP_KEYS[key])}, got {_toml_type(value)}.", (), key)
-    for key in ("scene", "run"):
-        if key not in data:
-            raise chk.error(f"missing table [{key}].")
+    check_top(chk, data)
     _check_run(chk, data["run"])
     _check_outputs(chk, data.get("outputs", {}))
     model = _apply_design(chk, data.get("design", {}), build(chk, data["scene"]))

@@ -16,58 +16,29 @@ one body alone (a gear's spin and its translations in its bearing) couples only 
 body's own speeds and the speeds it rides on, so those are eliminated body by body (small
 Cholesky factorisations) and the shared speeds (base, carriers) solved from their Schur
 complement, one more Cholesky: the same equations, a fraction of the dense product's work
-(`Mechanism.kane_blocks`). (The earlier formulation, `jacfwd` of the twists over $u$ and a
-`jvp` over $(q, t)$, is kept in tests/_kane_reference.py, the reference the equivalence tests
-compare against.) Nothing is linearised: the gears spin inside a
+(`tolerax.mechanism.blocks`; tests/_kane_reference.py keeps a `jacfwd` formulation the
+equivalence tests compare against). Nothing is linearised: the gears spin inside a
 housing that turns (gyroscopic terms included), and the base reacts. Internal forces (meshes,
 contacts, servo and drive torques, drag) act on *relative* coordinates, so with a free base and
 no external load linear and angular momentum are conserved exactly by the equations (a test).
 
-**Bodies.** The base (the spacecraft, 1500 kg); per joint the sun (plus the motor rotor), the
-carrier and the planets as thin discs (transverse inertia half the polar one); link 1, link 2 and
-the reflector with the paper's Table 1 data. The ring and the gear housing are part of the body
-that carries the joint (base or link 1).
-
-**Default geometry** (all offsets are parameters of `Geometry`; base frame B at the spacecraft's
-centre of mass, zero joint angles)::
-
-                        z_B (azimuth axis)
-                         ^
-                         |   pitch joint P at 0.6 m up link 1; pitch axis = x_B (at zero azimuth)
-           reflector  R  +--[P]=====  link 2: a 0.6 m shaft along the pitch axis, centred on P
-   boresight y_B <---o---|
-       (0.25 m in front  |  link 1: 0.6 m boom along z, centre 0.3 m above A
-        of the pitch     |
-        axis)           [A]  azimuth joint, 1.5 m above the base centre (top face)
-                  +------+------+
-                  |  spacecraft |  1500 kg, (2100, 1700, 2400) kg m²
-                  +-------------+
-
-Azimuth axis: $z_B$. Pitch axis: the $x$ axis of link 1 (perpendicular to and intersecting the
-azimuth axis). Boresight: the reflector's $y$ axis (its largest inertia), horizontal along $y_B$
-at zero angles; pitch tilts it in elevation, azimuth turns it about $z_B$. Table 1's "azimuth
-joint" and "pitch joint" bodies (3.77 kg, small inertia about their own $z$) are the joints'
-rotating output members: link 1 with its $z$ along the azimuth axis, link 2 with its $z$ along
-the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 0.61 m).
+**Bodies and default geometry**: `tolerax.mechanism.structure` (its docstring draws the chain).
 
 **Joint fidelity** per joint is its class (`IdealJoint`, `LumpedJoint`, `PlanetaryJoint`,
 `MassScaledPlanetaryJoint`, see `tolerax.mechanism.joints`); the mechanism asks each joint for its coordinates,
 bodies, forces, contacts and any inertia added on its own speeds.
 """
 
-import collections
 import dataclasses
-from typing import ClassVar, NamedTuple
+from typing import ClassVar
 from collections.abc import Iterator
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
-from . import outputs as _outputs
-from .. import _validate as V
-from .drives import SpeedServo
+from . import loaded as _loaded, outputs as _outputs
+from .blocks import KaneBlocks, block_solve, partition  # noqa: F401 (KaneBlocks: the return type named)
 from .joints import AbstractJoint
 from .stage_joints import PlanetaryJoint
 from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, small_einsum, vee, world_inertia
@@ -286,23 +257,7 @@ class Mechanism(AbstractScene):
         speeds) or `mass_solve="whole"`: then $M$ is formed whole and factorised (`dynamics`)."""
         if self.mass_solve == "whole" or any(joint.added_inertia() is not None for joint, *_ in self.joints()):
             return None
-        columns = self.body_columns()
-        uses = collections.Counter(c for cols in columns for c in cols)
-        own = [tuple(c for c in cols if uses[c] == 1) for cols in columns]
-        bodies = [b for b, cols in enumerate(own) if cols]
-        if not bodies:
-            return None
-        n, width = self.layout.size_u, max(len(own[b]) for b in bodies)
-        shared = [c for c in range(n) if not any(c in cols for cols in own)]
-        # Own speeds per body, padded to one width with index n (a column of zeros).
-        padded = np.array([own[b] + (n,) * (width - len(own[b])) for b in bodies], dtype=int)
-        order = np.concatenate([shared, padded.ravel()])
-        position = np.zeros(n, dtype=int)
-        position[order[order < n]] = np.flatnonzero(order < n)
-        slots = np.full((len(columns), width), n)
-        slots[bodies] = padded
-        by_body = np.concatenate([np.broadcast_to(np.array(shared, dtype=int), (len(columns), len(shared))), slots], axis=1)
-        return KaneBlocks(np.array(shared, dtype=int), np.array(bodies, dtype=int), padded, position, by_body)
+        return partition(self.body_columns(), self.layout.size_u)
 
     def _kane_terms(self, q, u, t, columns=None):
         """Per body: the stacked twist Jacobian (nb, 6, C) with the angular rows in body axes
@@ -334,40 +289,15 @@ class Mechanism(AbstractScene):
         return self._with_added_inertia(mass), bias
 
     def _solve(self, q, u, t, force):
-        """$\\dot u$ from $M\\dot u = Q - b$ with $Q$ = `force`, by blocks (`kane_blocks`).
-
-        With the speeds split into shared ones $s$ and each eliminated body's own $o_k$ (its
-        Jacobian's only nonzero entries in those columns are its own rows), $M_{oo}$ is block
-        diagonal, so $X_k = M_{o_ko_k}^{-1}[M_{o_ks}\\;f_{o_k}]$ body by body, the Schur
-        complement $S = M_{ss} - \\sum_k M_{so_k}X_k$ gives $\\dot u_s$, and
-        $\\dot u_{o_k} = M_{o_ko_k}^{-1}f_{o_k} - X_k\\dot u_s$. Cholesky elimination in another
-        order: as stable as the whole factorisation (M is symmetric positive definite) and equal
-        to it to rounding (the Kane tests compare it with an LU solve of the whole $M$)."""
+        """$\\dot u$ from $M\\dot u = Q - b$ with $Q$ = `force`: by blocks (`kane_blocks`,
+        `tolerax.mechanism.blocks.block_solve`), or whole (Cholesky of $M$) where there are none."""
         blocks = self.kane_blocks()
         if blocks is None:
             mass, bias = self.dynamics(q, u, t)
             # M is symmetric positive definite: Cholesky, half the work of a pivoted LU.
             return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(mass), force - bias)
-        # The Jacobians straight in the blocks' columns: the shared speeds, then each body's own.
         jac, weights, g = self._kane_terms(q, u, t, blocks.columns)
-        ns = blocks.shared.size
-        j_s, j_o = jac[:, :, :ns], jac[blocks.bodies, :, ns:]  # (nb, 6, ns), (nk, 6, width)
-        w_o = weights[blocks.bodies]
-        m_ss = jnp.einsum("bkn,bk,bkm->nm", j_s, weights, j_s)
-        # The per-body (batched) contractions as fused sums (`small_einsum`: a batched dot is a
-        # library call per body on XLA:CPU); the sums over all bodies stay dots.
-        m_so = small_einsum("bkn,bk,bkm->bnm", j_s[blocks.bodies], w_o, j_o)
-        # The padding's rows and columns are zero: a unit diagonal there (its force is zero too).
-        m_oo = small_einsum("bkn,bk,bkm->bnm", j_o, w_o, j_o) + np.stack([np.diag(row == len(blocks.position)) for row in blocks.own])
-        force = jnp.append(force, 0.0)
-        f_s = force[blocks.shared] - jnp.einsum("bkn,bk->n", j_s, g)
-        f_o = force[blocks.own] - small_einsum("bkn,bk->bn", j_o, g[blocks.bodies])
-        x = _small_spd_solve(m_oo, jnp.concatenate([jnp.swapaxes(m_so, 1, 2), f_o[:, :, None]], axis=2))
-        x_so, x_o = x[:, :, :-1], x[:, :, -1]
-        schur = m_ss - small_einsum("bni,bim->nm", m_so, x_so)
-        ud_s = jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(schur), f_s - jnp.einsum("bni,bi->n", m_so, x_o))
-        ud_o = x_o - small_einsum("bin,n->bi", x_so, ud_s)
-        return jnp.concatenate([ud_s, ud_o.ravel()])[blocks.position]
+        return block_solve(blocks, jac, weights, g, force)
 
     def _with_added_inertia(self, mass):
         """`mass` plus each joint's constant `added_inertia` on its own speeds (no bias term:
@@ -542,31 +472,7 @@ class Mechanism(AbstractScene):
         has no gradient to follow, so it drifts to the bearing wall over the first 1-2 s of a
         run (lumped joints: output-bearing contacts of a few newtons from about 1 s, a speed
         error of a few urad/s)."""
-        lay = self.layout
-        for name, joint in (("azimuth", self.azimuth), ("pitch", self.pitch)):
-            if joint.layout.size == 0:
-                continue  # prescribed (an ideal joint following its servo)
-            if not isinstance(joint.drive, SpeedServo):
-                raise ValueError(
-                    f"start='loaded' needs constant-rate servos; the {name} joint's drive is a "
-                    f"{type(joint.drive).__name__}, whose load changes with time. Use start='steady'."
-                )
-            if not V.is_traced(joint.drive.integral) and float(joint.drive.integral) <= 0.0:
-                raise ValueError(
-                    f"start='loaded' needs a servo with an integral (angle) gain > 0 to hold the load; "
-                    f"the {name} joint's SpeedServo has integral={float(joint.drive.integral)!r}. Use start='steady'."
-                )
-        guess = q
-        for joint, sq, _, _ in self.joints():
-            guess = guess.at[sq].set(joint.loaded_coordinates())
-        steady_norm, x, norm = _polish_loaded(self, q, u, guess[lay.base_q :], max_steps)
-        if not V.is_traced(norm) and not float(norm) <= 1e-2 * float(steady_norm):
-            raise ValueError(
-                f"The loaded steady state was not found: the equilibrium residual is {float(norm):.3g} "
-                f"against {float(steady_norm):.3g} at start='steady' (Levenberg-Marquardt, {max_steps} "
-                "steps). Use start='steady' (and a longer settle), or raise max_steps."
-            )
-        return q.at[lay.base_q :].set(x)
+        return _loaded.loaded_state(self, q, u, max_steps)
 
     def check_runnable(self):
         if self.layout.size_u == 0:
@@ -586,60 +492,3 @@ class Mechanism(AbstractScene):
             azimuth_contact_names=self.azimuth.contact_names,
             pitch_contact_names=self.pitch.contact_names,
         )
-
-
-
-
-class KaneBlocks(NamedTuple):
-    """Static index arrays of the block solve (`Mechanism.kane_blocks`)."""
-
-    shared: np.ndarray  # (ns,) speeds solved from the Schur complement
-    bodies: np.ndarray  # (nk,) bodies whose own speeds are eliminated first
-    own: np.ndarray  # (nk, width) each such body's own speeds, padded with n (no speed)
-    position: np.ndarray  # (n,) each speed's place in [shared, own.ravel()]
-    columns: np.ndarray  # (nb, ns + width) the speeds of each body's Jacobian columns: shared, own (n: none)
-
-
-def _small_spd_solve(a, b):
-    """$a^{-1}b$ for a stack of small symmetric positive definite matrices `a` (..., k, k) and
-    right-hand sides `b` (..., k, m): Cholesky unrolled over the few `k` (one body's own speeds)
-    in elementwise operations, which fuse into a handful of kernels (a batched LAPACK call
-    costs more than its arithmetic at these sizes). Above 6 (a joint whose bodies have many own
-    coordinates) the unrolled program would grow as k^3: LAPACK's then."""
-    k = a.shape[-1]
-    if k > 6:
-        return jax.vmap(lambda a_, b_: jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a_), b_))(a, b)
-    low = [[None] * k for _ in range(k)]
-    for j in range(k):
-        low[j][j] = jnp.sqrt(a[..., j, j] - sum(low[j][p] ** 2 for p in range(j)))
-        for i in range(j + 1, k):
-            low[i][j] = (a[..., i, j] - sum(low[i][p] * low[j][p] for p in range(j))) / low[j][j]
-    y = []
-    for i in range(k):
-        y.append((b[..., i, :] - sum(low[i][p][..., None] * y[p] for p in range(i))) / low[i][i][..., None])
-    x = [None] * k
-    for i in reversed(range(k)):
-        x[i] = (y[i] - sum(low[p][i][..., None] * x[p] for p in range(i + 1, k))) / low[i][i][..., None]
-    return jnp.stack(x, axis=-2)
-
-
-def _loaded_residual(mech: Mechanism, q, u, x):
-    """$\\sqrt{M_{kk}}\\,\\dot u_k$ over the joint speeds at joint coordinates `x` (base as in `q`)."""
-    lay = mech.layout
-    qx = q.at[lay.base_q :].set(x)
-    ud, _, mass = mech._accelerations_and_mass(0.0, qx, u, mech.initial_impact_rates(qx, u))
-    return (jnp.sqrt(jnp.diag(mass)) * ud)[lay.base_u :]
-
-
-LOADED_ANCHOR = 1.0  # sqrt(kg)/s^2: weight of (x - x0) beside the residual (see `Mechanism.loaded_state`)
-
-
-@eqx.filter_jit
-def _polish_loaded(mech: Mechanism, q, u, x0, max_steps: int):
-    """Levenberg-Marquardt from `x0`; returns (residual norm at `"steady"`, solution, its norm)."""
-    lay = mech.layout
-    residual = lambda x: _loaded_residual(mech, q, u, x)  # noqa: E731
-    fn = lambda x, _: jnp.concatenate([residual(x), LOADED_ANCHOR * (x - x0)])  # noqa: E731
-    solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
-    sol = optx.least_squares(fn, solver, x0, max_steps=max_steps, throw=False)
-    return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))

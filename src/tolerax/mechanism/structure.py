@@ -1,6 +1,34 @@
 """The antenna's structure data: the chain's offsets (`Geometry`, m) and the rigid bodies'
-masses and principal inertias (`Inertias`: the reference paper's Table 1), drawn in
-`tolerax.mechanism.mechanism`'s docstring."""
+masses and principal inertias (`Inertias`: the reference paper's Table 1), for
+`tolerax.mechanism.mechanism.Mechanism`.
+
+**Bodies.** The base (the spacecraft, 1500 kg); per joint the sun (plus the motor rotor), the
+carrier and the planets as thin discs (transverse inertia half the polar one); link 1, link 2 and
+the reflector with the paper's Table 1 data. The ring and the gear housing are part of the body
+that carries the joint (base or link 1).
+
+**Default geometry** (all offsets are parameters of `Geometry`; base frame B at the spacecraft's
+centre of mass, zero joint angles)::
+
+                        z_B (azimuth axis)
+                         ^
+                         |   pitch joint P at 0.6 m up link 1; pitch axis = x_B (at zero azimuth)
+           reflector  R  +--[P]=====  link 2: a 0.6 m shaft along the pitch axis, centred on P
+   boresight y_B <---o---|
+       (0.25 m in front  |  link 1: 0.6 m boom along z, centre 0.3 m above A
+        of the pitch     |
+        axis)           [A]  azimuth joint, 1.5 m above the base centre (top face)
+                  +------+------+
+                  |  spacecraft |  1500 kg, (2100, 1700, 2400) kg m²
+                  +-------------+
+
+Azimuth axis: $z_B$. Pitch axis: the $x$ axis of link 1 (perpendicular to and intersecting the
+azimuth axis). Boresight: the reflector's $y$ axis (its largest inertia), horizontal along $y_B$
+at zero angles; pitch tilts it in elevation, azimuth turns it about $z_B$. Table 1's "azimuth
+joint" and "pitch joint" bodies (3.77 kg, small inertia about their own $z$) are the joints'
+rotating output members: link 1 with its $z$ along the azimuth axis, link 2 with its $z$ along
+the pitch axis. These inertias fit 0.6 m rods ($\\sqrt{12\\cdot0.11545/3.77}$ = 0.61 m).
+"""
 
 import dataclasses
 
