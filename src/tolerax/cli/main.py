@@ -11,6 +11,8 @@
 - `tolerax tradeoff [SCENE] --requirements R1 R2 ...`: the cost-against-requirement curve, one
   proposal per requirement.
 - `tolerax studies`: the reference paper's studies (a JSON table per study).
+- `tolerax identify SCENE RECORDING`: a built unit's clearances and backlash from its test
+  recording (encoder angles), with intervals, and the unit as a scene file.
 
 The engineer's path in three commands (design, verify, trade off):
 
@@ -44,6 +46,7 @@ from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
                      scene_options)
 from .demo import demo_command
+from .identify import add_parser as identify_parser, identify_command
 
 # What an interrupted command has kept, and how to go on.
 RESUME = {
@@ -216,6 +219,7 @@ def main(argv=None) -> int:
     mc.add_argument("--seed", type=int, default=0)
     mc.add_argument("--allow-clip", action="store_true",
                     help="accept bands reaching below zero (units drawn there are clipped to 0 um); refused otherwise")
+    identify = identify_parser(sub, out_options, positive, non_negative, EPILOG)
     studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
@@ -245,7 +249,7 @@ def main(argv=None) -> int:
     commands = {
         "demo": (demo, demo_command), "run": (run, run_command), "design": (design, design_command), "montecarlo": (mc, montecarlo_command),
         "tradeoff": (tradeoff, tradeoff_command),
-        "studies": (parser, studies_command),
+        "studies": (parser, studies_command), "identify": (identify, identify_command),
     }
     command_parser, command = commands[args.command]
     from ..cache import enable_compilation_cache

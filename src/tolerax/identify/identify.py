@@ -1,0 +1,275 @@
+"""Identifying an as-built unit: the clearances and backlash that make the model reproduce a test
+recording, how well the recording determines each, and the identified unit as a scene.
+
+**Estimate.** With $\\theta$ the chosen design features (m) and the others at the scene's values,
+the residual is the model's output angle at the recording's times minus the measured one,
+
+$$r_i(\\theta) = \\frac{\\phi_i^{\\text{model}}(\\theta) - \\phi_i^{\\text{measured}}}{1\\,\\mu\\text{rad}},$$
+
+over the saves in `[settle, duration]` and the recorded axes, minimised by Levenberg-Marquardt
+(`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The features
+are optimised as $\\log(\\theta / 1\\,\\mu m)$, so they stay positive; the contacts' smoothing
+width is continued from wide to narrow (`widths`), and several starts (`starts`, multiples of
+the scene's values) are run because clearances make the residual non-convex; the lowest residual
+wins.
+
+**How well.** At the estimate, with $J = \\partial r/\\partial\\theta$ and $s^2 = \\lVert r \\rVert^2
+/ (N - p)$ the residual variance, the Gauss-Newton covariance is $s^2 (J^TJ)^{+}$ and a 95 %
+interval $\\hat\\theta \\pm 1.96\\,\\sigma_\\theta$ (the linearised one: it holds where the residual is
+close to quadratic over the interval and the residuals are independent; `tests/test_identify.py`
+measures its coverage on synthetic recordings instead of assuming it). The identifiability
+table is the eigen-decomposition of the relative Fisher information $D J^TJ D / s^2$
+($D$ = the estimates): a direction whose relative standard error is below `DETERMINED` is
+determined; a parameter is determined itself, determined only in combination (it loads on a
+determined direction but its own interval is wide: the recording sees a sum, as the lost motion
+at a reversal sees the backlash and the pin play together), or not determined.
+"""
+
+import dataclasses
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from ..design.features import design_names, design_of, with_design
+from ..design.objectives import PointingObjective, _widths
+from .recording import AXES, Recording, RecordingError
+
+UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
+DETERMINED = 0.25  # a relative standard error below this (95 % interval within +-50 %) is determined
+LOADING = 0.3  # a parameter takes part in a direction whose eigenvector component exceeds this
+# Levenberg-Marquardt's relative and absolute tolerance on the step (log µm) and the cost (µrad²):
+# finer than the adaptive solve's own noise in the residual makes it wander without gaining.
+LM_TOL = 1e-4
+
+
+@dataclasses.dataclass(frozen=True)
+class Identification:
+    """The result of `identify`.
+
+    - `names`: the identified features; `estimate` (m), `covariance` (m²), `standard_error` (m).
+    - `sigma` (rad): the residual's standard deviation at the estimate, $s$; `n` residuals,
+      `cost` $\\lVert r\\rVert^2$ (µrad²).
+    - `residual` (rad, (saves, axes)), `times` (s), `measured` and `fitted` (rad): the fit.
+    - `directions`: [(relative standard error, eigenvector over `names`)], best determined first.
+    - `steps`: Levenberg-Marquardt steps of the winning start at the last width; `converged`:
+      the Gauss-Newton step left from the estimate is below a tenth of each standard error;
+      `starts`: each start's final cost (µrad²).
+    - `scene`: the identified unit (the scene with the estimates).
+    """
+
+    names: tuple[str, ...]
+    estimate: np.ndarray
+    covariance: np.ndarray
+    sigma: float
+    n: int
+    cost: float
+    times: np.ndarray
+    measured: np.ndarray
+    fitted: np.ndarray
+    directions: tuple
+    steps: int
+    converged: bool
+    starts: tuple
+    scene: object = dataclasses.field(repr=False, default=None)
+
+    @property
+    def standard_error(self) -> np.ndarray:
+        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+
+    @property
+    def residual(self) -> np.ndarray:
+        return self.fitted - self.measured
+
+    def interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """Each feature's linearised interval (m) at `level` (normal quantile)."""
+        from scipy.stats import norm
+
+        z = float(norm.ppf(0.5 + level / 2))
+        return self.estimate - z * self.standard_error, self.estimate + z * self.standard_error
+
+    def status(self) -> tuple[str, ...]:
+        """Per feature: "determined", "in combination" or "not determined" (module docstring)."""
+        relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
+        good = [vector for se, vector in self.directions if se < DETERMINED]
+        out = []
+        for j in range(len(self.names)):
+            if relative[j] < DETERMINED:
+                out.append("determined")
+            elif any(abs(v[j]) > LOADING for v in good):
+                out.append("in combination")
+            else:
+                out.append("not determined")
+        return tuple(out)
+
+    def table(self) -> str:
+        """The estimates, intervals and identifiability as Markdown."""
+        lo, hi = self.interval()
+        rows = ["| feature | estimate (µm) | 95 % interval (µm) | relative standard error | determined? |", "|---|---|---|---|---|"]
+        for j, (name, status) in enumerate(zip(self.names, self.status())):
+            rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-12)
+            interval = f"{1e6 * lo[j]:.2f} – {1e6 * hi[j]:.2f}" if rel < 1 else "not bounded by the recording"
+            rows.append(f"| {name} | {1e6 * self.estimate[j]:.2f} | {interval} | {rel:.3g} | {status} |")
+        lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
+                 f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error)'} "
+                 f"after {self.steps} steps "
+                 f"(best of {len(self.starts)} starts).", "", *rows, "", "Directions (relative standard error: combination):", ""]
+        for se, vector in self.directions:
+            terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
+            lines.append(f"- {se:.3g}: {terms}")
+        return "\n".join(lines)
+
+
+class _Fit(eqx.Module):
+    """The residual of `identify`: the model's output angles at the recording's saves (`rows`)
+    and axes (`columns`) with the features `index` at values (µm) over `measured` (rad), in µrad."""
+
+    objective: PointingObjective
+    base: jax.Array
+    index: jax.Array
+    rows: jax.Array
+    columns: jax.Array
+    measured: jax.Array
+
+    def response(self, values_um, width):
+        res = self.objective.run(self.base.at[self.index].set(UNIT * values_um), width)
+        ok = res.result == diffrax.RESULTS.successful
+        return jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan), ok
+
+    def residual(self, values_um, width):
+        angles, ok = self.response(values_um, width)
+        return jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+
+
+@eqx.filter_jit
+def _solve(fit: _Fit, z0, width, max_steps: int):
+    """Levenberg-Marquardt on log(values / µm) from `z0`: (solution, cost, steps, converged)."""
+    fn = lambda z, w: fit.residual(jnp.exp(z), w)  # noqa: E731
+    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL), z0, args=width, max_steps=max_steps,
+                             throw=False)
+    return sol.value, jnp.sum(fn(sol.value, width) ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
+
+
+@eqx.filter_jit
+def _fit_and_jacobian(fit: _Fit, values_um, width):
+    """The residual's Jacobian (µrad per µm) and the fitted angles (rad) at `values_um`."""
+    return jax.jacfwd(lambda v: fit.residual(v, width))(values_um), fit.response(values_um, width)[0]
+
+
+def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
+    if n_save is None:
+        step = float(np.median(np.diff(recording.time)))
+        n_save = int(min(max(round(duration / step) + 1, 3), 2001))
+    return n_save, np.linspace(0.0, duration, n_save)
+
+
+def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
+             n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=(1.0, 0.5, 2.0),
+             max_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
+    """The features `parameters` of `scene` that reproduce `recording` (module docstring).
+
+    **Arguments:**
+
+    - `scene`: the model (a `Mechanism` or `TestBench`) whose drive is the one the recording
+      was made with; its other features stay at its values.
+    - `recording`: a `Recording` (`read_recording`); its axes must be joints of the scene.
+    - `parameters`: feature names (`design_names(scene)`), default all.
+    - `settle` (s): residuals from this time on; `duration` (s): the model's run, default the
+      recording's length; `n_save`: the model's saves over it (default: the recording's rate,
+      at most 2001). `start`: the model's initial state (`simulate`).
+    - `widths`: the smoothing widths (m) continued through, `None` the scene's own; the
+      estimate, its covariance and the fit are the last width's.
+    - `starts`: the starting points, as multiples of the scene's values.
+    - `max_steps` (per width), `rtol`, `atol`: Levenberg-Marquardt's; `**run`: `simulate`'s
+      run settings (solver, tolerances) for the model.
+
+    **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
+    the scene (axes, length) and `ValueError` for unknown parameters.
+    """
+    names = design_names(scene)
+    parameters = tuple(names) if parameters is None else tuple(parameters)
+    unknown = [p for p in parameters if p not in names]
+    if unknown or not parameters:
+        raise ValueError(f"identify: {unknown or 'no parameters'} are not design features of the scene; its features: "
+                         f"{', '.join(names)}.")
+    index = np.array([names.index(p) for p in parameters])
+    duration = recording.duration if duration is None else float(duration)
+    if duration > recording.duration + 1e-12:
+        raise RecordingError(f"{recording.source}: the recording lasts {recording.duration:g} s, shorter than the model's "
+                             f"{duration:g} s run: record longer or give a shorter duration.")
+    n_save, times = _model_times(recording, duration, n_save)
+    window = times >= settle
+    measured = recording.at(times[window])
+    columns = [AXES.index(a) for a in recording.axes]
+    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start, rtol=rtol, atol=atol,
+                                  **run).forward_mode()
+    base = jnp.asarray(design_of(scene), dtype=float)
+    # The problem's data as arrays (traced): one compiled program per scene structure and shape,
+    # whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
+    fit = _Fit(objective, base, jnp.asarray(index), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
+               jnp.asarray(measured))
+    x0 = np.asarray(base)[index] / UNIT
+    if np.any(x0 <= 0):
+        raise ValueError(f"identify: the scene's values of {[p for p, v in zip(parameters, x0) if v <= 0]} are not > 0: give "
+                         "the scene a positive starting clearance or backlash.")
+    own = float(np.ravel(_widths(scene)[0])[0])  # the scene's smoothing width: one compiled program for every width
+    widths = [jnp.asarray(own if w is None else w, dtype=float) for w in widths]
+    tried = []
+    for factor in starts:
+        z = jnp.log(jnp.asarray(x0 * float(factor)))
+        for width in widths:
+            z, cost, steps, _ = _solve(fit, z, width, int(max_steps))
+        tried.append((float(cost), z, int(steps)))
+    cost, z, steps = min(tried, key=lambda t: t[0])
+    estimate_um = np.exp(np.asarray(z))
+
+    jac, fitted = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_um), widths[-1]))
+    r = ((fitted - measured) / UNIT).ravel()
+    n, p = r.size, len(parameters)
+    s2 = float(np.sum(r**2)) / max(n - p, 1)
+    # The relative Fisher information D J^T J D / s^2 (D: the estimates) in its eigenvectors. A
+    # direction the recording does not see has an eigenvalue at rounding level: floored there, its
+    # variance is huge, not dropped (a pseudo-inverse would drop it and report the parameters that
+    # load on it as sharply determined).
+    scaled = jac * estimate_um[None, :]
+    values, vectors = np.linalg.eigh(scaled.T @ scaled / s2)
+    values = np.maximum(values, max(float(values.max()), 1e-300) * 1e-15)
+    cov_um = estimate_um[:, None] * ((vectors / values) @ vectors.T) * estimate_um[None, :]
+    directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
+    # Converged: the Gauss-Newton step left from the estimate, along each direction the recording
+    # determines, is below a tenth of that direction's standard error (Levenberg-Marquardt's own
+    # criterion can fail on the adaptive solve's noise in the cost).
+    remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
+    seen = 1.0 / np.sqrt(values) < DETERMINED
+    converged = bool(np.all(np.abs(remaining[seen]) <= 0.1 / np.sqrt(values[seen])) and np.isfinite(s2))
+    estimate = UNIT * estimate_um
+    return Identification(
+        names=parameters, estimate=estimate, covariance=cov_um * UNIT**2, sigma=math.sqrt(s2) * UNIT, n=n,
+        cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
+        steps=steps, converged=converged, starts=tuple(t[0] for t in tried),
+        scene=with_design(scene, jnp.asarray(design_of(scene)).at[index].set(jnp.asarray(estimate))),
+    )
+
+
+def synthetic_recording(scene, values=None, *, duration: float, n_save: int, start: str = "steady", noise: float = 0.0,
+                        quantum: float = 0.0, key=None, axes=("azimuth",), **run) -> Recording:
+    """A recording the model makes of itself: `scene` at design `values` (m, default its own)
+    run for `duration` (s) with `n_save` saves, its output angles plus encoder noise (standard
+    deviation `noise`, rad, drawn with `key`) and quantisation to steps of `quantum` (rad; 0:
+    none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad)."""
+    from ..mechanism.scene import simulate
+
+    unit = scene if values is None else with_design(scene, jnp.asarray(values, dtype=float))
+    res = simulate(unit, duration, start=start, n_save=n_save, **run)
+    columns = [AXES.index(a) for a in axes]
+    angles = np.asarray(res.joint_angle)[:, columns]
+    if noise > 0:
+        angles = angles + noise * np.asarray(jax.random.normal(jax.random.key(0) if key is None else key, angles.shape))
+    if quantum > 0:
+        angles = quantum * np.round(angles / quantum)
+    return Recording(np.asarray(res.ts), angles, tuple(axes), np.asarray(res.commanded_angle)[:, columns],
+                     noise=math.hypot(noise, quantum / math.sqrt(12)) or None, source="synthetic")

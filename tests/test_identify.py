@@ -1,0 +1,164 @@
+"""Identification of an as-built unit (`tolerax.identify`): recordings read and refused with their
+reason, and the clearances and backlash of synthetic recordings (made by the model at known
+values, with encoder noise and quantisation) recovered inside their stated intervals; the
+coverage of those intervals is measured over recordings (`-m slow`), not assumed."""
+
+import math
+
+import jax
+import numpy as np
+import pytest
+
+import tolerax as tx
+from tolerax.design.features import design_names, design_of
+from tolerax.identify.identify import identify, synthetic_recording
+from tolerax.identify.recording import Recording, RecordingError, read_recording
+
+ENCODER = 2 * math.pi / 2**20  # rad: a 20-bit output encoder's step (6.0 µrad)
+NOISE = 2e-6  # rad: its noise
+
+
+def _scene():
+    """The azimuth scan on a lumped joint, pitch ideal: a reversal at 0.25 s inside 0.35 s."""
+    return tx.scan("azimuth", fidelity=("lumped", "ideal"))
+
+
+def _truth(scene, **values_um):
+    names, values = design_names(scene), np.asarray(design_of(scene)).copy()
+    for name, v in values_um.items():
+        values[names.index(f"azimuth.{name}")] = v * 1e-6
+    return values
+
+
+def test_a_recording_round_trips_through_csv_and_netcdf_in_any_stated_unit(tmp_path):
+    t = np.linspace(0.0, 0.5, 51)
+    rec = Recording(t, 0.01 * np.sin(4 * t), ("azimuth",), 0.01 * np.sin(4 * t) + 1e-5)
+    back = read_recording(rec.write_csv(tmp_path / "r.csv"))
+    assert back.axes == ("azimuth",) and np.allclose(back.measured, rec.measured, rtol=0, atol=1e-14)
+    assert np.allclose(back.commanded, rec.commanded, rtol=0, atol=1e-14)
+    # The same in ms and degrees, a comment and a pitch column.
+    deg = np.degrees(rec.measured[:, 0])
+    lines = ["# unit 7, acceptance scan", "time [ms], azimuth measured [deg], pitch measured [arcsec]"]
+    lines += [f"{1e3 * ti:.9g}, {d:.12g}, {3600 * d:.12g}" for ti, d in zip(t, deg)]
+    (tmp_path / "d.csv").write_text("\n".join(lines))
+    both = read_recording(tmp_path / "d.csv")
+    assert both.axes == ("azimuth", "pitch") and np.allclose(both.measured[:, 0], rec.measured[:, 0], atol=1e-12)
+    assert np.allclose(both.measured[:, 1], rec.measured[:, 0], atol=1e-12) and both.commanded is None
+    import xarray as xr
+
+    ds = xr.Dataset({"azimuth_measured": ("time", deg, {"units": "deg"})}, coords={"time": ("time", t, {"units": "s"})})
+    ds.to_netcdf(tmp_path / "r.nc")
+    assert np.allclose(read_recording(tmp_path / "r.nc").measured, rec.measured, atol=1e-12)
+    assert np.allclose(rec.at([0.0, 0.05, 0.055])[:, 0], [0.0, 0.01 * np.sin(0.2), 0.5 * 0.01 * (np.sin(0.2) + np.sin(0.24))])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("time [s], azimuth measured [rad]\n0, 0\n0.1, 0\n0.1, 0\n0.2, 0\n", "sample 3 repeats the time of the sample before (0.1 s, then 0.1 s)"),
+    ("time [s], azimuth measured [rad]\n0, 0\n0.2, 0\n0.1, 0\n0.3, 0\n", "sample 3 goes back in time from the sample before (0.2 s, then 0.1 s)"),
+    ("time [s], azimuth measured [rad]\n0, 0\n0.1, \n0.2, 0\n", "sample 2 of measured (azimuth) is nan"),
+    ("time [s], azimuth measured [furlong]\n0, 0\n0.1, 0\n0.2, 0\n", "'furlong' is not an angle unit"),
+    ("time [s], azimuth measured\n0, 0\n0.1, 0\n0.2, 0\n", "states no unit"),
+    ("time [s], azimuth measured [rad]\n0, 0\n0.1, 12.5\n0.2, 25\n", "is the column in degrees"),
+    ("time [s], azimuth measured [rad]\n0, 0\n0.1, x\n0.2, 0\n", "not a number"),
+    ("time [s], elevation measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch"),
+    ("time [s], azimuth measured [rad]\n0, 0, 1\n", "bad.csv:2: 3 values for 2 columns"),
+])
+def test_a_recording_that_cannot_be_right_is_refused_with_the_reason(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(RecordingError) as info:
+        read_recording(path)
+    assert message in str(info.value) and str(path) in str(info.value)
+
+
+def test_a_recording_shorter_than_the_run_is_refused():
+    rec = Recording(np.linspace(0.0, 0.2, 21), np.zeros(21))
+    with pytest.raises(RecordingError, match="record longer"):
+        rec.at(np.linspace(0.0, 0.3, 31))
+    with pytest.raises(RecordingError, match="shorter than the model's"):
+        identify(_scene(), rec, ["azimuth.ring_backlash"], duration=0.35)
+    with pytest.raises(ValueError, match="not design features"):
+        identify(_scene(), rec, ["azimuth.bogus"])
+
+
+def test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_recording():
+    """Ring backlash 60 µm (the scene says 100): recovered from 0.35 s of the 20-bit encoder with
+    2 µrad of noise, the truth inside the 95 % interval, the interval a few tenths of a µm wide
+    (the lost motion at the reversal sees the backlash directly), the residual's standard
+    deviation the encoder's (noise and quantisation: sqrt(2² + 6²/12) = 2.6 µrad, to 30 %)."""
+    scene = _scene()
+    truth = _truth(scene, ring_backlash=60.0)
+    rec = synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(1))
+    got = identify(scene, rec, ["azimuth.ring_backlash"], starts=(1.0,))
+    lo, hi = got.interval()
+    assert lo[0] <= 60e-6 <= hi[0] and hi[0] - lo[0] < 2e-6, got.table()
+    assert got.sigma == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12)), rel=0.3)
+    assert got.status() == ("determined",) and "determined" in got.table()
+    assert float(design_of(got.scene)[design_names(scene).index("azimuth.ring_backlash")]) == pytest.approx(got.estimate[0])
+
+
+@pytest.mark.slow
+def test_the_two_backlashes_are_seen_only_as_their_sum():
+    """Sun and ring backlash move the lumped joint's output alike (`lost_motion_weights`: equal
+    weights), so a recording of the output angle determines their sum and not their split: the
+    table calls both "in combination" and the determined direction is (1, 1)/sqrt(2) in
+    relative terms where the two are equal."""
+    scene = _scene()
+    truth = _truth(scene, sun_backlash=70.0, ring_backlash=70.0)
+    rec = synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(2))
+    got = identify(scene, rec, ["azimuth.sun_backlash", "azimuth.ring_backlash"], starts=(1.0,))
+    assert got.status() == ("in combination", "in combination"), got.table()
+    best = got.directions[0][1]
+    assert abs(abs(best[0]) - abs(best[1])) < 0.2 and best[0] * best[1] > 0
+    assert got.directions[-1][0] > 1.0  # the split: not determined at all
+    assert 1e6 * float(np.sum(got.estimate)) == pytest.approx(140.0, abs=1.0)
+
+
+@pytest.mark.slow
+def test_the_intervals_cover_the_truth_in_about_95_percent_of_recordings():
+    """20 recordings of one unit (ring backlash 60 µm), each with its own noise: the truth inside
+    the 95 % interval in at least 16 of them (P(X >= 16) = 0.98 for X ~ Binomial(20, 0.95); a
+    coverage of 80 % or less, the interval too narrow, fails with probability > 0.6)."""
+    scene = _scene()
+    truth = _truth(scene, ring_backlash=60.0)
+    inside = 0
+    for seed in range(20):
+        rec = synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(100 + seed))
+        lo, hi = identify(scene, rec, ["azimuth.ring_backlash"], starts=(1.0,)).interval()
+        inside += int(lo[0] <= 60e-6 <= hi[0])
+    assert inside >= 16, f"{inside} of 20 intervals hold the truth"
+
+
+def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, capsys):
+    from tolerax import cli
+
+    bad = tmp_path / "rec.csv"
+    bad.write_text("time [s], azimuth measured [rad]\n0, 0\n0.1, 0\n0.1, 0\n")
+    assert cli.main(["identify", "scan-azimuth", str(bad), "--out", str(tmp_path / "id")]) == 2
+    err = capsys.readouterr().err
+    assert "tolerax identify:" in err and "repeats the time" in err and not (tmp_path / "id").exists()
+    good = Recording(np.linspace(0.0, 0.35, 36), np.zeros(36)).write_csv(tmp_path / "ok.csv")
+    with pytest.raises(SystemExit) as info:
+        cli.main(["identify", "scan-azimuth", str(good), "--parameters", "azimuth.bogus", "--out", str(tmp_path / "id")])
+    assert info.value.code == 2 and "not design features" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, capsys):
+    """`tolerax identify` on a recording file: the report, the fit's figure and the identified
+    unit as a scene file whose [design] holds the estimate, which `tolerax run` reads back."""
+    from tolerax import cli
+
+    scene = _scene()
+    rec = synthetic_recording(scene, _truth(scene, ring_backlash=60.0), duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER,
+                              key=jax.random.key(3))
+    path = rec.write_csv(tmp_path / "unit7.csv")
+    out = tmp_path / "id"
+    code = cli.main(["identify", "scan-azimuth", str(path), "--parameters", "azimuth.ring_backlash", "--starts", "1",
+                     "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    text = (out / "identification.md").read_text()
+    assert "azimuth.ring_backlash" in text and "determined" in text and (out / "identification.png").stat().st_size > 10_000
+    unit = tx.load_scene(str(out / "identified.toml"))
+    assert unit.data["design"]["azimuth.ring_backlash"] == pytest.approx(60e-6, abs=0.3e-6)
+    assert unit.tolerances().distribution == "normal"
