@@ -1,4 +1,4 @@
-"""Identification of an as-built unit (`tolerax.identify`): recordings read and refused with their
+"""Identification of an as-built unit (`tolerax.identification`): recordings read and refused with their
 reason, and the clearances and backlash of synthetic recordings (made by the model at known
 values, with encoder noise and quantisation) recovered inside their stated intervals; the
 coverage of those intervals is measured over recordings (`-m slow`), not assumed."""
@@ -11,8 +11,8 @@ import pytest
 
 import tolerax as tx
 from tolerax.design.features import design_names, design_of
-from tolerax.identify.identify import identify, synthetic_recording
-from tolerax.identify.recording import Recording, RecordingError, read_recording
+from tolerax.identification.identify import identify, synthetic_recording
+from tolerax.identification.recording import Recording, RecordingError, read_recording
 
 ENCODER = 2 * math.pi / 2**20  # rad: a 20-bit output encoder's step (6.0 µrad)
 NOISE = 2e-6  # rad: its noise

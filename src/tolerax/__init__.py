@@ -55,6 +55,8 @@ _FACE = {
     "uncertainty.sensitivity": ("SobolResult", "sobol_indices"),
     "design.cost": ("AbstractCostModel", "Exponential", "GradeTable", "IsoGrade", "ReciprocalPower", "grade_of", "it_tolerance"),
     "design.optimise": ("Design", "Features", "OptimisationResult", "optimise_design", "realise", "robust"),
+    "identification.recording": ("Recording", "RecordingError", "read_recording"),
+    "identification.identify": ("Identification", "identify", "synthetic_recording"),
 }
 _KERNELS = ("smooth", "contact", "mesh", "planetary")  # modules of `tolerax.physics`, on the face as modules
 _WHERE = {name: module for module, names in _FACE.items() for name in names}

@@ -17,8 +17,8 @@ def identify_command(parser, args) -> int:
     import numpy as np
 
     from ..design.features import design_names
-    from ..identify.identify import identify
-    from ..identify.recording import RecordingError, read_recording
+    from ..identification.identify import identify
+    from ..identification.recording import RecordingError, read_recording
     from ..uncertainty.sampling import Tolerances
 
     try:
@@ -93,7 +93,7 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
     parser = sub.add_parser(
         "identify", help="a unit's clearances and backlash from its test recording (encoder angles)",
         description="Estimate the chosen clearances and backlash of SCENE that reproduce RECORDING (a CSV or netCDF of "
-        "the output encoder's angles while the unit ran SCENE's drive: tolerax.identify.recording), by least squares "
+        "the output encoder's angles while the unit ran SCENE's drive: tolerax.identification.recording), by least squares "
         "through the simulation (Levenberg-Marquardt, exact Jacobian), with 95 % intervals and which of them the "
         "recording determines. Writes identification.md, identification.json, identification.png and identified.toml "
         "(the unit as a scene file).", epilog=epilog)
