@@ -108,8 +108,9 @@ def main(argv=None) -> int:
     walk.run(["run", "bad_backlash.toml", "--out", "bad"], tail=2)
     walk.run(["design", "my_drive.toml", "--yield", "0.99", "--life", "10", "--out", "life"], tail=2)
     wide = work / "wide_scan.toml"
-    wide.write_text(drive.read_text().replace("profile_angles = [0.0, 0.015, 0.0, -0.015, 0.0]",
-                                              "profile_angles = [0.0, 1.0, 0.0, -1.0, 0.0]"))
+    text = drive.read_text().replace("profile_times = [0.0, 0.12, 0.24, 0.36, 0.48]\n", "")
+    wide.write_text(text.replace("profile_angles = [0.0, 0.015, 0.0, -0.015, 0.0]   # rad: +-0.86 deg",
+                                 "amplitude = 1.0   # meant as 1 degree\nperiod = 0.5"))
     walk.run(["run", "wide_scan.toml", "--duration", "0.05", "--settle", "0", "--out", "wide"], keep=r"note|RMS pointing")
     walk.say("## 6. An infeasible requirement", "")
     walk.run(["design", "my_drive.toml", "--yield", "0.99", "--requirement", "1000", "--out", "infeasible"],

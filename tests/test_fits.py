@@ -138,7 +138,7 @@ def _message(call) -> str:
                                                      (30.0, -10e-6, 20e-6), (120.0, 20e-6, 120e-6)])
 def test_fits_covering_against_brute_force(diameter, lower, upper):
     """Every listed fit lies inside the zone, every fit of the candidates that does is listed,
-    and the list goes from the widest zone to the narrowest."""
+    and the list goes from the cheapest pair of grades to the dearest."""
     found = fits_covering(lower, upper, diameter)
     assert found, "the zones here are wide enough for some fit"
     for fit in found:
@@ -148,8 +148,10 @@ def test_fits_covering_against_brute_force(diameter, lower, upper):
               if lower - SLACK <= Fit(h, s).radial_clearance(diameter)[0]
               and Fit(h, s).radial_clearance(diameter)[1] <= upper + SLACK}
     assert set(found) == inside and len(found) == len(inside)
-    widths = [f.radial_clearance(diameter)[1] - f.radial_clearance(diameter)[0] for f in found]
-    assert all(a >= b - 1e-15 for a, b in itertools.pairwise(widths))
+    # Cheapest first: the two parts' costs at 1.58x per grade tighter (IT7 = 1), written out here.
+    costs = [1.5848931924611136 ** (7 - int(f.hole[1:])) + 1.5848931924611136 ** (7 - int(f.shaft.lstrip("abcdefghjks")))
+             for f in found]
+    assert all(a <= b + 1e-9 for a, b in itertools.pairwise(costs))
     assert nearest_fit(lower, upper, diameter) == found[0]
     if lower >= 0:
         assert all(f.is_clearance_fit(diameter) for f in found)

@@ -7,7 +7,7 @@ $$c_\\min = (EI - es)/2, \\qquad c_\\max = (ES - ei)/2,$$
 
 with ES, EI the hole's and es, ei the shaft's upper and lower limit deviations. `fits_covering`
 lists the fits whose whole zone lies inside a designed one (every bore and journal made to the
-fit meets the design), loosest (cheapest) first; `nearest_fit` is the first of them, and
+fit meets the design), cheapest first (the two parts' grades); `nearest_fit` is the first of them, and
 `why_no_fit` says why a zone holds none (too narrow for any grade pair, a smallest clearance
 above the loosest position's, or between two positions). Hole basis (H with shafts a-k) by
 default; shaft basis (holes A-H with an h shaft, `basis="shaft"`) where one journal carries
@@ -47,7 +47,7 @@ import re
 
 import numpy as np
 
-from .cost import GRADE_MULTIPLIERS, SIZE_STEPS
+from .cost import GRADE_MULTIPLIERS, GRADE_RATIO, SIZE_STEPS
 
 SMALLEST_SIZE = 1.0  # mm: the lower limit of ISO 286's first size step
 GRADES = tuple(sorted(GRADE_MULTIPLIERS))  # 5 ... 11
@@ -338,9 +338,10 @@ def fits_covering(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None
 
     **Returns:**
 
-    The `Fit`s inside the zone, sorted by the width of their zone, widest (the coarsest grades,
-    the cheapest) first; among equal widths the one with the larger margin to the nearer limit
-    first, then the coarser hole. Empty where none fits: `why_no_fit` says why.
+    The `Fit`s inside the zone, cheapest first: by the two parts' costs at ISO 286's reciprocal
+    law (x1.58 per grade tighter, IT7 = 1, `tolerax.design.cost.GRADE_RATIO`), then the wider
+    zone, the larger margin to the nearer limit, the coarser hole. Empty where none fits:
+    `why_no_fit` says why.
     """
     lower, upper, pairs = _candidates(lower_limit, upper_limit, diameter_mm, holes, shafts, basis, "fits_covering")
     found = []
@@ -348,13 +349,17 @@ def fits_covering(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None
         low, high = low_um / 1e6, high_um / 1e6
         if low >= lower - SLACK and high <= upper + SLACK:
             margin = min(low - lower, upper - high)
-            # The width in µm (quarter micrometres, exact): equal widths tie exactly.
-            found.append(((low_um - high_um, -margin, -_parse_class(fit.hole, "hole")[1], str(fit)), fit))
+            hole, shaft = _parse_class(fit.hole, "hole")[1], _parse_class(fit.shaft, "shaft")[1]
+            # Cheapest first: the two parts' costs by ISO 286's reciprocal law (x1.58 per grade
+            # tighter, IT7 = 1: H8/f7 before H9/f5, whose IT5 shaft costs more than its coarse
+            # bore saves); then the wider zone (quarter micrometres, exact), the larger margin.
+            cost = round(GRADE_RATIO ** (7 - hole) + GRADE_RATIO ** (7 - shaft), 9)
+            found.append(((cost, low_um - high_um, -margin, -hole, str(fit)), fit))
     return [fit for _, fit in sorted(found, key=lambda item: item[0])]
 
 
 def nearest_fit(lower_limit, upper_limit, diameter_mm, holes=None, shafts=None, basis: str = "hole") -> Fit | None:
-    """The loosest fit inside the designed radial clearance zone (the first of `fits_covering`,
+    """The cheapest fit inside the designed radial clearance zone (the first of `fits_covering`,
     same arguments), or None where none lies inside it."""
     found = fits_covering(lower_limit, upper_limit, diameter_mm, holes, shafts, basis)
     return found[0] if found else None
