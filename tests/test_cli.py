@@ -180,7 +180,8 @@ def test_the_readme_quotes_the_demo_s_pointing(tmp_path):
 @pytest.mark.slow
 def test_the_readme_quotes_the_demo_s_proposal(tmp_path):
     """The proposal the README quotes (its drawn and continuous costs, objective, gradients) is
-    what the full `tolerax demo` prints now (a minute of design on one core)."""
+    what the full `tolerax demo` prints now (a minute of design on one core). (Enlarges
+    test_the_readme_quotes_the_demo_s_pointing.)"""
     assert cli.main(["demo", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "demo.md").read_text()
     gradients = int(_readme_number(r"converges in (\d+) gradients"))

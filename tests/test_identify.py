@@ -102,7 +102,8 @@ def test_the_two_backlashes_are_seen_only_as_their_sum():
     """Sun and ring backlash move the lumped joint's output alike (`lost_motion_weights`: equal
     weights), so a recording of the output angle determines their sum and not their split: the
     table calls both "in combination" and the determined direction is (1, 1)/sqrt(2) in
-    relative terms where the two are equal."""
+    relative terms where the two are equal. (Enlarges
+    test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_recording.)"""
     scene = _scene()
     truth = _truth(scene, sun_backlash=70.0, ring_backlash=70.0)
     rec = synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(2))
@@ -118,7 +119,9 @@ def test_the_two_backlashes_are_seen_only_as_their_sum():
 def test_the_intervals_cover_the_truth_in_about_95_percent_of_recordings():
     """20 recordings of one unit (ring backlash 60 µm), each with its own noise: the truth inside
     the 95 % interval in at least 16 of them (P(X >= 16) = 0.98 for X ~ Binomial(20, 0.95); a
-    coverage of 80 % or less, the interval too narrow, fails with probability > 0.6)."""
+    coverage of 80 % or less, the interval too narrow, fails with probability > 0.6). (Enlarges
+    test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_recording;
+    benchmarks/identify_coverage.py runs more.)"""
     scene = _scene()
     truth = _truth(scene, ring_backlash=60.0)
     inside = 0
@@ -146,7 +149,8 @@ def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, caps
 @pytest.mark.slow
 def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, capsys):
     """`tolerax identify` on a recording file: the report, the fit's figure and the identified
-    unit as a scene file whose [design] holds the estimate, which `tolerax run` reads back."""
+    unit as a scene file whose [design] holds the estimate, read back as a scene. (Enlarges
+    test_the_command_line_refuses_a_bad_recording_before_any_work.)"""
     from tolerax import cli
 
     scene = _scene()

@@ -598,3 +598,6 @@ def test_an_unlikely_amplitude_is_noted_with_its_line_not_refused():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         tx.parse_scene(text, source="my_scan.toml")
+        # Said once, at the user's line: a scene derived from it (regenerated text, other line
+        # numbers: `replace`, `with_tolerances`) does not say it again.
+        assert float(scene.replace(duration=0.05, settle=0.0).build().azimuth.drive.amplitude) == 1.0

@@ -18,6 +18,7 @@ import math
 import os
 import pathlib
 import tomllib
+import warnings
 
 import numpy as np
 import tomli_w
@@ -52,12 +53,15 @@ class SceneFile:
     @classmethod
     def from_data(cls, data: dict, name: str = "scene", source: str = "<data>") -> "SceneFile":
         """Validate `data` (as `tomllib` would return it) through its TOML text, so that errors
-        carry line numbers."""
+        carry line numbers. Notes on unlikely values (`SceneFileNote`) are not said again: they
+        were said, at the user's own lines, when the file was read; this text is regenerated."""
         try:
             text = _dumps(data)
         except TypeError as err:
             raise SceneFileError(str(err), source) from None
-        return parse_scene(text, name=name, source=source)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SceneFileNote)
+            return parse_scene(text, name=name, source=source)
 
     def __eq__(self, other):
         return isinstance(other, SceneFile) and _canonical(self.data) == _canonical(other.data)
