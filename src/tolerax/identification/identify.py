@@ -23,6 +23,12 @@ table is the eigen-decomposition of the relative Fisher information $D J^TJ D / 
 determined; a parameter is determined itself, determined only in combination (it loads on a
 determined direction but its own interval is wide: the recording sees a sum, as the lost motion
 at a reversal sees the backlash and the pin play together), or not determined.
+
+**Where it holds.** The residual matches trajectories, so it needs a response whose derivative
+in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
+planetary stage in developed rattle the output angle's forward-mode derivative over a window is
+dominated by the chaotic rattle (the reason the jitter design uses secants), and the estimate
+stays at its start: a residual the rattle does not scramble is not built yet.
 """
 
 import dataclasses
