@@ -96,6 +96,11 @@ def test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_reco
     assert got.sigma == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12)), rel=0.3)
     assert got.status() == ("determined",) and "determined" in got.table()
     assert float(design_of(got.scene)[design_names(scene).index("azimuth.ring_backlash")]) == pytest.approx(got.estimate[0])
+    # A recording of another test (its command 1.5x the scene's) is refused before any fitting:
+    # the difference would be fitted as clearance.
+    other = Recording(rec.time, rec.measured, rec.axes, 1.5 * rec.commanded, source="unit7.csv")
+    with pytest.raises(RecordingError, match="unit7.csv: the recording's commanded azimuth angle is not the scene's drive"):
+        identify(scene, other, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
 
 
 @pytest.mark.slow

@@ -51,6 +51,7 @@ LOADING = 0.3  # a parameter takes part in a direction whose eigenvector compone
 # Levenberg-Marquardt's relative and absolute tolerance on the step (log µm) and the cost (µrad²):
 # finer than the adaptive solve's own noise in the residual makes it wander without gaining.
 LM_TOL = 1e-4
+COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,8 +163,11 @@ def _solve(fit: _Fit, z0, width, max_steps: int):
 
 @eqx.filter_jit
 def _fit_and_jacobian(fit: _Fit, values_um, width):
-    """The residual's Jacobian (µrad per µm) and the fitted angles (rad) at `values_um`."""
-    return jax.jacfwd(lambda v: fit.residual(v, width))(values_um), fit.response(values_um, width)[0]
+    """The residual's Jacobian (µrad per µm), the fitted angles and the scene's commanded angles
+    (rad) at `values_um`."""
+    res = fit.objective.run(fit.base.at[fit.index].set(UNIT * values_um), width)
+    commanded = res.commanded_angle[fit.rows][:, fit.columns]
+    return jax.jacfwd(lambda v: fit.residual(v, width))(values_um), fit.response(values_um, width)[0], commanded
 
 
 def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
@@ -194,7 +198,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       run settings (solver, tolerances) for the model.
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
-    the scene (axes, length) and `ValueError` for unknown parameters.
+    the scene (its length; its commanded angle, where it has one, not the scene's drive to
+    `COMMAND_TOLERANCE` or 1 % of its range) and `ValueError` for unknown parameters.
     """
     names = design_names(scene)
     parameters = tuple(names) if parameters is None else tuple(parameters)
@@ -224,6 +229,18 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                          "the scene a positive starting clearance or backlash.")
     own = float(np.ravel(_widths(scene)[0])[0])  # the scene's smoothing width: one compiled program for every width
     widths = [jnp.asarray(own if w is None else w, dtype=float) for w in widths]
+    if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
+        commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), widths[-1])[2])
+        recorded = np.stack([np.interp(times[window], recording.time, recording.commanded[:, j])
+                             for j in range(len(recording.axes))], axis=1)
+        off = np.abs(recorded - commanded)
+        if np.max(off) > max(COMMAND_TOLERANCE, 0.01 * float(np.max(np.abs(commanded)))):
+            i, j = np.unravel_index(int(np.argmax(off)), off.shape)
+            raise RecordingError(
+                f"{recording.source}: the recording's commanded {recording.axes[j]} angle is not the scene's drive: "
+                f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
+                "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
+                "is fitted as clearance.")
     tried = []
     for factor in starts:
         z = jnp.log(jnp.asarray(x0 * float(factor)))
@@ -233,7 +250,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     cost, z, steps = min(tried, key=lambda t: t[0])
     estimate_um = np.exp(np.asarray(z))
 
-    jac, fitted = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_um), widths[-1]))
+    jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_um), widths[-1]))
     r = ((fitted - measured) / UNIT).ravel()
     n, p = r.size, len(parameters)
     s2 = float(np.sum(r**2)) / max(n - p, 1)
