@@ -41,10 +41,11 @@ def identify_command(parser, args) -> int:
           f"({recording.time.size} samples over {recording.duration:g} s, axes {', '.join(recording.axes)}); results in {out}/",
           flush=True)
     start = time.perf_counter()
-    run = {k: v for k, v in scene_file.run.items() if k in ("solver", "rtol", "atol", "pcoeff", "icoeff", "max_steps", "dtmax")}
+    # Every [run] key is a PointingObjective field (SceneFile.objective): all pass through but the
+    # window and saves, which identify sets from the recording.
+    run = {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
     try:
-        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, start=scene_file.run["start"],
-                       starts=tuple(args.starts), **run)
+        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, starts=tuple(args.starts), **run)
     except (RecordingError, ValueError) as err:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2

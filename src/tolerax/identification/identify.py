@@ -179,7 +179,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=(1.0, 0.5, 2.0),
-             max_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
+             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
     """The features `parameters` of `scene` that reproduce `recording` (module docstring).
 
     **Arguments:**
@@ -194,8 +194,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     - `widths`: the smoothing widths (m) continued through, `None` the scene's own; the
       estimate, its covariance and the fit are the last width's.
     - `starts`: the starting points, as multiples of the scene's values.
-    - `max_steps` (per width), `rtol`, `atol`: Levenberg-Marquardt's; `**run`: `simulate`'s
-      run settings (solver, tolerances) for the model.
+    - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`);
+      `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
+      `max_steps`, ...), as a scene file's `[run]` holds them.
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
@@ -231,8 +232,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     widths = [jnp.asarray(own if w is None else w, dtype=float) for w in widths]
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
         commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), widths[-1])[2])
-        recorded = np.stack([np.interp(times[window], recording.time, recording.commanded[:, j])
-                             for j in range(len(recording.axes))], axis=1)
+        recorded = recording.at(times[window], "commanded")
         off = np.abs(recorded - commanded)
         if np.max(off) > max(COMMAND_TOLERANCE, 0.01 * float(np.max(np.abs(commanded)))):
             i, j = np.unravel_index(int(np.argmax(off)), off.shape)
@@ -245,7 +245,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     for factor in starts:
         z = jnp.log(jnp.asarray(x0 * float(factor)))
         for width in widths:
-            z, cost, steps, _ = _solve(fit, z, width, int(max_steps))
+            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps))
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
     estimate_um = np.exp(np.asarray(z))

@@ -74,14 +74,15 @@ class Recording:
         """The last sample's time (s)."""
         return float(self.time[-1])
 
-    def at(self, times) -> np.ndarray:
-        """The measured angles (rad, (len(times), k)) at `times` (s), linearly interpolated;
-        `RecordingError` where a time lies outside the recording."""
+    def at(self, times, which: str = "measured") -> np.ndarray:
+        """The `which` ("measured" or "commanded") angles (rad, (len(times), k)) at `times` (s),
+        linearly interpolated; `RecordingError` where a time lies outside the recording."""
         times = np.asarray(times, dtype=float)
         if times.min() < self.time[0] - 1e-12 or times.max() > self.time[-1] + 1e-12:
             raise RecordingError(f"{self.source}: the recording covers {self.time[0]:g} to {self.time[-1]:g} s; the model's "
                                  f"saves run {times.min():g} to {times.max():g} s: record longer or shorten the scene's run.")
-        return np.stack([np.interp(times, self.time, self.measured[:, j]) for j in range(len(self.axes))], axis=1)
+        values = getattr(self, which)
+        return np.stack([np.interp(times, self.time, values[:, j]) for j in range(len(self.axes))], axis=1)
 
     def write_csv(self, path) -> pathlib.Path:
         """This recording as CSV (time in s, angles in rad), readable by `read_recording`."""
