@@ -39,7 +39,8 @@ def test_propose_design_refuses_the_jitter_on_the_scaled_stage():
     sf = tx.load_scene("scan-azimuth-fast")
     pointing = sf.objective(jitter_cutoff=20.0)
     with pytest.raises(ValueError, match="planetary-scaled"):
-        tx.propose_design(pointing, [tx.Requirement("pointing_rms", 1000.0), tx.Requirement("pointing_jitter", 0.2)], yield_=0.9)
+        tx.propose_design(tx.ToleranceProblem(pointing, [tx.Requirement("pointing_rms", 1000.0), tx.Requirement("pointing_jitter", 0.2)],
+                                              tx.Yield(0.9)))
     full = tx.load_scene("scan-azimuth-planetary").build()
     assert check_fidelity(full, [tx.Requirement("pointing_jitter", 0.2)]) == []
 

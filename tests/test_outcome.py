@@ -145,7 +145,7 @@ def test_a_stalled_tangent_design_is_finished_on_secant_slopes():
     line = R.Line(scene, 600.0, 0.5 * np.asarray(lost_motion_weights(scene)), 60e-6, sigma=[100.0])
     problem = P.design_problem(line, yield_=0.99)
     requirement = 0.9 * float(problem.value(width=1e-6))
-    report = tx.propose_design(line, requirement, yield_=0.99, widths=(1e-6,), max_outer=20, check_units=0)
+    report = tx.propose_design(tx.ToleranceProblem(line, requirement, tx.Yield(0.99)), tx.Sequential(widths=(1e-6,)), check=None)
     common = dict(requirement=requirement, draws=problem.draws, cost_model=problem.cost_model, width=1e-6, max_iterations=20,
                   tol=(0.01,))
     tangent = sequential_design(problem.objective, problem.features, lower=problem.lower, upper=problem.upper, x0=problem.x0,
@@ -184,7 +184,7 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
     problem = P.design_problem(line)
     reach = min(float(problem.value(tightest(problem.lower, problem.upper, s))) for s in (None, slopes))
     calls = []
-    report = tx.propose_design(line, factor * reach, callback=lambda *args: calls.append(args))
+    report = tx.propose_design(tx.ToleranceProblem(line, factor * reach, tx.MeanPlusKStd()), callback=lambda *args: calls.append(args))
     if factor < 1:
         assert report.status == "infeasible" and calls == []
         assert f"reach {reach:.4g} arcsec at best" in report.diagnosis
@@ -229,7 +229,8 @@ def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grad
     slopes = 0.5 * np.asarray(lost_motion_weights(scene))
     line = R.Line(scene, 600.0, slopes, 60e-6)
     requirement = 0.8 * float(P.design_problem(line, yield_=0.99).value(width=1e-6))
-    plain = tx.propose_design(line, requirement, yield_=0.99, widths=(1e-6,), check_units=100)
+    plain = tx.propose_design(tx.ToleranceProblem(line, requirement, tx.Yield(0.99)), tx.Sequential(widths=(1e-6,)),
+                              check=tx.Check(units=100))
     d = plain.drawable
     assert plain.accepted and d.tightened == 0 and d.checks[0].interval[1] >= 0.99
     zones = plain.tolerances
@@ -244,8 +245,8 @@ def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grad
 
     kink, knee = np.zeros((1, 4)), np.array([1.0, 90e-6, 1.0, 1.0])
     kink[0, 1] = 2e8  # arcsec/m above the knee
-    report = tx.propose_design(R.Line(scene, 600.0, slopes, 60e-6, kink=kink, knee=knee), requirement, yield_=0.99,
-                               widths=(1e-6,), check_units=100)
+    report = tx.propose_design(tx.ToleranceProblem(R.Line(scene, 600.0, slopes, 60e-6, kink=kink, knee=knee), requirement,
+                                                   tx.Yield(0.99)), tx.Sequential(widths=(1e-6,)), check=tx.Check(units=100))
     drawn = report.drawable
     assert report.accepted and drawn.tightened == 1 and drawn.checks[0].interval[1] >= 0.99
     assert 1e6 * (drawn.nominal[1] + drawn.band[1]) < 90.0

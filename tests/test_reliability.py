@@ -12,7 +12,6 @@ import pytest
 
 import tolerax as tx
 from tolerax.design import propose as _propose
-from tolerax.design import rounds as _rounds
 from tolerax.design import check as chk, reliability as rel, surface as srf
 from tolerax.design.features import lost_motion_weights
 from tolerax.design.optimise import realise
@@ -164,7 +163,8 @@ def test_yield_proposal_binds_its_quantile(scan_pointing):
     problem = _propose.design_problem(scan_pointing, yield_=0.99)
     value = lambda x: float(problem.value(x, 1e-6))  # noqa: E731
     requirement = 0.5 * value(problem.x0)
-    report = tx.propose_design(scan_pointing, requirement, yield_=0.99, widths=(1e-6,), check_units=20, max_checks=1)
+    report = tx.propose_design(tx.ToleranceProblem(scan_pointing, requirement, tx.Yield(0.99)), tx.Sequential(widths=(1e-6,)),
+                               check=tx.Check(units=20, rounds=1))
     assert report.yield_ == 0.99 and len(report.checks) == 1 and report.checks[0].n == 20
     assert abs(report.objective / requirement - 1.0) <= 0.01
     # Convergence is not asserted: on this objective the trust region collapses before the design
@@ -174,7 +174,7 @@ def test_yield_proposal_binds_its_quantile(scan_pointing):
     np.testing.assert_allclose(value(report.result.x), report.objective, rtol=1e-9)
     assert "quantile" in report.table() and "Monte Carlo check" in report.table()
     with pytest.raises(ValueError, match="yield"):
-        tx.propose_design(scan_pointing, requirement, check_units=10)
+        tx.propose_design(tx.ToleranceProblem(scan_pointing, requirement, tx.MeanPlusKStd()), check=tx.Check(units=10))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -334,7 +334,7 @@ def _rms_and_jitter(scene):
 
 
 def test_jitter_requirement_beside_the_lost_motion_one():
-    """`propose_design(jitter=...)`: a stability requirement met all along the lost-motion
+    """A jitter requirement: a stability requirement met all along the lost-motion
     design's path leaves the design as it was (cost within the RMS tolerance), inactive; the
     report carries both quantiles (each equal to the objective evaluated again), the jitter's
     sensitivities, its split (much less lost motion than the RMS's), and a jitter check on the
@@ -345,14 +345,20 @@ def test_jitter_requirement_beside_the_lost_motion_one():
     pointing = _rms_and_jitter(scene)
     # A lumped joint does not read the jitter as the full stage does (tolerax.design.fidelity):
     # allowed here knowingly, to test the machinery; the report says so.
-    options = dict(yield_=0.9, secant_units=12, widths=(1e-6,), max_outer=10, allow_proxy=True)
+    solver = tx.Sequential(widths=(1e-6,), max_gradients=10)
     pair = _propose.design_problem(pointing, yield_=0.9, secant_units=12, output=("pointing_rms", "pointing_jitter"), scatter=True)
     quantiles = eqx.filter_jit(pair.objective)
     baseline = np.asarray(quantiles(pair.x0, pair.draws, 1e-6))
     requirement = 0.6 * float(baseline[0])
-    alone = tx.propose_design(pointing, requirement, check_units=0, **options)
+    # Alone, the RMS on a line through the same 12 units, without their scatter or a twin.
+    alone = tx.propose_design(tx.ToleranceProblem(pointing, tx.Requirement("pointing_rms", requirement,
+                                                                        model=tx.Secants(units=12, scatter=False, twin=False)),
+                                                  tx.Yield(0.9), allow_proxy=True), solver, check=None)
     loose = 1.5 * max(float(baseline[1]), float(np.asarray(quantiles(alone.result.x, pair.draws, 1e-6))[1]))
-    report = tx.propose_design(pointing, requirement, jitter=loose, check_units=6, max_checks=1, **options)
+    both = [tx.Requirement("pointing_rms", requirement, model=tx.Secants(units=12)),
+            tx.Requirement("pointing_jitter", loose, model=tx.Secants(units=12))]
+    report = tx.propose_design(tx.ToleranceProblem(pointing, both, tx.Yield(0.9), allow_proxy=True), solver,
+                               check=tx.Check(units=6, rounds=1))
     assert report.jitter is not None and report.jitter.requirement == loose and report.jitter.cutoff == 20.0
     assert report.noise_band is not None and report.noise_band[0] == report.cost and "Cost noise band" in report.table()
     assert report.cost == pytest.approx(alone.cost, rel=0.01)
@@ -381,12 +387,12 @@ def test_jitter_requirement_beside_the_lost_motion_one():
     assert report.outcomes[1].checks == report.jitter.checks and report.outcomes[1].requirement.secants
     assert any("read at planetary fidelity" in note for note in report.notes) and "the azimuth joint is lumped" in text
     with pytest.raises(ValueError, match="azimuth joint is lumped"):
-        tx.propose_design(pointing, requirement, jitter=loose, yield_=0.9)
+        tx.propose_design(tx.ToleranceProblem(pointing, both, tx.Yield(0.9)))
     with pytest.raises(ValueError, match="needs a yield requirement"):
-        tx.propose_design(pointing, requirement, jitter=loose)
+        tx.propose_design(tx.ToleranceProblem(pointing, both, tx.MeanPlusKStd(), allow_proxy=True))
     rms_only = R.Line(scene, 900.0, SLOPES, 60e-6)
     with pytest.raises(ValueError, match="does not compute 'pointing_jitter'.*jitter_cutoff"):
-        tx.propose_design(rms_only, requirement, jitter=loose, yield_=0.9)
+        tx.propose_design(tx.ToleranceProblem(rms_only, both, tx.Yield(0.9)))
 
 
 def test_log_fit_is_exact_on_a_log_linear_response():
@@ -458,7 +464,7 @@ def test_log_fit_is_exact_on_a_log_linear_response():
 
 
 def test_surface_rounds_refit_over_the_design_zones():
-    """`propose_design(surface_box=..., surface_rounds=...)`: on a response log-linear in one
+    """`Surface(box=..., rounds=...)`: on a response log-linear in one
     feature with a kink, log y = a + s (v - m0) + s2 max(v - 70 um, 0), a line over the whole
     bounds [5, 100] um reads the 90 % quantile of the zone it designs with the bounds' average
     slope and scatter: the design's true yield (the response over its zone, uniform units) is
@@ -477,11 +483,13 @@ def test_surface_rounds_refit_over_the_design_zones():
         v = np.linspace(low, low + 2 * band, 200001)
         return float(np.mean(np.exp(a + s * (v - m0) + s2 * np.maximum(v - kink, 0.0)) <= requirement))
 
-    options = dict(yield_=0.9, secant_units=24, widths=(1e-7,), check_units=0, noise_band=False, allow_proxy=True,
-                   surface_box=(5e-6, 100e-6), band=20e-6)
-    jitter = tx.Requirement("pointing_jitter", requirement, log_fit=True)
-    one = tx.propose_design(response, jitter, surface_rounds=1, **options)
-    rounds = tx.propose_design(response, jitter, surface_rounds=6, **options)
+    def design(rounds):
+        model = tx.Surface(units=24, box=(5e-6, 100e-6), rounds=rounds, twin=False)  # log fit: Surface's default
+        problem = tx.ToleranceProblem(response, tx.Requirement("pointing_jitter", requirement, model=model), tx.Yield(0.9),
+                                      tx.Zones(band=20e-6), allow_proxy=True)
+        return tx.propose_design(problem, tx.Sequential(widths=(1e-7,)), check=None)
+
+    one, rounds = design(1), design(6)
     assert not any(note.startswith("Designed on ") for note in one.notes)
     notes = [note for note in rounds.notes if note.startswith("Designed on ")]
     assert len(notes) == 1 and notes[0].endswith("the boxes settled.")
@@ -545,17 +553,17 @@ def test_design_units_draw_the_wear_rate_of_a_life_with_spread(scan_pointing):
     assert np.all((drawn > 0.25 * (1 - 1e-9)) & (drawn < 2.5 * (1 + 1e-9))) and drawn.min() < 0.4 and drawn.max() > 2.0
     with pytest.raises(ValueError, match="draws life.log_wear_factor"):
         design_problem(pointing, yield_=0.99)
-    requirements, options = _propose._requirements_and_options(pointing, tx.Requirement("pointing_rms", 150.0), None,
-                                                                "sequential", 0.99, {})
-    assert requirements[0].secants and options["scatter"] and options["secant_units"] >= n + 2
+    requirements, combined = _propose._requirements(tx.ToleranceProblem(pointing, 150.0, tx.Yield(0.99)), tx.Sequential())
+    assert requirements[0].secants and combined.options["scatter"] and combined.options["secant_units"] >= n + 2
     with pytest.raises(ValueError, match="leave scatter on"):
-        _propose._requirements_and_options(pointing, tx.Requirement("pointing_rms", 150.0), None, "sequential", 0.99, {"scatter": False})
+        _propose._requirements(tx.ToleranceProblem(pointing, tx.Requirement("pointing_rms", 150.0, model=tx.Secants(scatter=False)),
+                                                   tx.Yield(0.99)), tx.Sequential())
 
 
 def test_the_proposal_after_checks_is_the_cheapest_accepted():
     """After several Monte Carlo checks, the proposal is the cheapest design whose simulated
     quantile met the requirement (to 1 %), not the last re-solve; none accepted: `None` (the
     last design stays)."""
-    assert _rounds._cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
-    assert _rounds._cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
-    assert _rounds._cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None
+    assert chk.cheapest_accepted([5.9, 7.5, 6.1], [1115.0, 1094.0, 1100.0], 1113.7) == 0
+    assert chk.cheapest_accepted([5.9, 7.5, 6.1], [1130.0, 1094.0, 1100.0], 1113.7) == 2
+    assert chk.cheapest_accepted([5.9, 7.5], [1130.0, 1140.0], 1113.7) is None

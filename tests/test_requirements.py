@@ -112,7 +112,8 @@ def test_a_new_requirement_kind_is_one_metric_class(peak_pointing):
     quantiles = lambda x: np.asarray(closed.value(x, 1e-6))  # noqa: E731
     baseline = quantiles(closed.x0)
     requirements = [tx.Requirement("pointing_rms", 0.9 * baseline[0]), tx.Requirement("peak_after_reversal", 0.8 * baseline[1])]
-    report = tx.propose_design(line, requirements, yield_=0.9, widths=(1e-6,), max_outer=12, check_units=6, max_checks=1)
+    report = tx.propose_design(tx.ToleranceProblem(line, requirements, tx.Yield(0.9)), tx.Sequential(widths=(1e-6,), max_gradients=12),
+                               check=tx.Check(units=6, rounds=1))
     assert [o.requirement.output for o in report.outcomes] == ["pointing_rms", "peak_after_reversal"]
     np.testing.assert_allclose([o.baseline for o in report.outcomes], baseline, rtol=1e-12)
     np.testing.assert_allclose(quantiles(report.result.x), [o.objective for o in report.outcomes], rtol=1e-12)
@@ -129,10 +130,10 @@ def test_bad_requirements_are_named(peak_pointing):
     with pytest.raises(ValueError, match="tol must be in"):
         tx.Requirement("pointing_rms", 100.0, tol=2.0)
     with pytest.raises(ValueError, match="each on its own output"):
-        tx.propose_design(peak_pointing, [tx.Requirement("pointing_rms", 1.0), tx.Requirement("pointing_rms", 2.0)])
+        tx.propose_design(tx.ToleranceProblem(peak_pointing, [tx.Requirement("pointing_rms", 1.0), tx.Requirement("pointing_rms", 2.0)]))
     with pytest.raises(ValueError, match="does not compute 'pointing_jitter'.*jitter_cutoff"):
-        tx.propose_design(peak_pointing, [tx.Requirement("pointing_jitter", 1.0)], yield_=0.9)
+        tx.propose_design(tx.ToleranceProblem(peak_pointing, [tx.Requirement("pointing_jitter", 1.0)], tx.Yield(0.9)))
     with pytest.raises(ValueError, match="does not compute 'pointing_peek'"):
-        tx.propose_design(peak_pointing, tx.Requirement("pointing_peek", 1.0))
+        tx.propose_design(tx.ToleranceProblem(peak_pointing, tx.Requirement("pointing_peek", 1.0)))
     with pytest.raises(ValueError, match="metrics must be AbstractMetric"):
         tx.PointingObjective(peak_pointing.scene, duration=0.6, settle=0.0, metrics=(PeakAfterReversal(0.25, 0.1),) * 2)

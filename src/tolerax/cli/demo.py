@@ -60,9 +60,12 @@ def demo_command(parser, args) -> int:
               f"method {args.method} (see `tolerax design` for the options).")
         start = time.perf_counter()
         try:
-            outer = args.outer if args.outer is not None or args.method == "sequential" else 3
-            report = _propose.propose_design(pointing, args.requirement, n_draws=args.draws, max_outer=outer,
-                                             inner_steps=args.steps, method=args.method, progress=True)
+            from ..design import solvers, spec
+
+            solver = (solvers.Sequential(max_gradients=20 if args.outer is None else args.outer) if args.method == "sequential"
+                      else solvers.AugmentedLagrangian(max_outer=3 if args.outer is None else args.outer, inner_steps=args.steps))
+            problem = spec.ToleranceProblem(pointing, args.requirement, spec.MeanPlusKStd(units=args.draws))
+            report = _propose.propose_design(problem, solver, progress=True)
         except (ValueError, RuntimeError) as err:  # bad sizes; a failed simulation makes the objective NaN
             print(f"tolerax demo: {err}", file=sys.stderr)
             code = 2 if isinstance(err, ValueError) else 3

@@ -1,6 +1,7 @@
 """`tolerax design` and `tolerax tradeoff`: tolerance proposals from the command line."""
 
 import copy
+import dataclasses
 import inspect
 import json
 import textwrap
@@ -16,9 +17,10 @@ NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is n
 
 
 def _design_setup(parser, args, command):
-    """The checks and inputs `design` and `tradeoff` share: `(out, scene_file, propose_design's
-    options)` (the output folder checked; the starting zones and the fixed features among the
-    options), or `None` after printing why (exit 2)."""
+    """The checks and inputs `design` and `tradeoff` share: `(out, scene_file, values)` (the
+    output folder checked; `values` a `DesignValues`: the zones from the scene's [tolerances], the
+    statistic, the solver, the check and the constraint model the flags name), or `None` after
+    printing why (exit 2)."""
     from ..io import scenefile as F
 
     out = check_out(parser, args.out, args.command, force=args.force)
@@ -41,7 +43,6 @@ def _design_setup(parser, args, command):
     names = _feature_names(scene_file)
     if args.secant_units is not None and args.secant_units <= len(names):
         parser.error(f"--secant-units must exceed the scene's {len(names)} design features (a line through K units), got {args.secant_units}")
-    options = {}
     # The scene's zones (its design +- `bands`, else `band`) start the design; the fixed
     # features are held at theirs.
     start = scene_file.tolerances()
@@ -49,20 +50,67 @@ def _design_setup(parser, args, command):
     minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
     if isinstance(minima, dict):
         minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
+    widths = (1e-6, 1e-7)
     if args.widths is not None:
         if any(a <= b for a, b in zip(args.widths, args.widths[1:])):
             parser.error(f"--widths must go wide to narrow (decreasing), got {args.widths}")
-        options["widths"] = tuple(args.widths)
-    options |= dict(allow_proxy=args.allow_proxy, start=start, max_outer=args.outer, inner_steps=args.inner, method=args.method,
-                    progress=True, fixed=fixed, min_clearance=minima,
-                    band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])))
+        widths = tuple(args.widths)
+    if args.model != "auto" and args.yield_ is None:
+        parser.error(f"--model {args.model} needs --yield (a constraint model linearises the yield)")
+    if args.model == "tangents" and args.secant_units is not None:
+        parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
+    from ..design import solvers, spec
+    from ..design.check import Check
+
+    cost = None
     if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
         from ..io.schema import cost_model
 
-        options["cost_model"] = cost_model(None, tol["cost"])
-    options.update(dict(n_draws=args.draws) if args.yield_ is None
-                   else dict(yield_=args.yield_, check_units=args.check, secant_units=args.secant_units))
-    return out, scene_file, options
+        cost = cost_model(None, tol["cost"])
+    solver = (solvers.Sequential(widths, 20 if args.outer is None else args.outer) if args.method == "sequential" else
+              solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner))
+    units = {} if args.secant_units is None else {"units": args.secant_units}
+    model = {"auto": None, "tangents": spec.Tangents(), "secants": spec.Secants(**units), "surface": spec.Surface(**units)}[args.model]
+    values = DesignValues(
+        statistic=spec.MeanPlusKStd(units=args.draws) if args.yield_ is None else spec.Yield(args.yield_),
+        zones=spec.Zones(start=start, min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])),
+                         fixed=fixed),
+        cost=cost, allow_proxy=args.allow_proxy, solver=solver, model=model, secant_units=args.secant_units,
+        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check))
+    return out, scene_file, values
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignValues:
+    """What `design` and `tradeoff` hand `propose_design`, from the scene file and the flags:
+    the `ToleranceProblem`'s parts beside its objective and requirements, the solver, the check,
+    and the constraint model every requirement takes (`None`: each its default, `Auto()`; with
+    `secant_units` alone, `--secant-units` as it always meant: lines through that many units,
+    with their scatter and a twin solve only for a scattering output, the jitter)."""
+
+    statistic: object
+    zones: object
+    cost: object
+    allow_proxy: bool
+    solver: object
+    check: object
+    model: object = None
+    secant_units: int | None = None
+
+    def problem(self, pointing, requirements):
+        """The `ToleranceProblem` of `pointing` (an objective) and `requirements`."""
+        from ..design.requirements import SCATTERING_OUTPUTS, as_requirements
+        from ..design.spec import Secants, ToleranceProblem
+
+        def model(r):
+            if self.model is not None or self.secant_units is None:
+                return self.model
+            if r.output in SCATTERING_OUTPUTS:
+                return Secants(units=self.secant_units)
+            return Secants(units=self.secant_units, scatter=False, twin=False)
+
+        found = tuple(dataclasses.replace(r, model=model(r)) for r in as_requirements(requirements))
+        return ToleranceProblem(pointing, found, self.statistic, self.zones, self.cost, self.allow_proxy)
 
 
 def _more_requirements(parser, args):
@@ -88,13 +136,14 @@ def _statistic(args) -> str:
             else f"yield {args.yield_:.1%}: the {args.yield_:.1%} quantile over all units within the bands")
 
 
-def _propose(pointing, requirement, options, command):
-    """`(report, wall seconds)` of `propose_design`, or an exit code after printing why."""
+def _propose(pointing, requirement, values, command):
+    """`(report, wall seconds)` of `propose_design` on `values` (`DesignValues`), or an exit code
+    after printing why."""
     from ..design import propose as _p
 
     start = time.perf_counter()
     try:
-        report = _p.propose_design(pointing, requirement, **options)
+        report = _p.propose_design(values.problem(pointing, requirement), values.solver, check=values.check, progress=True)
     except ValueError as err:  # e.g. a starting band outside the optimiser's range
         print(f"tolerax {command}: {err}", file=sys.stderr)
         return 2
@@ -104,9 +153,9 @@ def _propose(pointing, requirement, options, command):
     return report, time.perf_counter() - start
 
 
-def _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff):
+def _life_allowance(pointing, report, requirements, values, args, scene_file, cutoff):
     """`--life`: a design for the end of life too (`report`) beside the same requirements at the
-    beginning of life alone, designed with the same options on the as-built objective (its
+    beginning of life alone, designed with the same values on the as-built objective (its
     requirements linearised as such a design's are: by tangents unless secants are asked for),
     and both designs simulated at both ends of life on the same units (`--verify` N, else 32):
     `tolerax.design.life.life_comparison`'s markdown, or a note saying why it is missing (the
@@ -118,7 +167,7 @@ def _life_allowance(pointing, report, requirements, options, args, scene_file, c
     alone_requirements = [r for r in requirements if not r.output.endswith("_eol")]
     print("tolerax design: the same requirements at the beginning of life alone (what the end of life's allowance is "
           "measured against) ...", flush=True)
-    proposed = _propose(scene_file.objective(jitter_cutoff=cutoff, life=None), alone_requirements, options, "design")
+    proposed = _propose(scene_file.objective(jitter_cutoff=cutoff, life=None), alone_requirements, values, "design")
     if isinstance(proposed, int):  # the main design stands: say why there is no comparison
         return ("## Over the mission's life: the wear allowance\n\nNot shown: the design for the beginning of life alone "
                 "failed (above).")
@@ -148,7 +197,7 @@ def design_command(parser, args) -> int:
     setup = _design_setup(parser, args, "design")
     if setup is None:
         return 2
-    out, scene_file, options = setup
+    out, scene_file, values = setup
     requirement = args.requirement if args.requirement is not None else scene_file.requirement
     if requirement is None:
         parser.error(f"scene {scene_file.name!r} sets no [tolerances] requirement: give --requirement (arcsec, RMS pointing)")
@@ -159,7 +208,6 @@ def design_command(parser, args) -> int:
         if args.yield_ is None:
             parser.error("--jitter needs --yield Y (both requirements are met by a fraction Y of the units)")
         cutoff = args.jitter_cutoff
-        options["jitter"] = args.jitter
         if args.verify and args.verify_fidelity is None and set(_fidelities(scene_file)) - {"ideal", "planetary"}:
             args.verify_fidelity = "planetary"  # the jitter is read on the full stage (tolerax.design.fidelity)
             print(f"tolerax design: --verify simulates the units at planetary fidelity: {scene_file.name} has lumped or "
@@ -192,19 +240,18 @@ def design_command(parser, args) -> int:
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
           + "".join(f" and {r.text()}" for r in more) + f"; method {args.method}.")
-    requirements = [Requirement("pointing_rms", requirement), *more]
+    requirements = [Requirement("pointing_rms", requirement), *more, *([Requirement("pointing_jitter", args.jitter)] if cutoff else [])]
     try:  # before any work: a requirement the scene's joints do not read (tolerax.design.fidelity), with this command's remedy
-        check_fidelity(pointing.scene, requirements + ([Requirement("pointing_jitter", args.jitter)] if cutoff else []),
-                       allow_proxy=args.allow_proxy, who="tolerax design",
+        check_fidelity(pointing.scene, requirements, allow_proxy=args.allow_proxy, who="tolerax design",
                        remedy="--fidelity planetary (or the scene file's [scene] fidelity)")
     except ValueError as err:
         print(err, file=sys.stderr)
         return 2
-    proposed = _propose(pointing, requirements, options, "design")
+    proposed = _propose(pointing, requirements, values, "design")
     if isinstance(proposed, int):
         return proposed
     report, wall = proposed
-    life_text = _life_allowance(pointing, report, requirements, options, args, scene_file, cutoff) if args.life is not None else None
+    life_text = _life_allowance(pointing, report, requirements, values, args, scene_file, cutoff) if args.life is not None else None
     claim_out(out, "design", fresh=args.force)
     F.save_scene(scene_file, out / "scene.toml")
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
@@ -342,7 +389,7 @@ def tradeoff_command(parser, args) -> int:
     setup = _design_setup(parser, args, "tradeoff")
     if setup is None:
         return 2
-    out, scene_file, options = setup
+    out, scene_file, values = setup
     requirements = sorted(set(args.requirements))
     pointing = scene_file.objective(life=None)  # the requirements are the beginning of life's
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
@@ -350,7 +397,7 @@ def tradeoff_command(parser, args) -> int:
     claim_out(out, "tradeoff", fresh=args.force)
     points, rows = [], []
     for requirement in requirements:
-        proposed = _propose(pointing, requirement, options, "tradeoff")
+        proposed = _propose(pointing, requirement, values, "tradeoff")
         if isinstance(proposed, int):
             return proposed
         report, wall = proposed

@@ -84,10 +84,14 @@ def optimiser_options(parser):
     parser.add_argument("--allow-proxy", action="store_true",
                         help="design requirements whose output the scene's joints do not read as the full stage does (the "
                         "jitter on lumped or planetary-scaled joints) instead of refusing them (tolerax.design.fidelity)")
+    parser.add_argument("--model", choices=("auto", "tangents", "secants", "surface"), default="auto",
+                        help="with --yield: how every requirement's yield is linearised (tolerax.design.spec): auto (default: "
+                        "tangents, finished on secants where they stall; the jitter on a response surface), tangents, secants "
+                        "(a line through units of the zone) or surface (a response surface refitted as the design moves)")
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
                         "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
-                        "contacts rattle (propose_design's secant_units)")
+                        "contacts rattle (alone: Secants(units=K, scatter=False, twin=False); with --model secants or surface, their units)")
 
 
 PATH = __doc__[__doc__.index("The engineer's path"):__doc__.index("SCENE is a built-in")].strip()

@@ -1,7 +1,8 @@
 """The Monte Carlo check of a yield design: fresh units simulated at the design against its
 linearised model on the same units (`yield_check`, `YieldCheck`); the difference of their
-quantiles is the shift by which `propose_design` tightens the requirement and solves again
-(the SORA idea, `tolerax.design.reliability`).
+quantiles is the shift by which the requirement is tightened and the design solved again (the
+SORA idea, `tolerax.design.reliability`): `Check`, a value `propose_design` takes, runs that
+loop through whichever solver the design has.
 """
 
 import dataclasses
@@ -14,7 +15,8 @@ import scipy.stats
 
 from .reliability import LinearisedYield, _uncertain_columns, _uncertain_count, _unfitted, _with_uncertain
 from .surface import _simulate_units
-from .types import Design, realise
+from .outcome import MODEL_OFF
+from .types import Design, chain_results, realise
 from ..uncertainty.results import wilson_interval
 from ..uncertainty.sampling import unit_draws
 
@@ -55,6 +57,93 @@ class YieldCheck:
             f"{self.yield_linear:.3f} on the same units; {self.q:.1%} quantile simulated {self.quantile_simulated:.1f} arcsec, "
             f"linear {self.quantile_linear:.1f} (shift {self.shift:+.1f} ± {self.shift_se:.1f} arcsec)"
         )
+
+
+@dataclasses.dataclass(frozen=True)
+class Check:
+    """The Monte Carlo check of a yield design, and its re-solves (SORA).
+
+    - `units`: fresh units simulated per check (`yield_check`), drawn from `key` (default
+      `jax.random.key(1)`; the drawn design's check uses the key folded with 1).
+    - `rounds`: at most this many checks. Where a check finds the linear model under- or
+      over-reading the yield's quantile by more than 1 % of the requirement and twice the
+      check's standard error (and by less than `MODEL_OFF` of it: beyond that the model does not
+      hold and no shift would help), the requirement the solver sees is shifted by the
+      difference and the design solved again from where it was, then checked again.
+
+    The proposal is the cheapest checked design whose simulated quantile met the requirement
+    (to the solver's tolerance), else the last one.
+    """
+
+    units: int = 200
+    rounds: int = 3
+    key: object = None
+
+    def __post_init__(self):
+        if int(self.units) < 2:
+            raise ValueError(f"Check: units must be >= 2 simulated units, got {self.units!r} (no check: check=None).")
+        if int(self.rounds) < 1:
+            raise ValueError(f"Check: rounds must be >= 1 (checks at most), got {self.rounds!r}.")
+
+    def key_for(self, drawn: bool = False):
+        """The units' key: `key` (default `jax.random.key(1)`); for the drawn design's check the
+        key folded with 1 (default `jax.random.key(2)`)."""
+        import jax
+
+        if self.key is None:
+            return jax.random.key(2 if drawn else 1)
+        return jax.random.fold_in(self.key, 1) if drawn else self.key
+
+    def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None):
+        """Check `result` (an `OptimisationResult` of `problem`, a `DesignProblem` whose
+        objective is a `LinearisedYield`) against `requirements` (m,) and re-solve through
+        `solver` on `trusted` (the problem held where its model was fitted) while the check
+        moves them. Returns `(result, checked)`, `checked` one `(result, checks (one per
+        requirement), requirements solved for)` per check, the last the returned design's. A
+        design that misses what it was solved for is not checked."""
+        m = requirements.shape[0]
+        target, checked, key = requirements.copy(), [], self.key_for()
+        for _ in range(int(self.rounds)):
+            if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
+                break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
+            middle = Design(result.x.nominal + result.x.band, result.x.band)
+            got = yield_check(problem.objective.objective, middle, as_requirement(requirements), int(self.units), key, solver.width)
+            got = got if m > 1 else (got,)
+            checked.append((result, got, target.copy()))
+            shift = np.array([c.shift for c in got])
+            if np.any(np.abs(shift) > MODEL_OFF * requirements):
+                break  # the linear model does not hold here: no shift of it would (`diagnose` says so)
+            corrected = requirements - shift
+            # a shift within the check's own noise (or the method's tolerance) is not one
+            noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
+            moved = np.abs(corrected - target) > noise
+            if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == int(self.rounds):
+                break
+            target = np.where(moved, corrected, target)
+            again = solver.solve(trusted, as_requirement(target), tol, x0=result.x, progress=progress, callback=callback)
+            result = chain_results([result, again])  # its history (gradients) continues the one before
+        k = cheapest_accepted([float(r.cost) for r, _, _ in checked],
+                              [[c.quantile_simulated for c in got] for _, got, _ in checked], requirements, tol)
+        if k is not None:
+            checked = checked[: k + 1]
+            result = checked[-1][0]
+        return result, checked
+
+
+def as_requirement(requirements):
+    """The requirements (m,) as the solvers and `yield_check` take them: a float for one, a
+    tuple of m floats for several."""
+    requirements = np.atleast_1d(requirements)
+    return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
+
+
+def cheapest_accepted(costs, quantiles, requirement, tol=0.01):
+    """Index of the cheapest design whose simulated quantile met `requirement` to `tol` (each
+    of them, with several requirements: `quantiles` one array per design), or `None` where none
+    did: a re-solve that did not land is not kept over a cheaper design the simulation already
+    accepted."""
+    ok = [k for k, q in enumerate(quantiles) if np.all(np.asarray(q) <= np.asarray(requirement) * (1 + np.asarray(tol)))]
+    return min(ok, key=lambda k: costs[k]) if ok else None
 
 
 @eqx.filter_jit

@@ -54,6 +54,10 @@ class Requirement:
     - `label` (optional): its name in reports; default from the output.
     - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
       takes it from `PointingObjective.units`, a metric's own included).
+    - `model` (optional): its constraint model, how its yield is linearised
+      (`tolerax.design.spec`: `Tangents()`, `Secants()`, `Surface()`; default `Auto()`: tangents,
+      moved to secants where they stall, and the `Surface` recipe for a scattering output);
+      `secants` and `log_fit` are its older spelling (`Secants(log=...)`).
     - `fidelity` (optional): the joint fidelity it is read at, `"any"`, `"lumped"`,
       `"planetary-scaled"` or `"planetary"`; default `"planetary"` (the full stage) for the
       vibration outputs (`tolerax.design.fidelity.VIBRATION_OUTPUTS`: the jitter), else
@@ -69,6 +73,7 @@ class Requirement:
     label: str | None = None
     unit: str | None = None
     fidelity: str | None = None
+    model: object = None
 
     def __post_init__(self):
         if not isinstance(self.output, str) or not self.output:

@@ -3,6 +3,7 @@
 first-order optimality residual, manufactured units of a design (`realise`) and robust statistics
 over them (`robust`). Every optimiser in `tolerax.design` reads and returns these."""
 
+import jax
 import jax.numpy as jnp
 import jax.scipy.special as jsp
 import equinox as eqx
@@ -319,3 +320,15 @@ def optimality_residual(cost_gradient, gradient, at_lower, at_upper, gradient_se
         if gg > 0:
             candidates.append(float(np.clip(-(dc[counted] @ grad[counted]) / gg, a, b)))
     return float(min(np.linalg.norm(projected(lam)) for lam in candidates) / scale)
+
+
+def chain_results(results):
+    """The last of successive `OptimisationResult`s (each started from the one before) with one
+    history over all of them: its gradient counts run on, its `iteration` indexes the whole."""
+    offset = sum(len(np.asarray(r.history.cost)) for r in results[:-1])
+    steps = np.cumsum([int(np.asarray(r.history.steps)[-1]) for r in results])
+    history = jax.tree.map(lambda *h: jnp.concatenate(h), *[r.history for r in results])
+    counts = np.concatenate([np.asarray(r.history.steps) + (steps[i - 1] if i else 0) for i, r in enumerate(results)])
+    history = eqx.tree_at(lambda h: h.steps, history, jnp.asarray(counts, dtype=float))
+    last = results[-1]
+    return eqx.tree_at(lambda r: (r.history, r.iteration), last, (history, last.iteration + offset))

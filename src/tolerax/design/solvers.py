@@ -1,0 +1,147 @@
+"""Design solvers as values: each carries its own continuation (smoothing widths, m), budget and
+step, and answers one call, `solve`, so that `propose_design`, its Monte Carlo check and its
+response-surface rounds re-solve through whichever solver was given.
+
+- `Sequential` (default): the linearised problem solved exactly at each iterate inside a trust
+  region (`sequential_design`), once per smoothing width, wide to narrow, each from the last
+  width's design.
+- `AugmentedLagrangian`: Adam on the augmented Lagrangian (`optimise_design`, on optax), one
+  width per outer iteration; one requirement on tangent slopes.
+
+A solver of one's own is a frozen dataclass subclassing `AbstractDesignMethod` with
+`solve(problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None)`
+returning an `OptimisationResult` (`tests/test_design_values.py` has one on SciPy's SLSQP).
+"""
+
+import abc
+import dataclasses
+from typing import ClassVar
+
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .optimise import optimise_design
+from .problem import DesignProblem
+from .sequential import sequential_design
+from .types import chain_results
+
+
+class AbstractDesignMethod(abc.ABC):
+    """A design solver (module docstring). `widths` (m, wide to narrow): the smoothing widths
+    it continues over; the design is judged at the last. Class attributes: `several` (it meets
+    several requirements at once), `fitted` (it takes slopes fitted over units: secants),
+    `drawable` (its result carries the sensitivities the rounding to whole grades uses),
+    `restarts` (it re-solves from a design: a check's shifted requirement, a surface's rounds)."""
+
+    widths: tuple
+    several: ClassVar[bool] = True
+    fitted: ClassVar[bool] = True
+    drawable: ClassVar[bool] = True
+    restarts: ClassVar[bool] = True
+
+    @abc.abstractmethod
+    def solve(self, problem: DesignProblem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
+        """The cheapest design of `problem` (`DesignProblem`) whose objective meets
+        `requirement` (a float, or a tuple of floats for several) to relative `tol` (one per
+        requirement). From `problem.x0` over every width; or, given `x0` (a `Design`: a
+        re-solve after the requirement or the problem moved), from there at the last width,
+        with `step` (relative, optional) the largest first step. Returns an
+        `OptimisationResult`."""
+
+    @property
+    def width(self) -> float:
+        """The smoothing width (m) the design is judged at: the last."""
+        return float(self.widths[-1])
+
+
+def _widths(widths) -> tuple:
+    widths = tuple(float(w) for w in np.atleast_1d(widths))
+    if not widths or not all(w > 0 for w in widths):
+        raise ValueError(f"design solver: widths must be one or more smoothing widths > 0 (m), wide to narrow, got {widths!r}.")
+    return widths
+
+
+@dataclasses.dataclass(frozen=True)
+class Sequential(AbstractDesignMethod):
+    """The sequential trust-region method (`sequential_design`): at each iterate the problem
+    linearised at the design (the requirement's slopes, the cost's curvature) is solved exactly
+    inside a trust region, which grows on an accepted step and shrinks on a rejected one.
+
+    - `widths` (m): smoothing widths, wide to narrow, each solved from the last one's design (a
+      wide first width makes the method robust to its start: the contacts make the narrow
+      objective rough far from the optimum).
+    - `max_gradients`: the budget per width (gradient evaluations).
+    - `trust`: the first trust region (relative step); `restart_trust` where a re-solve
+      starts from a design (after a check shifted the requirement).
+    """
+
+    widths: tuple = (1e-6, 1e-7)
+    max_gradients: int = 20
+    trust: float = 0.5
+    restart_trust: float = 0.1
+
+    def __post_init__(self):
+        object.__setattr__(self, "widths", _widths(self.widths))
+        if int(self.max_gradients) < 0:
+            raise ValueError(f"Sequential: max_gradients must be >= 0, got {self.max_gradients!r}.")
+
+    def solve(self, problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
+        widths = self.widths if x0 is None else self.widths[-1:]
+        trust = (self.trust if x0 is None else self.restart_trust) if step is None else float(step)
+        return sequential_continuation(problem, requirement, widths, int(self.max_gradients), progress, callback, x0=x0,
+                                       trust=trust, tol=tuple(np.atleast_1d(tol)))
+
+
+@dataclasses.dataclass(frozen=True)
+class AugmentedLagrangian(AbstractDesignMethod):
+    """Adam on the augmented Lagrangian (`optimise_design`, on optax): `max_outer` outer
+    iterations of `inner_steps` Adam steps at `learning_rate`, the multiplier and penalty
+    updated between them; the smoothing widths one per outer iteration, the last repeated. One
+    requirement on tangent slopes."""
+
+    widths: tuple = (1e-6, 1e-7)
+    max_outer: int = 6
+    inner_steps: int = 10
+    learning_rate: float = 0.1
+    several: ClassVar[bool] = False
+    fitted: ClassVar[bool] = False
+    drawable: ClassVar[bool] = False
+    restarts: ClassVar[bool] = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "widths", _widths(self.widths))
+
+    def solve(self, problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
+        if np.ndim(requirement):
+            raise ValueError("AugmentedLagrangian: one requirement only; several need Sequential().")
+        if callback is not None:
+            raise ValueError("AugmentedLagrangian: takes no callback (Sequential does).")
+        widths = jnp.asarray(self.widths if x0 is None else self.widths[-1:])
+        return optimise_design(
+            problem.objective, problem.features, requirement=float(requirement), lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=problem.x0 if x0 is None else x0, cost_model=problem.cost_model,
+            optimiser=optax.adam(self.learning_rate), continuation=lambda i: widths[jnp.minimum(i, len(widths) - 1)],
+            max_outer=int(self.max_outer), inner_steps=int(self.inner_steps), tol=1e-3, progress=progress)
+
+
+def sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5,
+                            tol=0.01):
+    """`sequential_design` once per smoothing width, wide to narrow, each started from the
+    last design with a smaller trust region (a wide width smooths the contact onsets that make
+    a narrow width's gradients unreliable far from the optimum); one result whose history runs
+    over all of them. Where the slopes are fitted over units, the optimiser is told their
+    noise (`DesignProblem.gradient_noise`)."""
+    results, x = [], problem.x0 if x0 is None else x0
+    for k, width in enumerate(widths):
+        done = sum(int(np.asarray(r.history.steps)[-1]) for r in results)  # gradients before this width
+        result = sequential_design(
+            problem.objective, problem.features, requirement=requirement, lower=problem.lower, upper=problem.upper,
+            draws=problem.draws, x0=x, cost_model=problem.cost_model, width=width, max_iterations=max_iterations,
+            trust_region=trust if k == 0 else 0.1, progress=progress, tol=tol, gradient_noise=problem.gradient_noise,
+            callback=None if callback is None else (lambda i, *rest, done=done: callback(done + i, *rest)),
+            zone_upper=problem.zone_upper,
+        )
+        results.append(result)
+        x = result.x
+    return chain_results(results)
