@@ -23,9 +23,10 @@ Per mechanism: a short horizon from a steady start that holds one reversal (scan
 window after 0.15 T; profile: to 0.15 s past the first reversal), 61 saves. The baseline is the
 scene's own design (its nominals +- 10 um); its linearised 99 % quantile (`design_problem`'s
 objective at the 0.1 um width, what `propose_design` reports as `report.baseline[3]`) sets the
-requirement R = `--fraction` x it. Then `propose_design(pointing, R, yield_=0.99,
-check_units=--check-units)` (sequential, widths 1 um then 0.1 um, the scene file's `[tolerances]`
-turned into options as `tolerax design` does). Recorded: status and diagnosis, cost, gradients,
+requirement R = `--fraction` x it. Then `propose_design(ToleranceProblem(pointing, R,
+Yield(0.99), Zones(...), cost), Sequential(), check=Check(--check-units))` (widths 1 um then
+0.1 um, every requirement on its default constraint model, the scene file's `[tolerances]`
+turned into zones and a cost as `tolerax design` does). Recorded: status and diagnosis, cost, gradients,
 wall time of the design (compilation included; the baseline evaluation before it is timed apart),
 the last Monte Carlo check's yield and 95 % Wilson interval.
 
@@ -241,8 +242,12 @@ def run_one(key: str, seed: int, args) -> dict:
         row["setup_s"] = time.perf_counter() - start
         print(f"[{key}] {m['text']}\n[{key}] baseline {baseline:.1f} arcsec, requirement {requirement:.1f} "
               f"({row['setup_s']:.0f} s setup)", flush=True)
-        wall_s, report = harness.wall(tx.propose_design, pointing, requirement, yield_=args.yield_, check_units=args.check_units,
-                                      max_outer=args.max_outer, **options)
+        # The new API (issue 59): the problem, the solver and the check as values, every
+        # requirement on its default constraint model (tx.Auto()).
+        zones = tx.Zones(**{k: options[k] for k in ("band", "fixed", "min_clearance", "band_range") if k in options})
+        spec = tx.ToleranceProblem(pointing, requirement, tx.Yield(args.yield_), zones, options.get("cost_model"))
+        solver = tx.Sequential() if args.max_outer is None else tx.Sequential(max_gradients=args.max_outer)
+        wall_s, report = harness.wall(tx.propose_design, spec, solver, check=tx.Check(args.check_units) if args.check_units else None)
         check = report.checks[-1] if report.checks else None
         row.update(
             wall_s=wall_s, status=report.status, diagnosis=report.diagnosis, notes=list(getattr(report, "notes", ())), accepted=bool(getattr(report, "accepted", report.status == "converged")),
@@ -367,8 +372,8 @@ def write(name, meta, rows, args):
         name, f"Design matrix: {args.yield_:.0%}-yield tolerance designs on generated mechanisms", meta["command"],
         columns, [_cells(r, args.yield_) for r in rows],
         about=(f"Seed {meta['seed']}; requirement {meta['fraction']:g} x the baseline's linearised {args.yield_:.0%} quantile "
-               f"(infeasible cases: min(0.2 x baseline, 0.5 x the tightest design's)); `propose_design(yield_={args.yield_:g}, "
-               f"check_units={meta['check_units']})`, sequential, default widths; one core (`taskset -c 1`). Runs (resumed runs "
+               f"(infeasible cases: min(0.2 x baseline, 0.5 x the tightest design's)); `propose_design(ToleranceProblem(..., "
+               f"Yield({args.yield_:g})), Sequential(), check=Check({meta['check_units']}))`, default widths and constraint models; one core (`taskset -c 1`). Runs (resumed runs "
                f"append): " + "; ".join(meta.get("runs", [])) + "."),
         intro=[summary(rows, args.yield_)],
         notes=["Status: what `DesignReport.status` says (expected: `converged` for M.., `infeasible` for X..). Design wall: "

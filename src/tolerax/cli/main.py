@@ -163,7 +163,9 @@ def main(argv=None) -> int:
     design.add_argument("--jitter", type=positive, default=None, metavar="J",
                         help="with --yield: a pointing-stability requirement beside the RMS one: the jitter (RMS pointing error "
                         "above --jitter-cutoff Hz over the window), arcsec, met by the same fraction Y of units. Both are "
-                        "linearised by secants over units (--secant-units, default max(16, 2 x features + 2)). The jitter is "
+                        "linearised over units (default, --model auto: a response surface over 64 units from the functional "
+                        "minimum to 100 um, the jitter's line on its logarithm, refitted over the design's zones up to six "
+                        "times; --secant-units K: plain secants through K units). The jitter is "
                         "read on the full stage only: a scene with lumped or planetary-scaled joints is refused (give "
                         "--fidelity planetary, or --allow-proxy to design on the proxy knowingly)")
     design.add_argument("--require", action="append", metavar="OUTPUT=LIMIT",

@@ -46,7 +46,7 @@ class ConstrainedDesign:
       gradients where they are estimates (secant fits), for the convergence test.
     - `zone_upper` (n,) (optional, m): each zone's upper edge $l + 2b$ at most this: with the
       box's lower limits, the zones held inside a box where the constraints' model holds (a
-      response surface's, `propose_design(surface_rounds=...)`); a coupled bound a box on
+      response surface's, `Surface(rounds=...)`); a coupled bound a box on
       $(l, b)$ cannot express.
     """
 

@@ -17,7 +17,7 @@ A run ends in one of these states (`diagnose`):
 - `"noise-limited"`: not converged where the gradients are estimates (slopes fitted over a few
   units of a chaotic response): the stop could not tell an improvement from the fits' noise;
   or two independent sets of secant units give designs whose costs differ by more than the
-  requirements' tolerances resolve (`propose_design(noise_band=...)`).
+  requirements' tolerances resolve (`Secants(twin=True)`, the default of a model fitted over units).
 - `"not converged"`: the iteration budget ran out first.
 
 Only `"converged"` is a proposal; the others report the best design reached and say what would
@@ -105,8 +105,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"The optimiser {how}, and the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
             f"{r[k]:.4g} arcsec)" + (", though the tightest designs in the bounds meet it" if evaluate is not None else "")
             + ". To change it: "
-            + ("" if stalled else "more iterations (max_outer, --outer), ")
-            + "a wider first smoothing width (widths), or slopes fitted over units (secant_units, --secant-units"
+            + ("" if stalled else "more iterations (Sequential(max_gradients=...), --outer), ")
+            + "a wider first smoothing width (Sequential(widths=...), --widths), or slopes fitted over units (model=Secants(units=...), --secant-units"
             + (", more of them: the slopes are fits over units of a chaotic response" if noisy else "") + ").")
     for k, check in enumerate(checks):
         if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
@@ -115,7 +115,7 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 f"units its {check.q:.1%} quantile reads {check.quantile_linear:.4g} arcsec where the units' is "
                 f"{check.quantile_simulated:.4g} (yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] "
                 f"at {check.requirement:.4g} arcsec), so the design was optimised on a wrong model. To change it: fit it over "
-                "units (secant_units, --secant-units), take the slopes at a wider smoothing width (slope_width), or narrow the "
+                "units (model=Secants(units=...), --secant-units), take the slopes at a wider smoothing width (Tangents(slope_width=...)), or narrow the "
                 "band range.")
         if yield_ is not None and check.interval[1] < yield_:
             return "check missed", (
@@ -123,17 +123,17 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 f"do not: yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] (95 % Wilson) "
                 f"against {yield_:.1%} asked; {check.q:.1%} quantile simulated {check.quantile_simulated:.4g}, linear model "
                 f"{check.quantile_linear:.4g} arcsec. The linear model does not hold over these zones. To change it: fit it "
-                "over units (secant_units, --secant-units), narrow the band range, or allow more checks (max_checks).")
+                "over units (model=Secants(units=...), --secant-units), narrow the band range, or allow more checks (Check(rounds=...)).")
     if not converged and stalled:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but the optimiser stalled after {iterations} gradients: its steps stopped "
             "being accepted at the smallest trust region, so the linear model does not predict the response even over tiny "
             "steps (rough at this smoothing width, or noisy); a cheaper design may exist. To change it: a wider smoothing "
-            "width first (widths), or fit the slopes over units (secant_units, --secant-units)"
+            "width first (Sequential(widths=...), --widths), or fit the slopes over units (model=Secants(units=...), --secant-units)"
             + (", more of them" if noisy else "") + ".")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "
-            "design may exist. To change it: more iterations (max_outer, --outer)"
-            + (", more secant units (secant_units, --secant-units)" if noisy else "") + ".")
+            "design may exist. To change it: more iterations (Sequential(max_gradients=...), --outer)"
+            + (", more secant units (model=Secants(units=...), --secant-units)" if noisy else "") + ".")
     return "converged", ""

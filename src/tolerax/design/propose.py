@@ -272,12 +272,12 @@ def _drawable_missed(d, yield_) -> str:
     if not missed:
         return ("The continuous optimum meets the requirements, but on whole ISO grades (what a drawing carries) the linear "
                 "model says it misses: " + ", ".join(f"{float(o):.4g} against {float(r):.4g}" for o, r in zip(d.objective, d.limit))
-                + ". To change it: a wider band range (band_range), or a looser requirement.")
+                + ". To change it: a wider band range (Zones(band_range=...)), or a looser requirement.")
     c = missed[0]
     return (f"The continuous optimum meets the requirements, but its design on whole ISO grades (what a drawing carries), "
             f"rounded from up to {d.tightened} grade(s) below the continuous ones after its checks, does not: {c.text()}, against "
             f"{yield_:.1%} asked. To change "
-            "it: fit the slopes over units (secant_units, --secant-units), more check units (check_units, --check), or a "
+            "it: fit the slopes over units (model=Secants(units=...), --secant-units), more check units (Check(units=...), --check), or a "
             "looser requirement.")
 
 
@@ -294,7 +294,7 @@ def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
         f"Two independent sets of {units} secant units give designs of cost {this:.4g} (this one) and {that:.4g} (secant_seed "
         f"{seed}{'' if other_converged else ', not converged'}): a band of {abs(this - that):.3g}, more than the "
         f"{resolved:.3g} the requirements' tolerances resolve. The fitted slopes' noise, not the mechanism, decides the design. To "
-        "change it: more secant units (secant_units, --secant-units), or a looser tolerance on the noisy requirement.")
+        "change it: more secant units (model=Secants(units=...), --secant-units), or a looser tolerance on the noisy requirement.")
 
 
 def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement, ...], Combined]:

@@ -122,7 +122,7 @@ class DesignReport:
     - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
       (`target`).
     - `noise_band`: `(cost, cost with an independent set of secant units)` where the slopes are
-      fitted over units (`propose_design(noise_band=...)`), else `None`.
+      fitted over units (`Secants(twin=True)`), else `None`.
     - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
       reached (`"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
