@@ -48,19 +48,24 @@ class PenaltyMethod(tx.AbstractDesignMethod):
         return solve_design(constrained, PenaltyAdam(), problem.x0 if x0 is None else x0, max_steps=self.steps, progress=progress)
 
 
-def test_a_design_method_of_one_s_own_runs_through_propose_design():
+def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     """`PenaltyMethod` (above) through `propose_design`, unchanged: on a closed-form unit whose
     RMS is linear in the zones, the proposal meets a requirement half the baseline's (to the
     penalty's 1 %, the objective evaluated again independently) at the same cost as the built-in
     sequential method's to 2 % (two methods, one optimum); a yield's check, which re-solves, is
-    refused for a method that does not re-solve."""
+    refused for a method that does not re-solve. With `progress`, each phase is said as it
+    starts, with the time since the design began."""
     line = R.Line(R.scan_scene(), 1000.0, 0.5 * np.asarray(tx.lost_motion_weights(R.scan_scene())), 100e-6)
     problem = tx.ToleranceProblem(line, 1.0, tx.MeanPlusKStd(units=2))
     built = _propose.design_problem(line, n_draws=2)
     requirement = 0.5 * float(built.value(width=1e-6))
     problem = dataclasses.replace(problem, requirements=requirement)
     mine = tx.propose_design(problem, PenaltyMethod())
-    ours = tx.propose_design(problem, tx.Sequential(widths=(1e-6,)))
+    capsys.readouterr()
+    ours = tx.propose_design(problem, tx.Sequential(widths=(1e-6,)), progress=True)
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("propose_design [")]
+    assert said[0].startswith("propose_design [0:0") and "the starting design's outputs" in said[0]
+    assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
     again = float(built.value(mine.result.x, 1e-6))
     assert again == pytest.approx(mine.objective, rel=1e-9) and again <= requirement * 1.01
     assert mine.cost == pytest.approx(ours.cost, rel=0.02) and ours.status == "converged"

@@ -94,7 +94,7 @@ class Check:
             return jax.random.key(2 if drawn else 1)
         return jax.random.fold_in(self.key, 1) if drawn else self.key
 
-    def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None):
+    def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None, say=None):
         """Check `result` (an `OptimisationResult` of `problem`, a `DesignProblem` whose
         objective is a `LinearisedYield`) against `requirements` (m,) and re-solve through
         `solver` on `trusted` (the problem held where its model was fitted) while the check
@@ -107,6 +107,8 @@ class Check:
             if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
                 break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
             middle = Design(result.x.nominal + result.x.band, result.x.band)
+            if say is not None:
+                say(f"Monte Carlo check {len(checked) + 1} (of at most {int(self.rounds)}): {int(self.units)} fresh units ...")
             got = yield_check(problem.objective.objective, middle, as_requirement(requirements), int(self.units), key, solver.width)
             got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
@@ -120,6 +122,8 @@ class Check:
             if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == int(self.rounds):
                 break
             target = np.where(moved, corrected, target)
+            if say is not None:
+                say("the linear model was off by more than its noise: solving again against the shifted requirement ...")
             again = solver.solve(trusted, as_requirement(target), tol, x0=result.x, progress=progress, callback=callback)
             result = chain_results([result, again])  # its history (gradients) continues the one before
         k = cheapest_accepted([float(r.cost) for r, _, _ in checked],

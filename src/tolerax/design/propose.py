@@ -23,6 +23,7 @@ from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .loop import tolerance_worth
 from .outcome import diagnose, tightest_reach
+from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
 from .solvers import AbstractDesignMethod, Sequential
@@ -112,16 +113,25 @@ def propose_design(
         raise ValueError(f"propose_design: a yield's Monte Carlo check re-solves from the design, which {type(solver).__name__} does "
                          "not: use Sequential(), or check=None.")
     pointing = problem.objective
+    say = Phases(progress)
     requirements_, combined = _requirements(problem, solver)
     proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=problem.allow_proxy))
     options = problem.zones.options() | problem.statistic_options() | combined.options | dict(
         cost_model=problem.cost, output=requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_))
+    if combined.surface is not None:
+        box = options["surface_box"]
+        say(f"fitting the response surface: {options['secant_units']} simulated units over [{box[0] * 1e6:.3g}, "
+            f"{box[1] * 1e6:.3g}] um ...")
     built = design_problem(pointing, **options)
     width = solver.width
+    say("the starting design's outputs and slopes ...")
     baseline, slopes = _value_and_sensitivity(built, built.x0, width)
+    if combined.secants and any(r.tol is None for r in requirements_):
+        say(f"the secant fit's standard error at the start ({options['secant_units']} units) ...")
     requirements, tol = np.asarray([r.limit for r in requirements_], dtype=float), _tolerances(requirements_, built, width)
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     evaluate = _memoised_values(width)
+    say("infeasible first: the tightest designs the bounds allow ...")
     out_of_reach = _tightest_first(evaluate, built, slopes, requirements, tol)
     if out_of_reach is not None:
         # Infeasible first: the tightest designs the bounds allow miss a requirement, so no design
@@ -137,18 +147,22 @@ def propose_design(
     else:
         rounds = None if combined.surface is None else (int(combined.surface.rounds), combined.surface.width,
                                                         combined.options.get("secant_reach"))
-        built, result, checked, zoomed = _solve_and_check(built, requirements, tol, solver, check, progress, callback, rounds=rounds)
+        say(f"solving ({type(solver).__name__}, smoothing widths {', '.join(f'{w:g}' for w in solver.widths)} m) ...")
+        built, result, checked, zoomed = _solve_and_check(built, requirements, tol, solver, check, progress, callback, rounds=rounds,
+                                                          say=say)
         notes += zoomed
         if bool(result.stalled is not None and result.stalled) and combined.rescue and solver.fitted:
             rebuild = lambda **more: design_problem(pointing, **(options | more))  # noqa: E731
+            say("the tangent slopes stalled: finishing on secant slopes over units of the zone ...")
             built, result, checked, rescue = _secant_rescue(rebuild, built, result, checked, requirements, tol, solver, check,
-                                                            progress, callback)
+                                                            progress, callback, say)
             notes += rescue
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if combined.twin:
             seed = int(options.get("secant_seed", 1)) + 1
+            say(f"the noise band: the design again on another set of units (seed {seed}) ...")
             twin = design_problem(pointing, **(options | {"secant_seed": seed}))
-            _, other, _, _ = _solve_and_check(twin, requirements, tol, solver, check, progress, None, rounds=rounds)
+            _, other, _, _ = _solve_and_check(twin, requirements, tol, solver, check, progress, None, rounds=rounds, say=say)
             twin_costs = (float(result.cost), float(other.cost), seed)
     what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
     status, diagnosis = diagnose(
@@ -167,6 +181,7 @@ def propose_design(
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
     if solver.drawable:
         drawn_check = None if check is None or status != "converged" else check
+        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units" if drawn_check else "") + " ...")
         drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width)
         if status == "converged" and not drawable.met:
             # One proposal: what the drawing carries is the answer, so a continuous optimum whose
@@ -174,6 +189,7 @@ def propose_design(
             status, diagnosis = "check missed", _drawable_missed(drawable, yield_)
     jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = built.features, built.x0
+    say(f"done: {status}.")
     return DesignReport(
         names=features.names, nominal=np.asarray(result.x.nominal) + band, band=band,
         grade=grade, feature_cost=np.asarray(result.feature_cost), cost=float(result.cost),

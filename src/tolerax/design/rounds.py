@@ -13,7 +13,7 @@ from .check import as_requirement
 from .types import Design, chain_results
 
 
-def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver, check, progress, callback):
+def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver, check, progress, callback, say=None):
     """Where the tangent-slope design stalled (its trust region collapsed: the response is
     rough at the judging width), solve the last width again from the stalled design with the
     slopes fitted by secants over units of the zone (`rebuild(secant_units=...)`: the problem
@@ -23,7 +23,7 @@ def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver,
     one's); else the tangent solve's; and a note saying what was done."""
     units = max(16, 2 * len(problem.features.names) + 2)
     secant = rebuild(secant_units=units)
-    _, again, again_checked, _ = _solve_and_check(secant, requirements, tol, solver, check, progress, callback, x0=result.x)
+    _, again, again_checked, _ = _solve_and_check(secant, requirements, tol, solver, check, progress, callback, x0=result.x, say=say)
     met = np.all(np.atleast_1d(np.asarray(again.objective, dtype=float)) <= requirements * (1 + tol))
     note = (f"The tangent slopes stalled at the {solver.width:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
             f"gradients; the design was finished from there on secant slopes over {units} units of the zone "
@@ -37,7 +37,7 @@ ZONE_ROOM = 1.5  # a surface round's box: the last design's zone middle +- this 
 ROUND_STEP = 0.5  # a surface round's re-solve: its first step (relative), as a fresh solve's
 
 
-def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, solver, progress, callback):
+def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, solver, progress, callback, say=None):
     """A `Surface` model's rounds (at most `rounds` surfaces): the response surface fitted again over a box about
     the zones `result`'s design gave (each zone's middle +- `ZONE_ROOM` half-widths, or +-
     `reach` (m) where that is wider; moved up where it would reach below zero) and the design
@@ -69,6 +69,8 @@ def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, so
         if np.all(moved <= tol * np.where(inner.log, 1.0, requirements)):
             settled = True
             break
+        if say is not None:
+            say(f"response surface {len(boxes) + 1} (of at most {rounds}): refitted over the last design's zones ...")
         problem = problem.refit_surface(lo, hi, width)
         trusted = dataclasses.replace(problem, lower=Design(np.maximum(np.asarray(problem.lower.nominal), lo), problem.lower.band),
                                       zone_upper=hi)
@@ -85,7 +87,7 @@ def _surface_rounds(problem, result, rounds, width, reach, requirements, tol, so
         + ("the boxes settled." if settled else f"the boxes had not settled after {rounds} (Surface(rounds=...))."),)
 
 
-def _solve_and_check(problem, requirements, tol, solver, check, progress, callback, x0=None, rounds=None):
+def _solve_and_check(problem, requirements, tol, solver, check, progress, callback, x0=None, rounds=None, say=None):
     """The design through `solver` with its Monte Carlo `check` (a `Check`, or `None`):
     `(problem, result, checked, notes)`, `checked` one `(result, checks (one per requirement),
     requirements solved for)` per check (`Check.run`), the last the returned design's. From
@@ -96,8 +98,9 @@ def _solve_and_check(problem, requirements, tol, solver, check, progress, callba
     result = solver.solve(problem, as_requirement(requirements), tol, x0=x0, progress=progress, callback=callback)
     notes, trusted = (), problem
     if rounds is not None:
-        problem, trusted, result, notes = _surface_rounds(problem, result, *rounds, requirements, tol, solver, progress, callback)
+        problem, trusted, result, notes = _surface_rounds(problem, result, *rounds, requirements, tol, solver, progress, callback,
+                                                          say)
     checked = []
     if check is not None:
-        result, checked = check.run(solver, problem, trusted, result, requirements, tol, progress, callback)
+        result, checked = check.run(solver, problem, trusted, result, requirements, tol, progress, callback, say)
     return problem, result, checked, notes
