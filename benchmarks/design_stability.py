@@ -38,7 +38,7 @@ um against a 29 % scatter, resolved over a wider neighbourhood than a tight zone
 for every feature, the design made on that response surface (`design_problem(surface_box=...)`);
 adds `_surface`. `--surface-rounds K` (default 4): then up to K - 1 more surfaces, each fitted
 over a box about the last design's zones, the design solved again on it and held inside the box
-(`propose_design(surface_rounds=)`);
+(`Surface(rounds=...)`);
 adds `_rounds` (1: the single surface of the earlier results).
 """
 
@@ -92,7 +92,7 @@ def main():
                         "(design_problem(surface_box=...)), --secant-units of them")
     parser.add_argument("--surface-rounds", type=int, default=4,
                         help="with --surface: at most this many response surfaces, each after the first over the last design's "
-                        "zones (propose_design(surface_rounds=...); 1: the one surface over [LO, HI])")
+                        "zones (Surface(rounds=...); 1: the one surface over [LO, HI])")
     parser.add_argument("--no-scatter", dest="scatter", action="store_false",
                         help="leave the secant fits' residual scatter out of the linearised quantiles (LinearisedYield(scatter=))")
     args = harness.parse_args(parser)
@@ -116,15 +116,24 @@ def main():
     if args.jitter_requirement:
         R[1] = args.jitter_requirement
     print(f"baseline {args.yield_:.0%} quantiles: RMS {baseline[0]:.1f}, jitter {baseline[1]:.3f} arcsec; requirements {R}", flush=True)
-    options = dict(yield_=args.yield_, secant_units=args.secant_units, scatter=args.scatter, widths=(args.width,),
-                   max_outer=args.max_iterations, check_units=args.check_units, progress=True, allow_proxy=args.fidelity != "planetary",
-                   secant_reach=args.secant_reach, surface_box=None if args.surface is None else tuple(args.surface),
-                   surface_width=args.width, surface_rounds=args.surface_rounds)
-    rms, jitter = tx.Requirement("pointing_rms", float(R[0])), tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol,
-                                                                                  log_fit=args.log_fit)
+    # The problem, the solver and the check as values (issue 59): both outputs on one constraint
+    # model built from the flags (the jitter's line on its logarithm with --log-fit; the twin
+    # solve, the noise band, for the jitter's design), not Auto()'s defaults.
+    def model(output):
+        common = dict(units=args.secant_units, scatter=args.scatter, reach=args.secant_reach,
+                      log=bool(args.log_fit) and output == "pointing_jitter", twin=output == "pointing_jitter")
+        if args.surface is None:
+            return tx.Secants(**common)
+        return tx.Surface(box=tuple(args.surface), width=args.width, rounds=args.surface_rounds, **common)
+
+    solver = tx.Sequential(widths=(args.width,), max_gradients=args.max_iterations)
+    check = tx.Check(args.check_units) if args.check_units else None
+    rms = tx.Requirement("pointing_rms", float(R[0]), model=model("pointing_rms"))
+    jitter = tx.Requirement("pointing_jitter", float(R[1]), tol=args.jitter_tol, model=model("pointing_jitter"))
     designs = {}
     for label, requirements in (("lost motion alone", [rms]), ("lost motion and stability", [rms, jitter])):
-        wall, report = harness.wall(tx.propose_design, pointing, requirements, **options)
+        problem = tx.ToleranceProblem(pointing, requirements, tx.Yield(args.yield_), allow_proxy=args.fidelity != "planetary")
+        wall, report = harness.wall(tx.propose_design, problem, solver, check=check, progress=True)
         result = report.result
         quantiles = np.asarray(eqx.filter_jit(lambda o, x, d, w: o(x, d, w))(both.objective, result.x, both.draws, width))
         designs[label] = dict(report=report, wall=wall, quantiles=quantiles)
