@@ -135,3 +135,38 @@ def test_bad_values_are_named():
         tx.propose_design(tx.ToleranceProblem(line, 500.0), "sequential")
     with pytest.raises(ValueError, match="units must exceed the 4 design features"):
         tx.propose_design(tx.ToleranceProblem(line, tx.Requirement("pointing_rms", 500.0, model=tx.Secants(units=3))))
+
+
+def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys, monkeypatch):
+    """`tolerax design --model` and a scene file's `[tolerances] model` name the constraint
+    models (`tangents`, `secants`, `surface`, `auto`): the flag over the scene, the scene over
+    the default; an unknown one is refused at its line; a model without a yield is refused
+    before any work. What reaches `propose_design` is read off the `ToleranceProblem` handed to
+    it (the design itself is stopped there)."""
+    from tolerax import cli
+    from tolerax.design import propose as P
+
+    text = tx.load_scene("scan-azimuth").to_toml().replace("[tolerances]\n", "[tolerances]\nmodel = \"surface\"\n")
+    scene = tmp_path / "drive.toml"
+    scene.write_text(text)
+    seen = []
+
+    def stop(problem, solver=None, **_):
+        seen.append((problem, solver))
+        raise ValueError("stopped here by the test")
+
+    monkeypatch.setattr(P, "propose_design", stop)
+    for flags, expected in (([], tx.Surface()), (["--model", "tangents"], tx.Tangents()),
+                            (["--model", "secants", "--secant-units", "9"], tx.Secants(units=9))):
+        assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.99", "--out", str(tmp_path / "o"),
+                         *flags]) == 2
+        problem, solver = seen[-1]
+        assert [r.model for r in problem.requirements] == [expected] and solver == tx.Sequential()
+        assert problem.statistic == tx.Yield(0.99) and "stopped here by the test" in capsys.readouterr().err
+    with pytest.raises(SystemExit, match="2"):
+        cli.main(["design", "scan-azimuth", "--requirement", "500", "--model", "surface", "--out", str(tmp_path / "o")])
+    assert "--model surface needs --yield" in capsys.readouterr().err
+    scene.write_text(text.replace('model = "surface"', 'model = "surfaces"'))
+    line = text.splitlines().index('model = "surface"') + 1
+    assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.99", "--out", str(tmp_path / "o")]) == 2
+    assert f"{scene}:{line}: [tolerances] model: model='surfaces' is unknown" in capsys.readouterr().err

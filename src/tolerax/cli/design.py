@@ -55,9 +55,10 @@ def _design_setup(parser, args, command):
         if any(a <= b for a, b in zip(args.widths, args.widths[1:])):
             parser.error(f"--widths must go wide to narrow (decreasing), got {args.widths}")
         widths = tuple(args.widths)
-    if args.model != "auto" and args.yield_ is None:
+    if args.model is not None and args.model != "auto" and args.yield_ is None:
         parser.error(f"--model {args.model} needs --yield (a constraint model linearises the yield)")
-    if args.model == "tangents" and args.secant_units is not None:
+    model_name = args.model or (tol.get("model", "auto") if args.yield_ is not None else "auto")  # a scene's model, for a yield
+    if model_name == "tangents" and args.secant_units is not None:
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
     from ..design import solvers, spec
     from ..design.check import Check
@@ -70,7 +71,7 @@ def _design_setup(parser, args, command):
     solver = (solvers.Sequential(widths, 20 if args.outer is None else args.outer) if args.method == "sequential" else
               solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner))
     units = {} if args.secant_units is None else {"units": args.secant_units}
-    model = {"auto": None, "tangents": spec.Tangents(), "secants": spec.Secants(**units), "surface": spec.Surface(**units)}[args.model]
+    model = {"auto": None, "tangents": spec.Tangents(), "secants": spec.Secants(**units), "surface": spec.Surface(**units)}[model_name]
     values = DesignValues(
         statistic=spec.MeanPlusKStd(units=args.draws) if args.yield_ is None else spec.Yield(args.yield_),
         zones=spec.Zones(start=start, min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])),

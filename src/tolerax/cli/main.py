@@ -84,8 +84,9 @@ def optimiser_options(parser):
     parser.add_argument("--allow-proxy", action="store_true",
                         help="design requirements whose output the scene's joints do not read as the full stage does (the "
                         "jitter on lumped or planetary-scaled joints) instead of refusing them (tolerax.design.fidelity)")
-    parser.add_argument("--model", choices=("auto", "tangents", "secants", "surface"), default="auto",
-                        help="with --yield: how every requirement's yield is linearised (tolerax.design.spec): auto (default: "
+    parser.add_argument("--model", choices=("auto", "tangents", "secants", "surface"), default=None,
+                        help="with --yield: how every requirement's yield is linearised (tolerax.design.spec; default: the "
+                        "scene's [tolerances] model, else auto): auto ("
                         "tangents, finished on secants where they stall; the jitter on a response surface), tangents, secants "
                         "(a line through units of the zone) or surface (a response surface refitted as the design moves)")
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",

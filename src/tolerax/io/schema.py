@@ -73,7 +73,10 @@ PLOTS = ("pointing_error", "joint_angle", "output_force", "tracking_speed_error"
 OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error", "joint_angle"]), "dpi": (int, 120)}
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
-                  "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6))}
+                  "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6)),
+                  "model": (str, "auto")}
+# [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`).
+MODELS = ("auto", "tangents", "secants", "surface")
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
              "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True),
@@ -249,6 +252,9 @@ def _check_tolerances(chk: Checker, tol: dict, model):
         chk.typed(tol, table, key, TOLERANCE_KEYS[key][0])
     if "band" in tol and not (math.isfinite(tol["band"]) and tol["band"] >= 0):
         raise chk.error(f"must be a non-negative finite half-width (m), got {tol['band']!r}.", table, "band")
+    if tol.get("model", "auto") not in MODELS:
+        raise chk.error(f"model={tol['model']!r} is unknown; use one of {MODELS} (how a design linearises each requirement's "
+                        "yield: tolerax.design.spec).", table, "model")
     if tol.get("distribution", "uniform") not in DISTRIBUTIONS:
         raise chk.error(f"distribution={tol['distribution']!r} is unknown; use one of {DISTRIBUTIONS}.", table, "distribution")
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
