@@ -123,16 +123,19 @@ def test_help_names_every_command_and_option(capsys):
     assert "--mode" not in text and "--fidelity" not in text
 
 
-def test_montecarlo_writes_netcdf_and_resumes(tmp_path):
+def test_montecarlo_writes_netcdf_and_resumes(tmp_path, capsys):
     """`tolerax montecarlo SCENE` on 2 units: files written, the scene as run saved, the samples
-    drawn within the scene's bands, and a second run only reloads the finished chunk."""
+    drawn within the scene's bands, each unit's jitter and its yield with `--jitter` (what a
+    jitter design is verified against), and a second run only reloads the finished chunk."""
     import xarray as xr
 
     args = ["montecarlo", "scan-azimuth", "--n", "2", "--chunk", "2", "--duration", "0.3", "--settle", "0.1",
-            "--requirement", "1000", "--out", str(tmp_path)]
+            "--requirement", "1000", "--jitter", "5", "--out", str(tmp_path)]
     assert cli.main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
+    jitter = summary["pointing_jitter"]
+    assert jitter["n_used"] == 2 and f"jitter yield {jitter['yield']:.3f}" in capsys.readouterr().out
     assert (tmp_path / "histogram.png").exists()
     ran = tx.load_scene(tmp_path / "scene.toml")
     assert ran == tx.load_scene("scan-azimuth").replace(duration=0.3, settle=0.1)

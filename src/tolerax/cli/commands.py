@@ -50,10 +50,16 @@ def montecarlo_command(parser, args) -> int:
     if not has_features(scene_file, "montecarlo"):
         return 2
     requirement = args.requirement if args.requirement is not None else scene_file.requirement
+    cutoff = None if args.jitter is None else args.jitter_cutoff
     summary = run_monte_carlo(parser, scene_file, out, n=args.n, seed=args.seed, backend=args.backend, chunk=args.chunk,
-                              requirement=requirement, allow_clip=args.allow_clip, command="montecarlo")
+                              requirement=requirement, allow_clip=args.allow_clip, command="montecarlo", jitter_cutoff=cutoff,
+                              jitter_requirement=args.jitter)
     if summary is None:
         return 2
+    if args.jitter is not None:
+        j = summary["pointing_jitter"]
+        print(f"tolerax montecarlo: jitter yield {j['yield']:.3f} [{j['yield_low']:.3f}, {j['yield_high']:.3f}] (95 % Wilson) of "
+              f"{int(j['n_used'])} units at jitter above {cutoff:g} Hz <= {args.jitter:g} arcsec")
     return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
 
 

@@ -265,7 +265,9 @@ def design_command(parser, args) -> int:
                       "Reproduce with:", "", "```", command_line(args), "```", "",
                       (f"The proposal as a scene file: `{proposal}`" if report.accepted else
                        f"The best design reached as a scene file ({report.status}, not a proposal): `{proposal}`")
-                      + f" (verify it with `tolerax montecarlo {proposal} --n 200 --out {out / 'montecarlo'}`: its own folder, "
+                      + f" (verify it with `tolerax montecarlo {proposal} --n 200"
+                      + (f" --jitter {args.jitter:g} --jitter-cutoff {cutoff:g}" if cutoff else "")
+                      + f" --out {out / 'montecarlo'}`: its own folder, "
                       "so this report is kept)."])
     atomic_write(out / "design.md", text + "\n")
     for fig, name in ((report.plot(), "design.png"), (report.plot_history(), "design_history.png")):

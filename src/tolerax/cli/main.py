@@ -221,6 +221,10 @@ def main(argv=None) -> int:
     mc.add_argument("--distribution", default=None, choices=("uniform", "normal"), help="override [tolerances] distribution")
     mc.add_argument("--requirement", type=positive, default=None,
                     help="RMS pointing requirement for the yield, arcsec (default: the scene's [tolerances] requirement)")
+    mc.add_argument("--jitter", type=positive, default=None, metavar="J",
+                    help="a stability requirement too: each unit's jitter (RMS pointing error above --jitter-cutoff Hz over the "
+                    "window), arcsec, and its yield at <= J (what a design with --jitter is verified against)")
+    mc.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ", help="with --jitter: the stability band's start, Hz (default 20)")
     mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
     mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
     mc.add_argument("--seed", type=int, default=0)
