@@ -510,8 +510,8 @@ def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
 
     seen = {}
 
-    def propose(pointing, requirements, **options):
-        seen.update(pointing=pointing, requirements=requirements)
+    def propose(problem, solver=None, **options):  # what reaches it: the ToleranceProblem's objective and requirements
+        seen.update(pointing=problem.objective, requirements=problem.requirements)
         raise ValueError("recorded by the test")
 
     monkeypatch.setattr(_p, "propose_design", propose)

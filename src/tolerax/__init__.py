@@ -33,7 +33,7 @@ _FACE = {
     "mechanism": ("FIDELITIES",),
     "mechanism.joints": ("AbstractJoint", "IdealJoint", "LumpedJoint", "LumpedMesh", "lumped_mesh"),
     "mechanism.stage_joints": ("MassScaledPlanetaryJoint", "PlanetaryJoint"),
-    "solve": ("SimulationError", "SolverReport"),
+    "solve": ("Integrator", "SimulationError", "SolverReport"),
     "mechanism.scene": ("AbstractScene", "simulate"),
     "mechanism.bench": ("BenchResult", "TestBench"),
     "mechanism.mechanism": ("Mechanism",),

@@ -105,6 +105,67 @@ def solver_named(solver) -> diffrax.AbstractSolver:
     return solver
 
 
+class Integrator(eqx.Module):
+    """How a scene is integrated, as one value: the explicit Runge-Kutta method, the adaptive
+    step-size controller's tolerances and coefficients, and the steps' limits. `simulate(...,
+    integrator=...)` takes it, `PointingObjective` holds it, a scene file's `[run]` table names
+    its fields (`solver`, `rtol`, `atol`, `pcoeff`, `icoeff`, `dt0`, `dtmax`, `dtmin`,
+    `max_steps`, `fixed_step`).
+
+    - `solver`: the name of an explicit method in `SOLVERS` (default `"Tsit5"`).
+    - `rtol`, `atol`: the PID controller's relative and absolute tolerances (atol in the
+      state's SI units: m, rad, m/s, rad/s).
+    - `pcoeff`, `icoeff`: the controller's proportional and integral coefficients (default
+      (0, 1): diffrax's I-controller).
+    - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
+      below it ends the run (a step-size collapse); `max_steps`: the step budget.
+    - `fixed_step` (s, optional): constant steps instead of the controller.
+
+    Every field is static (a Python value): two integrators compile two programs.
+    `replace(**changes)` gives another.
+    """
+
+    solver: str = eqx.field(static=True, default=DEFAULT_SOLVER)
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    pcoeff: float = eqx.field(static=True, default=DEFAULT_PID[0])
+    icoeff: float = eqx.field(static=True, default=DEFAULT_PID[1])
+    dt0: float = eqx.field(static=True, default=1e-6)
+    dtmax: float = eqx.field(static=True, default=1e-3)
+    dtmin: float = eqx.field(static=True, default=DTMIN)
+    max_steps: int = eqx.field(static=True, default=4_000_000)
+    fixed_step: float | None = eqx.field(static=True, default=None)
+
+    FIELDS: ClassVar[tuple[str, ...]] = ("solver", "rtol", "atol", "pcoeff", "icoeff", "dt0", "dtmax", "dtmin", "max_steps",
+                                         "fixed_step")
+
+    def __check_init__(self):
+        if not isinstance(self.solver, str) or self.solver not in SOLVERS:
+            raise ValueError(f"Integrator: solver {self.solver!r} is unknown; use the name of one of {sorted(SOLVERS)}.")
+        for name in ("rtol", "atol", "dt0", "dtmax", "dtmin"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise ValueError(f"Integrator: {name} must be a finite number > 0, got {value!r}.")
+        for name, (valid, rule) in PID_RULES.items():
+            if not valid(getattr(self, name)):
+                raise ValueError(f"Integrator: {name} must be {rule}, got {getattr(self, name)!r}.")
+        if not (isinstance(self.max_steps, int) and self.max_steps > 0):
+            raise ValueError(f"Integrator: max_steps must be a positive integer, got {self.max_steps!r}.")
+        if self.fixed_step is not None and not self.fixed_step > 0:
+            raise ValueError(f"Integrator: fixed_step must be > 0 (s) or None, got {self.fixed_step!r}.")
+
+    def options(self) -> dict:
+        """These settings as `simulate`'s keywords."""
+        return {name: getattr(self, name) for name in self.FIELDS}
+
+    def replace(self, **changes) -> "Integrator":
+        """This integrator with `changes` (field name -> value)."""
+        unknown = sorted(set(changes) - set(self.FIELDS))
+        if unknown:
+            raise TypeError(f"Integrator: unknown setting(s) {', '.join(unknown)}; its settings: {', '.join(self.FIELDS)}.")
+        return Integrator(**(self.options() | changes))
+
+
 class SimulationError(RuntimeError):
     """The integrator did not reach the final time."""
 

@@ -19,9 +19,10 @@ from .features import design_names, with_design
 from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
-from ..solve import DEFAULT_PID, DEFAULT_SOLVER, SOLVERS
+from ..solve import Integrator
 
-_SIMULATE = inspect.signature(simulate).parameters  # the run settings' defaults
+OBJECTIVE_INTEGRATOR = Integrator(max_steps=400_000)  # a design's units: `simulate`'s settings, a tenth of its step budget
+_UNSET = object()  # a run setting not given to `PointingObjective`
 EOL = "_eol"
 """The suffix of an output's end-of-life twin (`PointingObjective(life=...)`)."""
 OUTPUTS = ("pointing_rms", "pointing_peak", "pointing_smooth_peak", "tracking_speed_rms", "pointing_jitter")
@@ -133,12 +134,13 @@ class PointingObjective(AbstractObjective):
     n_save)` computed by NumPy: a save within rounding of `settle` may fall on the other side).
 
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
-    parameter of the optimiser (wide early, exact late). Run settings are static: changing them
-    recompiles; changing the design or the scene's values does not. `pcoeff`, `icoeff`: the
-    step-size controller's coefficients (`simulate`; default its I-controller); `solver` the
-    name of an explicit solver in `tolerax.solve.SOLVERS` (default `"Tsit5"`; a name, not a
-    solver object: run settings are static and hashable). `dt0`, `dtmax`, `dtmin`, `fixed_step`
-    (s): the steps' limits as in `simulate` (its defaults).
+    parameter of the optimiser (wide early, exact late). `integrator`: the run settings as one
+    value (`tolerax.Integrator`: the solver by name, the controller's tolerances and
+    coefficients, the steps' limits; default `simulate`'s with a step budget of 400 000); the
+    settings may also be given one by one (`rtol=...`, `solver="Bosh3"`, a scene file's `[run]`
+    keys), each replacing the integrator's, and are read back as attributes (`objective.rtol`).
+    Run settings are static: changing them recompiles; changing the design or the scene's
+    values does not.
 
     `life` (optional, a `MissionLife`): the clearances worn over the mission's life
     (`tolerax.design.life`); every output then has an end-of-life twin named `<output>_eol`
@@ -157,30 +159,47 @@ class PointingObjective(AbstractObjective):
     duration: float = eqx.field(static=True)
     settle: float = eqx.field(static=True)
     n_save: int = eqx.field(static=True, default=201)
-    rtol: float = eqx.field(static=True, default=1e-6)
-    atol: float = eqx.field(static=True, default=1e-9)
-    max_steps: int = eqx.field(static=True, default=400_000)
     peak_order: int = eqx.field(static=True, default=8)
     start: str = eqx.field(static=True, default="rest")
     # Not a static field although it is a run setting: `diffrax.BacksolveAdjoint` holds a dict
     # and cannot be hashed. It holds no arrays, so `eqx.filter_jit` still treats it as static.
     adjoint: diffrax.AbstractAdjoint | None = None
-    # Appended after the older fields, so positional construction keeps its meaning.
-    pcoeff: float = eqx.field(static=True, default=DEFAULT_PID[0])
-    icoeff: float = eqx.field(static=True, default=DEFAULT_PID[1])
     jitter_cutoff: float | None = eqx.field(static=True, default=None)
     metrics: tuple[AbstractMetric, ...] = ()
     life: MissionLife | None = None
-    solver: str = eqx.field(static=True, default=DEFAULT_SOLVER)
-    # The step limits of `simulate` (s; a scene file's `[run]` dt0, dtmax, dtmin, fixed_step).
-    dt0: float = eqx.field(static=True, default=_SIMULATE["dt0"].default)
-    dtmax: float = eqx.field(static=True, default=_SIMULATE["dtmax"].default)
-    dtmin: float = eqx.field(static=True, default=_SIMULATE["dtmin"].default)
-    fixed_step: float | None = eqx.field(static=True, default=_SIMULATE["fixed_step"].default)
+    integrator: Integrator = OBJECTIVE_INTEGRATOR  # the run settings, one value (static fields)
+
+    def __init__(self, scene, duration, settle, n_save=201, rtol=_UNSET, atol=_UNSET, max_steps=_UNSET, peak_order=8, start="rest",
+                 adjoint=None, pcoeff=_UNSET, icoeff=_UNSET, jitter_cutoff=None, metrics=(), life=None, solver=_UNSET, dt0=_UNSET,
+                 dtmax=_UNSET, dtmin=_UNSET, fixed_step=_UNSET, integrator=None):
+        self.scene, self.duration, self.settle, self.n_save = scene, duration, settle, n_save
+        self.peak_order, self.start, self.adjoint, self.jitter_cutoff = peak_order, start, adjoint, jitter_cutoff
+        self.metrics, self.life = metrics, life
+        # The run settings given one by one (the older spelling, and a scene file's [run] keys)
+        # replace the integrator's (`integrator`, else the objective's default).
+        given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dt0=dt0, dtmax=dtmax,
+                                        dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step).items() if v is not _UNSET}
+        base = OBJECTIVE_INTEGRATOR if integrator is None else integrator
+        if not isinstance(base, Integrator):
+            raise TypeError(f"PointingObjective: integrator must be a tolerax.Integrator, got {type(base).__name__}.")
+        try:
+            self.integrator = base.replace(**given) if given else base
+        except ValueError as err:
+            raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
+
+    # The run settings, read through the integrator that holds them.
+    solver = property(lambda self: self.integrator.solver)
+    rtol = property(lambda self: self.integrator.rtol)
+    atol = property(lambda self: self.integrator.atol)
+    pcoeff = property(lambda self: self.integrator.pcoeff)
+    icoeff = property(lambda self: self.integrator.icoeff)
+    dt0 = property(lambda self: self.integrator.dt0)
+    dtmax = property(lambda self: self.integrator.dtmax)
+    dtmin = property(lambda self: self.integrator.dtmin)
+    max_steps = property(lambda self: self.integrator.max_steps)
+    fixed_step = property(lambda self: self.integrator.fixed_step)
 
     def __check_init__(self):
-        if self.solver not in SOLVERS:
-            raise ValueError(f"PointingObjective: solver {self.solver!r} is unknown; use the name of one of {sorted(SOLVERS)}.")
         if not (0.0 <= self.settle < self.duration):
             raise ValueError(f"PointingObjective needs 0 <= settle < duration (s), got settle={self.settle!r}, duration={self.duration!r}.")
         names = [getattr(m, "name", None) for m in self.metrics]
@@ -215,11 +234,8 @@ class PointingObjective(AbstractObjective):
 
     def simulate_scene(self, scene):
         """`scene`'s result with this objective's run settings (`throw=False`)."""
-        return simulate(
-            scene, self.duration, start=self.start, n_save=self.n_save, rtol=self.rtol, atol=self.atol, max_steps=self.max_steps,
-            pcoeff=self.pcoeff, icoeff=self.icoeff, throw=False, adjoint=self.adjoint, solver=self.solver, dt0=self.dt0,
-            dtmax=self.dtmax, dtmin=self.dtmin, fixed_step=self.fixed_step,
-        )
+        return simulate(scene, self.duration, start=self.start, n_save=self.n_save, throw=False, adjoint=self.adjoint,
+                        integrator=self.integrator)
 
     def forward_mode(self) -> "PointingObjective":
         """This objective whose solves carry forward-mode tangents (`diffrax.ForwardMode`)."""

@@ -8,6 +8,7 @@ one diffrax call.
 """
 
 import abc
+import inspect
 from collections.abc import Callable
 
 import diffrax
@@ -15,7 +16,7 @@ import equinox as eqx
 import jax
 
 from .. import _validate as V
-from ..solve import DEFAULT_PID, DTMIN, SolverReport, raise_on_failure, solve, solver_named
+from ..solve import DEFAULT_PID, DTMIN, Integrator, SolverReport, raise_on_failure, solve, solver_named
 
 STARTS = ("rest", "steady", "loaded")
 
@@ -74,6 +75,7 @@ def simulate(
     adjoint: diffrax.AbstractAdjoint | None = None,
     pcoeff: float = DEFAULT_PID[0],
     icoeff: float = DEFAULT_PID[1],
+    integrator: Integrator | None = None,
 ):
     """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
 
@@ -111,6 +113,10 @@ def simulate(
       with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
+    - `integrator` (optional): the run settings above (`solver` by name, `rtol`, `atol`, `dt0`,
+      `dtmax`, `dtmin`, `max_steps`, `pcoeff`, `icoeff`, `fixed_step`) as one value,
+      `tolerax.Integrator` (what a `PointingObjective` holds and a scene file's `[run]` names);
+      those keywords are then left at their defaults.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
       under `jit`/`vmap`/`grad`).
     - `progress`: print diffrax's text progress meter (compiles a separate program).
@@ -128,6 +134,15 @@ def simulate(
         y0 = scene.initial_state(start)
     else:
         V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
+    if integrator is not None:
+        given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, max_steps=max_steps,
+                                        fixed_step=fixed_step, pcoeff=pcoeff, icoeff=icoeff).items()
+                 if v is not _DEFAULTS[k] and v != _DEFAULTS[k]}
+        if given:
+            raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
+        solver, rtol, atol, dt0, dtmax, dtmin, max_steps, fixed_step, pcoeff, icoeff = (
+            getattr(integrator, k) for k in ("solver", "rtol", "atol", "dt0", "dtmax", "dtmin", "max_steps", "fixed_step", "pcoeff",
+                                             "icoeff"))
     solver = solver_named(solver)
     sol, observed = solve(
         scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
@@ -138,3 +153,6 @@ def simulate(
     if throw:
         raise_on_failure(sol, duration, scene._what)
     return result
+
+
+_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate).parameters.items()}  # simulate's run settings' defaults
