@@ -90,6 +90,11 @@ def test_solver_by_name_same_run_and_bosh3_within_its_tolerance(start_up_referen
     given = tx.simulate(bench, 0.2, n_save=N_SAVE, solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7)
     assert int(named.num_steps) == int(given.num_steps)
     np.testing.assert_array_equal(np.asarray(named.transmission_error), np.asarray(given.transmission_error))
+    # The same settings as one value (`tx.Integrator`): the same run, bitwise (one program).
+    held = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator("Bosh3", rtol=1e-4, atol=1e-7))
+    np.testing.assert_array_equal(np.asarray(held.transmission_error), np.asarray(named.transmission_error))
+    with pytest.raises(ValueError, match="give rtol in the integrator"):
+        tx.simulate(bench, 0.2, integrator=tx.Integrator("Bosh3"), rtol=1e-4)
     ref = start_up_reference
     te = np.abs(np.asarray(named.transmission_error) - np.asarray(ref.transmission_error)).max()
     assert te < 1e-8, te

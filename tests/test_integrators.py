@@ -109,28 +109,22 @@ def test_adaptive_solve_and_names():
 
 
 def test_the_run_settings_are_one_value():
-    """`Integrator`: the solver, the controller and the steps' limits as one value, which
-    `simulate` takes (the same run, bitwise, as the settings given one by one), a
+    """`Integrator`: the solver, the controller and the steps' limits as one value, which a
     `PointingObjective` holds (settings given one by one replace its fields; read back as
-    attributes) and a scene file's `[run]` names; bad settings are named, and settings beside an
-    integrator are refused."""
+    attributes) and a scene file's `[run]` names; bad settings are named. (`simulate` taking
+    it, bitwise the settings given one by one: test_bench.py's solver-by-name test.)"""
     import dataclasses
 
     import tolerax as tx
 
-    bench = tx.TestBench()
     settings = dict(solver="Bosh3", rtol=1e-5, atol=1e-8, pcoeff=0.3, icoeff=0.3)
     integrator = tx.Integrator(**settings)
-    one = tx.simulate(bench, 0.01, n_save=11, integrator=integrator)
-    loose = tx.simulate(bench, 0.01, n_save=11, **settings)
-    assert np.array_equal(np.asarray(one.output_angle), np.asarray(loose.output_angle))
-    with pytest.raises(ValueError, match="give rtol in the integrator"):
-        tx.simulate(bench, 0.01, integrator=integrator, rtol=1e-4)
     objective = tx.load_scene("scan-azimuth").replace(**settings).objective()
     assert objective.integrator == integrator.replace(max_steps=objective.max_steps) and objective.rtol == 1e-5
     held = tx.PointingObjective(objective.scene, 0.6, 0.3, integrator=integrator, rtol=1e-4)
     assert held.integrator == integrator.replace(rtol=1e-4) and held.solver == "Bosh3"
     assert dataclasses.replace(held, n_save=11).integrator == held.integrator
+    assert tx.PointingObjective(objective.scene, 0.6, 0.3).max_steps == 400_000  # a design unit's budget
     with pytest.raises(ValueError, match="rtol must be a finite number > 0"):
         tx.Integrator(rtol=-1.0)
     with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):
