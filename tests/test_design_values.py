@@ -170,3 +170,32 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     line = text.splitlines().index('model = "surface"') + 1
     assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.99", "--out", str(tmp_path / "o")]) == 2
     assert f"{scene}:{line}: [tolerances] model: model='surfaces' is unknown" in capsys.readouterr().err
+
+
+@dataclasses.dataclass(frozen=True)
+class WideSlopes(tx.design.spec.AbstractConstraintModel):
+    """A constraint model of one's own: tangent slopes taken at a wider smoothing width than
+    the design is judged at (what `Tangents(slope_width=...)` also does, written anew)."""
+
+    width: float = 1e-5
+
+    def options(self, requirement, n_features):
+        return {"slope_width": self.width}
+
+
+def test_a_constraint_model_of_one_s_own_runs_through_propose_design():
+    """`WideSlopes` (above), no edit to the loop or to `propose_design`: on a closed-form unit
+    whose slopes grow with the smoothing width, its design is the one `Tangents` gives at that
+    width (the same linearisation) and not the one tangents at the judging width give."""
+    scene = R.scan_scene()
+    line = R.Line(scene, 1000.0, 0.5 * np.asarray(tx.lost_motion_weights(scene)), 100e-6,
+                  width_slopes=[[0.0, 2e10, 1e10, 0.0]])  # arcsec/m per m of width
+    requirement = 0.6 * float(_propose.design_problem(line, yield_=0.99).value(width=1e-6))
+
+    def design(model):
+        problem = tx.ToleranceProblem(line, tx.Requirement("pointing_rms", requirement, model=model), tx.Yield(0.99))
+        return tx.propose_design(problem, tx.Sequential(widths=(1e-6,)), check=None)
+
+    mine, same, plain = design(WideSlopes()), design(tx.Tangents(slope_width=1e-5)), design(tx.Tangents())
+    assert mine.cost == same.cost and np.array_equal(mine.band, same.band)
+    assert abs(mine.cost - plain.cost) > 1e-3 * plain.cost
