@@ -82,7 +82,9 @@ def propose_design(
       requirement on tangents), or one's own `AbstractDesignMethod`.
     - `check`: the Monte Carlo check of a yield design and its re-solves (`Check(units=200,
       rounds=3)`, the default; `None`: no check). A `MeanPlusKStd` problem has no check.
-    - `progress`: a progress bar over the solver's iterations.
+    - `progress`: a progress bar over the solver's iterations, and one line per phase (surface
+      fit, solve, checks, twin, drawn design) with the time since the start, on stderr
+      (`tolerax.design.phases`).
     - `callback`: `callback(gradients, x, cost, objective)` after every gradient evaluation
       (`Sequential`; `x.nominal` holds the lower limits).
     - `**deprecated`: the former signature, `propose_design(pointing, requirement, widths=...,
