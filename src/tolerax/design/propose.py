@@ -22,7 +22,7 @@ from .drawable import round_to_grades
 from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .loop import tolerance_worth
-from .outcome import diagnose, tightest_reach
+from .outcome import MODEL_OFF, diagnose, tightest_reach
 from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
@@ -153,11 +153,16 @@ def propose_design(
         built, result, checked, zoomed = _solve_and_check(built, requirements, tol, solver, check, progress, callback, rounds=rounds,
                                                           say=say)
         notes += zoomed
-        if bool(result.stalled is not None and result.stalled) and combined.rescue and solver.fitted:
+        stalled = bool(result.stalled is not None and result.stalled)
+        off = bool(checked) and any(abs(c.shift) > MODEL_OFF * r for c, r in zip(checked[-1][1], requirements))
+        if (stalled or off) and combined.rescue and solver.fitted:
+            # Auto(): the tangents' own measurement (a stall, or a check that finds their linear
+            # model off by more than MODEL_OFF of the requirement) moves the design on to secants.
+            why = "stalled" if stalled else "read a linear model the check found off by more than half the requirement"
             rebuild = lambda **more: design_problem(pointing, **(options | more))  # noqa: E731
-            say("the tangent slopes stalled: finishing on secant slopes over units of the zone ...")
+            say(f"the tangent slopes {why}: finishing on secant slopes over units of the zone ...")
             built, result, checked, rescue = _secant_rescue(rebuild, built, result, checked, requirements, tol, solver, check,
-                                                            progress, callback, say)
+                                                            progress, callback, say, why)
             notes += rescue
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if combined.twin:

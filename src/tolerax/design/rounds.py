@@ -13,9 +13,10 @@ from .check import as_requirement
 from .types import Design, chain_results
 
 
-def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver, check, progress, callback, say=None):
+def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver, check, progress, callback, say=None, why="stalled"):
     """Where the tangent-slope design stalled (its trust region collapsed: the response is
-    rough at the judging width), solve the last width again from the stalled design with the
+    rough at the judging width), or its check found the tangents' linear model off (`why` says
+    which), solve the last width again from the design reached with the
     slopes fitted by secants over units of the zone (`rebuild(secant_units=...)`: the problem
     again with that many, as the jitter's default), what the stall's diagnosis advises, done
     once. Returns `(problem, result, checked, notes)`: the secant solve's where it converged,
@@ -25,7 +26,7 @@ def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver,
     secant = rebuild(secant_units=units)
     _, again, again_checked, _ = _solve_and_check(secant, requirements, tol, solver, check, progress, callback, x0=result.x, say=say)
     met = np.all(np.atleast_1d(np.asarray(again.objective, dtype=float)) <= requirements * (1 + tol))
-    note = (f"The tangent slopes stalled at the {solver.width:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
+    note = (f"The tangent slopes {why} at the {solver.width:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
             f"gradients; the design was finished from there on secant slopes over {units} units of the zone "
             f"({'converged' if bool(again.converged) else 'not converged'}).")
     if bool(again.converged) or (met and float(again.cost) < float(result.cost)):

@@ -16,8 +16,9 @@ defaults, so that the plain call reaches the configurations that were verified:
   least-squares line through units of the zone, with its residual scatter: an output whose
   unit-to-unit scatter the features do not carry), `Surface()` (a response surface over a box,
   refitted where the design leaves it, as a trust region moves), or `Auto()` (the default:
-  tangents, moved to secants where the tangent slopes stall, and for a scattering output, the
-  jitter of a rattling stage, the response-surface recipe that verified on the full stage).
+  tangents, moved to secants where the tangent slopes stall or the Monte Carlo check finds
+  their model off, and for a scattering output, the jitter of a rattling stage, the
+  response-surface recipe that verified on the full stage).
 
 The models of a problem's requirements are combined into one linearisation (`combine`): the
 units one requirement is fitted over give every output, so where any requirement is fitted over
@@ -118,8 +119,10 @@ class AbstractConstraintModel:
 class Tangents(AbstractConstraintModel):
     """Forward-mode slopes at the zone middles (one solve carrying one tangent per feature),
     at the smoothing width `slope_width` (m; default the design's own). Where the slopes stall
-    (the trust region collapses on a rough response) and `rescue`, the design is finished on
-    `Secants` from there (`propose_design`'s report says so)."""
+    (the trust region collapses on a rough response), or the Monte Carlo check finds their
+    linear model off by more than half the requirement (a kink or a rattle they cannot see), and
+    `rescue`, the design is finished on `Secants` from there (`propose_design`'s report says
+    so)."""
 
     slope_width: float | None = None
     rescue: bool = True
@@ -192,8 +195,8 @@ class Surface(Secants):
 class Auto(AbstractConstraintModel):
     """The default: for an output whose unit-to-unit scatter the features do not carry
     (`SCATTERING_OUTPUTS`: the jitter) the `Surface` recipe; else `Tangents`, finished on
-    `Secants` where their slopes stall. Cheap first, moved on where the measurement (a stall)
-    says so."""
+    `Secants` where their slopes stall or the check finds their model off. Cheap first, moved on
+    where the measurement says so."""
 
     def resolve(self, requirement):
         return Surface() if requirement.output in SCATTERING_OUTPUTS else Tangents()
