@@ -115,6 +115,11 @@ def test_the_former_keywords_map_to_the_values_that_replace_them():
                                                                                    method="augmented-lagrangian", band=5e-6))
     assert problem.requirements[0].model == tx.Secants(units=12, scatter=False, twin=False) and check is None
     assert isinstance(solver, tx.AugmentedLagrangian) and problem.zones == tx.Zones(band=5e-6)
+    # A requirement flagged for secants (as a jitter is) takes a surface at the default units.
+    flagged = tx.Requirement("pointing_rms", 700.0, secants=True)
+    with pytest.warns(DeprecationWarning):
+        problem, _, _ = legacy.from_legacy(pointing, flagged, default, dict(yield_=0.9, surface_box=(5e-6, 90e-6)))
+    assert problem.requirements[0].model == tx.Surface(units=None, box=(5e-6, 90e-6), rounds=4, log=False)
     with pytest.raises(TypeError, match="unknown keyword.*widthz"):
         legacy.from_legacy(pointing, 700.0, default, dict(widthz=(1e-6,)))
 

@@ -125,7 +125,7 @@ def test_the_run_settings_are_one_value():
     assert held.integrator == integrator.replace(rtol=1e-4) and held.solver == "Bosh3"
     assert dataclasses.replace(held, n_save=11).integrator == held.integrator
     assert tx.PointingObjective(objective.scene, 0.6, 0.3).max_steps == 400_000  # a design unit's budget
-    with pytest.raises(ValueError, match="rtol must be a finite number > 0"):
+    with pytest.raises(ValueError, match="Integrator: rtol must be a positive finite number"):
         tx.Integrator(rtol=-1.0)
     with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):
         tx.PointingObjective(objective.scene, 0.6, 0.3, solver="Euler")

@@ -105,6 +105,25 @@ def solver_named(solver) -> diffrax.AbstractSolver:
     return solver
 
 
+def run_settings_error(*, rtol, atol, dt0, dtmax, dtmin, pcoeff, icoeff) -> str | None:
+    """What is wrong with these step-control settings, in words (`None`: nothing): the one check
+    `solve` and `Integrator` both make."""
+    for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
+        try:
+            ok = bool(np.isfinite(value) and value > 0)
+        except TypeError:  # not a number at all
+            ok = False
+        if not ok:
+            return f"{name} must be a positive finite number, got {value!r}."
+    for (name, (ok, rule)), value in zip(PID_RULES.items(), (pcoeff, icoeff)):
+        if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
+            return (f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "
+                    "the default (pcoeff, icoeff) = (0, 1) is an I-controller, (0.3, 0.3) a PI controller.")
+    if not dtmin < dt0 <= dtmax:
+        return f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}."
+    return None
+
+
 class Integrator(eqx.Module):
     """How a scene is integrated, as one value: the explicit Runge-Kutta method, the adaptive
     step-size controller's tolerances and coefficients, and the steps' limits. `simulate(...,
@@ -142,13 +161,10 @@ class Integrator(eqx.Module):
     def __check_init__(self):
         if not isinstance(self.solver, str) or self.solver not in SOLVERS:
             raise ValueError(f"Integrator: solver {self.solver!r} is unknown; use the name of one of {sorted(SOLVERS)}.")
-        for name in ("rtol", "atol", "dt0", "dtmax", "dtmin"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"Integrator: {name} must be a finite number > 0, got {value!r}.")
-        for name, (valid, rule) in PID_RULES.items():
-            if not valid(getattr(self, name)):
-                raise ValueError(f"Integrator: {name} must be {rule}, got {getattr(self, name)!r}.")
+        wrong = run_settings_error(rtol=self.rtol, atol=self.atol, dt0=self.dt0, dtmax=self.dtmax, dtmin=self.dtmin,
+                                   pcoeff=self.pcoeff, icoeff=self.icoeff)
+        if wrong is not None:
+            raise ValueError(f"Integrator: {wrong}")
         if not (isinstance(self.max_steps, int) and self.max_steps > 0):
             raise ValueError(f"Integrator: max_steps must be a positive integer, got {self.max_steps!r}.")
         if self.fixed_step is not None and not self.fixed_step > 0:
@@ -339,17 +355,9 @@ def solve(
         raise ValueError(f"duration must be a positive finite time in seconds, got {duration!r}.")
     if int(n_save) < 2:
         raise ValueError(f"n_save must be at least 2 (the start and the end), got {n_save!r}.")
-    for name, value in (("rtol", rtol), ("atol", atol), ("dt0", dt0), ("dtmax", dtmax), ("dtmin", dtmin)):
-        if not (np.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
-    for (name, (ok, rule)), value in zip(PID_RULES.items(), (pcoeff, icoeff)):
-        if not (isinstance(value, (int, float, np.floating, np.integer)) and np.isfinite(value) and ok(value)):
-            raise ValueError(
-                f"{name} must be a finite Python number {rule} (a static setting, like the solver), got {value!r}; "
-                "the default (pcoeff, icoeff) = (0, 1) is an I-controller, (0.3, 0.3) a PI controller."
-            )
-    if not dtmin < dt0 <= dtmax:
-        raise ValueError(f"Steps must satisfy dtmin < dt0 <= dtmax, got dtmin={dtmin!r}, dt0={dt0!r}, dtmax={dtmax!r}.")
+    wrong = run_settings_error(rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, pcoeff=pcoeff, icoeff=icoeff)
+    if wrong is not None:
+        raise ValueError(wrong)
     if not isinstance(solver, diffrax.AbstractSolver):
         raise TypeError(f"solver must be a diffrax solver (e.g. diffrax.Tsit5()), got {type(solver).__name__}.")
     _validate.check_tree(scene)

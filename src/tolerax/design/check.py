@@ -113,7 +113,7 @@ class Check:
             got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
             shift = np.array([c.shift for c in got])
-            if np.any(np.abs(shift) > MODEL_OFF * requirements):
+            if model_off(got, requirements):
                 break  # the linear model does not hold here: no shift of it would (`diagnose` says so)
             corrected = requirements - shift
             # a shift within the check's own noise (or the method's tolerance) is not one
@@ -132,6 +132,13 @@ class Check:
             checked = checked[: k + 1]
             result = checked[-1][0]
         return result, checked
+
+
+def model_off(checks, requirements) -> bool:
+    """Whether a check (`checks`, one `YieldCheck` per requirement) found the linear model's
+    quantile off from the units' by more than `MODEL_OFF` of its requirement (`requirements`,
+    (m,)) for any requirement: the model does not hold there, and no shift of it would."""
+    return any(abs(c.shift) > MODEL_OFF * r for c, r in zip(checks, np.atleast_1d(requirements)))
 
 
 def as_requirement(requirements):

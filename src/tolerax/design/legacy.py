@@ -26,7 +26,7 @@ import dataclasses
 import warnings
 
 from .check import Check
-from .requirements import SCATTERING_OUTPUTS, as_requirements
+from .requirements import as_requirements
 from .solvers import AugmentedLagrangian, Sequential
 from .spec import MeanPlusKStd, Secants, Surface, Tangents, ToleranceProblem, Yield, Zones
 
@@ -109,9 +109,7 @@ def _models(requirements, flagged: bool, options: dict) -> list:
     twin = get("noise_band") if get("noise_band") is not None else flagged
     common = dict(units=get("secant_units"), scatter=bool(scatter), reach=get("secant_reach"), seed=int(get("secant_seed", 1)),
                   twin=bool(twin))
-    if get("surface_box") is not None:
-        if get("secant_units") is None and not any(r.output in SCATTERING_OUTPUTS for r in requirements):
-            raise ValueError("propose_design: surface_box needs secant_units (a response surface is fitted over units).")
+    if get("surface_box") is not None:  # here secant_units is given or flagged requirements set its default
         return [Surface(box=tuple(get("surface_box")), width=get("surface_width"), rounds=int(get("surface_rounds", 4)),
                         log=r.output in logs, **common) for r in requirements]
     return [Secants(log=r.output in logs, **common) for r in requirements]

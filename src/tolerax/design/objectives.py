@@ -6,7 +6,6 @@ scalar outputs and a `success` flag).
 
 import abc
 import dataclasses
-import inspect
 from typing import ClassVar
 
 import diffrax

@@ -16,13 +16,13 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
-from .check import Check, as_requirement, yield_check
+from .check import Check, as_requirement, model_off, yield_check
 from .cost import grade_of
 from .drawable import round_to_grades
 from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .loop import tolerance_worth
-from .outcome import MODEL_OFF, diagnose, tightest_reach
+from .outcome import diagnose, tightest_reach
 from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
@@ -154,10 +154,10 @@ def propose_design(
                                                           say=say)
         notes += zoomed
         stalled = bool(result.stalled is not None and result.stalled)
-        off = bool(checked) and any(abs(c.shift) > MODEL_OFF * r for c, r in zip(checked[-1][1], requirements))
+        off = bool(checked) and model_off(checked[-1][1], requirements)
         if (stalled or off) and combined.rescue and solver.fitted:
             # Auto(): the tangents' own measurement (a stall, or a check that finds their linear
-            # model off by more than MODEL_OFF of the requirement) moves the design on to secants.
+            # model off: `model_off`) moves the design on to secants.
             why = "stalled" if stalled else "read a linear model the check found off by more than half the requirement"
             rebuild = lambda **more: design_problem(pointing, **(options | more))  # noqa: E731
             say(f"the tangent slopes {why}: finishing on secant slopes over units of the zone ...")

@@ -134,21 +134,15 @@ def simulate(
         y0 = scene.initial_state(start)
     else:
         V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
+    settings = dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, max_steps=max_steps,
+                    fixed_step=fixed_step, pcoeff=pcoeff, icoeff=icoeff)  # Integrator.FIELDS
     if integrator is not None:
-        given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, max_steps=max_steps,
-                                        fixed_step=fixed_step, pcoeff=pcoeff, icoeff=icoeff).items()
-                 if v is not _DEFAULTS[k] and v != _DEFAULTS[k]}
+        given = sorted(k for k, v in settings.items() if v is not _DEFAULTS[k] and v != _DEFAULTS[k])
         if given:
-            raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
-        solver, rtol, atol, dt0, dtmax, dtmin, max_steps, fixed_step, pcoeff, icoeff = (
-            getattr(integrator, k) for k in ("solver", "rtol", "atol", "dt0", "dtmax", "dtmin", "max_steps", "fixed_step", "pcoeff",
-                                             "icoeff"))
-    solver = solver_named(solver)
-    sol, observed = solve(
-        scene, y0, duration, n_save=n_save, solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
-        dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step, progress=progress, adjoint=adjoint,
-        pcoeff=pcoeff, icoeff=icoeff,
-    )
+            raise ValueError(f"simulate: give {', '.join(given)} in the integrator (Integrator.replace(...)), not beside it.")
+        settings = integrator.options()
+    settings["solver"] = solver_named(settings["solver"])
+    sol, observed = solve(scene, y0, duration, n_save=n_save, progress=progress, adjoint=adjoint, **settings)
     result = scene.result(sol, observed, duration)
     if throw:
         raise_on_failure(sol, duration, scene._what)
