@@ -165,8 +165,13 @@ def test_replace_and_objective():
     free = short.replace(duration=0.002, n_save=11).objective()
     assert int(capped.simulate_scene(capped.scene).num_steps) >= 200 > 2 * int(free.simulate_scene(free.scene).num_steps)
     assert (objective.dt0, objective.dtmax, objective.fixed_step) == (1e-6, 1e-3, None)  # simulate's defaults
-    # Every [run] key is an objective field of the same name carrying the file's value.
-    assert {key: getattr(objective, key) for key in tx.io.schema.RUN_KEYS} == short.run
+    # Every [run] key is an objective field of the same name carrying the file's value (a run
+    # setting the file leaves out, None, is the automatic integrator's: the lumped scene's is
+    # ACCURATE, with the objective's step budget).
+    auto = tx.solve.ACCURATE.replace(max_steps=400_000).options()
+    assert {key: getattr(objective, key) for key in tx.io.schema.RUN_KEYS} == {
+        key: auto[key] if value is None and key in auto else value for key, value in short.run.items()}
+    assert "chosen automatically" in objective.integrated_with and "as asked" in tiny.objective().integrated_with
     with pytest.raises(tx.SceneFileError, match=r"\[run\] solver: solver 'Euler' is unknown"):
         short.replace(solver="Euler")
     with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):

@@ -181,6 +181,30 @@ class Integrator(eqx.Module):
             raise TypeError(f"Integrator: unknown setting(s) {', '.join(unknown)}; its settings: {', '.join(self.FIELDS)}.")
         return Integrator(**(self.options() | changes))
 
+    def describe(self) -> str:
+        """These settings in a few words (what a result's `integrated_with` starts with)."""
+        if self.fixed_step is not None:
+            return f"{self.solver}, fixed steps of {self.fixed_step:g} s"
+        control = "I-controller" if (self.pcoeff, self.icoeff) == DEFAULT_PID else f"PI controller ({self.pcoeff:g}, {self.icoeff:g})"
+        return f"{self.solver}, rtol {self.rtol:g}, atol {self.atol:g}, {control}"
+
+
+# The two integrators a scene is given when its run asks for none (`AbstractScene.
+# automatic_integrator`, the default of `simulate`, the command line, Monte Carlo and design).
+# ACCURATE: Tsit5 at rtol 1e-6, where accuracy sets the step (lumped, mass-scaled and ideal
+# joints; a stage on its bench, a physics check). FAST_STAGE: SRK53 at rtol 1e-4 with the
+# (0.2, 0.2) controller, where the full planetary stage's lightly damped mesh and bearing modes
+# (1e5 1/s, 3-12 % damped) hold an explicit step at its stability limit and SRK53's region
+# reaches farthest along them (`SRK53`). Why rtol 1e-4 and not 1e-3: on 16 rattling Monte Carlo
+# units of the planetary azimuth scan (0.6 s), rtol 1e-3 ran 2.17x ACCURATE's units per minute
+# but its errors against an rtol 1e-10 solve were 1.4-11x ACCURATE's own (the peak's median
+# 3.4e-4 against 3.1e-5); rtol 1e-4 ran 1.54x with its medians within 2.3x and its maxima within
+# 1.3x of ACCURATE's (`benchmarks/results/monte_carlo_solvers_auto.md`); in a developed rattle
+# both lie inside (`rattle_window.md`). `benchmarks/auto_integrator.py` measures the choice on a
+# matrix of scenes in one run.
+ACCURATE = Integrator()
+FAST_STAGE = Integrator(solver="SRK53", rtol=1e-4, atol=1e-7, pcoeff=0.2, icoeff=0.2)
+
 
 class SimulationError(RuntimeError):
     """The integrator did not reach the final time."""
@@ -456,6 +480,9 @@ class SolverReport(eqx.Module):
     num_steps: Array
     num_rejected: Array
     duration: float = eqx.field(static=True)
+    # How the run was integrated and why, in words ("SRK53, rtol 0.001, ... : chosen because
+    # ..."; `simulate` sets it).
+    integrated_with: str = eqx.field(static=True, default="", kw_only=True)
     _what = "simulation"  # what the failure lines call the run (class attribute, not a field)
 
     @classmethod
@@ -485,4 +512,5 @@ class SolverReport(eqx.Module):
         """A one-paragraph summary: successes, and every failure with its time reached."""
         ok = np.atleast_1d(self.success)
         head = f"{int(ok.sum())} of {ok.size} runs reached {self.duration:.6g} s."
-        return "\n".join([head, *self.failures()])
+        how = [f"Integrated with {self.integrated_with}."] if self.integrated_with else []
+        return "\n".join([head, *how, *self.failures()])

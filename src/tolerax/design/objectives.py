@@ -135,9 +135,11 @@ class PointingObjective(AbstractObjective):
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). `integrator`: the run settings as one
     value (`tolerax.Integrator`: the solver by name, the controller's tolerances and
-    coefficients, the steps' limits; default `simulate`'s with a step budget of 400 000); the
-    settings may also be given one by one (`rtol=...`, `solver="Bosh3"`, a scene file's `[run]`
-    keys), each replacing the integrator's, and are read back as attributes (`objective.rtol`).
+    coefficients, the steps' limits; default: the one `simulate` chooses for the scene,
+    `scene.automatic_integrator()`, with a step budget of 400 000; `integrated_with` says which
+    and why); the settings may also be given one by one (`rtol=...`, `solver="Bosh3"`, a scene
+    file's `[run]` keys), each replacing the integrator's (`OBJECTIVE_INTEGRATOR`, Tsit5 at rtol
+    1e-6, where no integrator is given), and are read back as attributes (`objective.rtol`).
     Run settings are static: changing them recompiles; changing the design or the scene's
     values does not.
 
@@ -167,24 +169,35 @@ class PointingObjective(AbstractObjective):
     metrics: tuple[AbstractMetric, ...] = ()
     life: MissionLife | None = None
     integrator: Integrator = OBJECTIVE_INTEGRATOR  # the run settings, one value (static fields)
+    integrated_with: str = eqx.field(static=True, default="")  # which integrator and why, in words
 
     def __init__(self, scene, duration, settle, n_save=201, rtol=_UNSET, atol=_UNSET, max_steps=_UNSET, peak_order=8, start="rest",
                  adjoint=None, pcoeff=_UNSET, icoeff=_UNSET, jitter_cutoff=None, metrics=(), life=None, solver=_UNSET, dt0=_UNSET,
-                 dtmax=_UNSET, dtmin=_UNSET, fixed_step=_UNSET, integrator=None):
+                 dtmax=_UNSET, dtmin=_UNSET, fixed_step=_UNSET, integrator=None, integrated_with=None):
         self.scene, self.duration, self.settle, self.n_save = scene, duration, settle, n_save
         self.peak_order, self.start, self.adjoint, self.jitter_cutoff = peak_order, start, adjoint, jitter_cutoff
         self.metrics, self.life = metrics, life
-        # The run settings given one by one (the older spelling, and a scene file's [run] keys)
-        # replace the integrator's (`integrator`, else the objective's default).
+        # The run settings given one by one (the older spelling, and a scene file's [run] keys;
+        # None: not given) replace the integrator's (`integrator`, else the objective's default);
+        # with none given and no integrator, the scene's automatic one (`simulate`'s default)
+        # with the objective's step budget.
         given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dt0=dt0, dtmax=dtmax,
-                                        dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step).items() if v is not _UNSET}
-        base = OBJECTIVE_INTEGRATOR if integrator is None else integrator
-        if not isinstance(base, Integrator):
-            raise TypeError(f"PointingObjective: integrator must be a tolerax.Integrator, got {type(base).__name__}.")
-        try:
-            self.integrator = base.replace(**given) if given else base
-        except ValueError as err:
-            raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
+                                        dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step).items()
+                 if v is not _UNSET and v is not None}
+        if integrator is None and not given:
+            chosen, reason = scene.automatic_integrator()
+            self.integrator = chosen.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)
+            why = f"{self.integrator.describe()}: chosen automatically, {reason}"
+        else:
+            base = OBJECTIVE_INTEGRATOR if integrator is None else integrator
+            if not isinstance(base, Integrator):
+                raise TypeError(f"PointingObjective: integrator must be a tolerax.Integrator, got {type(base).__name__}.")
+            try:
+                self.integrator = base.replace(**given) if given else base
+            except ValueError as err:
+                raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
+            why = f"{self.integrator.describe()}: as asked"
+        self.integrated_with = why if integrated_with is None else integrated_with
 
     # The run settings, read through the integrator that holds them.
     solver = property(lambda self: self.integrator.solver)

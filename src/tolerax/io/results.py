@@ -159,6 +159,7 @@ def write_results(scene_file: SceneFile, result, out: str | os.PathLike, *, wall
         title=scene_file.title,
         source=scene_file.source,
         run={k: v for k, v in scene_file.run.items() if v is not None},
+        integrated_with=result.integrated_with,
         result="successful" if result.success else "failed",
         failures=result.failures(),
         t_reached_s=float(result.t_reached),
@@ -182,9 +183,9 @@ def summary_md(s: dict) -> str:
     run = s["run"]
     lines += [
         "## Run", "",
-        f"- {run['duration']} s simulated from `start = \"{run['start']}\"`, {run['n_save']} saved times, "
-        f"{run['solver']}, rtol {run['rtol']:g}, atol {run['atol']:g}, step-size controller (pcoeff, icoeff) = "
-        f"({run['pcoeff']:g}, {run['icoeff']:g}); pointing window from {run['settle']} s.",
+        f"- {run['duration']} s simulated from `start = \"{run['start']}\"`, {run['n_save']} saved times; "
+        f"pointing window from {run['settle']} s.",
+        f"- Integrated with {s['integrated_with']}.",
         f"- Solver: **{s['result']}**, reached {s['t_reached_s']:.6g} s in {s['steps_accepted']} accepted and "
         f"{s['steps_rejected']} rejected steps"
         + (f"; {s['wall_s_including_compile']} s of wall time including compilation." if s["wall_s_including_compile"] is not None else "."),

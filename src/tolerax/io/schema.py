@@ -19,7 +19,7 @@ from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
-from ..solve import DEFAULT_SOLVER, PID_RULES, SOLVERS
+from ..solve import ACCURATE, PID_RULES, SOLVERS
 from .checker import TOP_KEYS, Checker, SceneFileError, SceneFileNote, _accepts, _for_call, _suggest, check_top  # noqa: F401 (the schema's tables, errors)
 
 # ---------------------------------------------------------------------------------------------
@@ -48,7 +48,7 @@ RUN_KEYS = {
     "fixed_step": (float, None),
     "pcoeff": (float, _SIM["pcoeff"].default),
     "icoeff": (float, _SIM["icoeff"].default),
-    "solver": (str, DEFAULT_SOLVER),
+    "solver": (str, None),  # the run settings: None (not given) lets `simulate` choose the integrator
     "settle": (float, 0.0),
 }
 
@@ -207,25 +207,26 @@ def _check_run(chk: Checker, run: dict):
             raise chk.error(f"must be a positive finite number, got {run[key]!r}.", table, key)
     for key, (ok, rule) in PID_RULES.items():
         x = value[key]
-        if not (math.isfinite(x) and ok(x)):
+        if x is not None and not (math.isfinite(x) and ok(x)):
             raise chk.error(f"must be a finite number {rule}, got {x!r} (the default (0, 1) is an I-controller, "
                             "(0.3, 0.3) a PI controller).", table, key)
-    if value["solver"] not in SOLVERS:
-        raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)} (Tsit5, the default; "
-                        "SRK53 with rtol 1e-3 and pcoeff = icoeff = 0.2 for the full planetary stage in developed rattle, "
-                        "docs/scene_files.md).", table, "solver")
+    if value["solver"] is not None and value["solver"] not in SOLVERS:
+        raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)}, or leave the run settings out "
+                        "and the integrator is chosen from the scene (docs/scene_files.md).", table, "solver")
     if value["start"] not in STARTS:
         raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
     if value["n_save"] < 2:
         raise chk.error(f"must be at least 2 (the start and the end), got {value['n_save']!r}.", table, "n_save")
-    if value["max_steps"] < 1:
+    if value["max_steps"] is not None and value["max_steps"] < 1:
         raise chk.error(f"must be at least 1, got {value['max_steps']!r}.", table, "max_steps")
     if not (math.isfinite(value["settle"]) and 0.0 <= value["settle"] < value["duration"]):
         raise chk.error(
             f"must satisfy 0 <= settle < duration = {value['duration']!r} s, got {value['settle']!r}.",
             table, "settle" if "settle" in run else "duration",
         )
-    if not value["dtmin"] < value["dt0"] <= value["dtmax"]:
+    steps = {k: ACCURATE.options()[k] if value[k] is None else value[k] for k in ("dt0", "dtmax", "dtmin")}
+    if any(k in run for k in steps) and not steps["dtmin"] < steps["dt0"] <= steps["dtmax"]:
+        value = value | steps
         raise chk.error(
             f"steps must satisfy dtmin < dt0 <= dtmax, got dtmin={value['dtmin']!r}, dt0={value['dt0']!r}, dtmax={value['dtmax']!r}.",
             table, next((k for k in ("dt0", "dtmax", "dtmin") if k in run), None),

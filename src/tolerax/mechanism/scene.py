@@ -8,7 +8,7 @@ one diffrax call.
 """
 
 import abc
-import inspect
+import dataclasses
 from collections.abc import Callable
 
 import diffrax
@@ -16,7 +16,7 @@ import equinox as eqx
 import jax
 
 from .. import _validate as V
-from ..solve import DEFAULT_PID, DTMIN, Integrator, SolverReport, raise_on_failure, solve, solver_named
+from ..solve import ACCURATE, Integrator, SimulationError, SolverReport, raise_on_failure, solve, solver_named
 
 STARTS = ("rest", "steady", "loaded")
 
@@ -43,6 +43,12 @@ class AbstractScene(eqx.Module):
         """The scene's result (built with `SolverReport.from_solution`) from the solution of
         `tolerax.solve.solve` and the observations at its save times."""
 
+    def automatic_integrator(self) -> tuple[Integrator, str]:
+        """The integrator this scene gets when its run asks for none, and why in words:
+        `FAST_STAGE` (SRK53 at rtol 1e-4) where the scene carries the full planetary stage's
+        stiff, damped contact modes, else `ACCURATE` (Tsit5 at rtol 1e-6). Default: `ACCURATE`."""
+        return ACCURATE, "no full planetary stage: accuracy, not the stage's contact modes, sets the step"
+
     def check_runnable(self) -> None:
         """Raise a `ValueError` saying what to change if this scene has nothing to integrate."""
 
@@ -63,19 +69,19 @@ def simulate(
     y0: tuple | None = None,
     n_save: int = 1001,
     solver: diffrax.AbstractSolver | str | None = None,
-    rtol: float = 1e-6,
-    atol: float = 1e-9,
-    dt0: float = 1e-6,
-    dtmax: float = 1e-3,
-    dtmin: float = DTMIN,
-    max_steps: int = 4_000_000,
+    rtol: float | None = None,
+    atol: float | None = None,
+    dt0: float | None = None,
+    dtmax: float | None = None,
+    dtmin: float | None = None,
+    max_steps: int | None = None,
     fixed_step: float | None = None,
     throw: bool = True,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
-    pcoeff: float = DEFAULT_PID[0],
-    icoeff: float = DEFAULT_PID[1],
-    integrator: Integrator | None = None,
+    pcoeff: float | None = None,
+    icoeff: float | None = None,
+    integrator: Integrator | str = "auto",
 ):
     """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
 
@@ -92,31 +98,32 @@ def simulate(
       Ignored when `y0` is given.
     - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
     - `n_save`: number of equally spaced save times.
-    - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`, the
-      default; `"Bosh3"`, `"SRK53"`, `"Dopri5"`, `"Dopri8"`). For the full planetary stage in
-      developed rattle, `"SRK53"` at rtol 1e-3 (atol 1e-6) with `pcoeff = icoeff = 0.2` is the
-      cheapest setting, its errors against a tight solve of the default's size
-      (`tolerax.solve.SRK53`); `"Bosh3"` at rtol 1e-4 (atol 1e-7) with `pcoeff = icoeff = 0.3`
-      is also cheaper than Tsit5 at rtol 1e-6, its pointing RMS and peak errors near the
-      default's, its jitter farther off on the worst rattling units (`tolerax.solve.SOLVERS`
-      says why); implicit solvers are compared in `benchmarks/work_precision.py`.
+    - **How it is integrated** (default: chosen from the scene, `integrator="auto"`). A mechanism
+      with a full planetary stage (`fidelity="planetary"`) is integrated with
+      `tolerax.solve.FAST_STAGE` (SRK53, rtol 1e-4, atol 1e-7, controller (0.2, 0.2)): the
+      stage's mesh and bearing modes, ~1e5 1/s and lightly damped, hold an explicit step at
+      its stability limit, where SRK53 reaches farthest per evaluation; any other scene, and a
+      stage on its `TestBench` (a physics check), with `tolerax.solve.ACCURATE` (Tsit5, rtol
+      1e-6, atol 1e-9, I-controller). The result's
+      `integrated_with` (and `report()`) says which and why. A choice of one's own overrides
+      it: `integrator=tolerax.Integrator(...)` (every setting as one value), or the settings
+      one by one, each replacing `ACCURATE`'s:
+    - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`,
+      `"Bosh3"`, `"SRK53"`, `"Dopri5"`, `"Dopri8"`); implicit solvers are compared in
+      `benchmarks/work_precision.py`.
     - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
       m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
     - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
       below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
     - `max_steps`: step budget.
     - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
-      (`diffrax.PIDController`). The default (0, 1) is diffrax's I-controller; a PI controller
-      (0.3, 0.3) rejects fewer steps, so a single run at rtol 1e-6 costs a little less, but it
-      gains nothing on rattling Monte Carlo units (`tolerax.solve.DEFAULT_PID` says why it is not
-      the default). Python numbers: changing them recompiles (like `solver`); ignored
-      with `fixed_step`.
+      (`diffrax.PIDController`; (0, 1) is diffrax's I-controller, `tolerax.solve.DEFAULT_PID`).
+      Python numbers: changing them recompiles (like `solver`); ignored with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
-    - `integrator` (optional): the run settings above (`solver` by name, `rtol`, `atol`, `dt0`,
-      `dtmax`, `dtmin`, `max_steps`, `pcoeff`, `icoeff`, `fixed_step`) as one value,
-      `tolerax.Integrator` (what a `PointingObjective` holds and a scene file's `[run]` names);
-      those keywords are then left at their defaults.
+    - `integrator`: `"auto"` (the default), or a `tolerax.Integrator` (what a
+      `PointingObjective` holds and a scene file's `[run]` names), not beside the settings
+      one by one.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
       under `jit`/`vmap`/`grad`).
     - `progress`: print diffrax's text progress meter (compiles a separate program).
@@ -134,19 +141,40 @@ def simulate(
         y0 = scene.initial_state(start)
     else:
         V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
-    settings = dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, max_steps=max_steps,
-                    fixed_step=fixed_step, pcoeff=pcoeff, icoeff=icoeff)  # Integrator.FIELDS
-    if integrator is not None:
-        given = sorted(k for k, v in settings.items() if v is not _DEFAULTS[k] and v != _DEFAULTS[k])
-        if given:
-            raise ValueError(f"simulate: give {', '.join(given)} in the integrator (Integrator.replace(...)), not beside it.")
-        settings = integrator.options()
+    chosen, why = choose_integrator(scene, integrator, dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
+                                                            dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step,
+                                                            pcoeff=pcoeff, icoeff=icoeff))
+    settings = chosen.options() if isinstance(chosen, Integrator) else chosen
     settings["solver"] = solver_named(settings["solver"])
     sol, observed = solve(scene, y0, duration, n_save=n_save, progress=progress, adjoint=adjoint, **settings)
-    result = scene.result(sol, observed, duration)
+    result = dataclasses.replace(scene.result(sol, observed, duration), integrated_with=why)
     if throw:
-        raise_on_failure(sol, duration, scene._what)
+        try:
+            raise_on_failure(sol, duration, scene._what)
+        except SimulationError as err:
+            raise SimulationError(f"{err} It was integrated with {why}.") from None
     return result
 
 
-_DEFAULTS = {name: p.default for name, p in inspect.signature(simulate).parameters.items()}  # simulate's run settings' defaults
+def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", given: dict) -> tuple:
+    """`(settings, why)` for a run of `scene`: `integrator` (a `tolerax.Integrator`, or `"auto"`:
+    `scene.automatic_integrator()`) unless settings are `given` one by one (name -> value,
+    `None` for not given), which then replace `ACCURATE`'s. `settings` is an `Integrator`, or
+    a dict of `simulate`'s keywords where the solver is a diffrax solver object rather than a
+    name; `why` says which and why in words (a result's `integrated_with`)."""
+    given = {k: v for k, v in given.items() if v is not None}
+    if isinstance(integrator, Integrator):
+        if given:
+            raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
+        return integrator, f"{integrator.describe()}: as asked"
+    if integrator != "auto":
+        raise TypeError(f"integrator must be 'auto' or a tolerax.Integrator, got {integrator!r}.")
+    if not given:
+        chosen, reason = scene.automatic_integrator()
+        return chosen, f"{chosen.describe()}: chosen automatically, {reason}"
+    solver_named(given.get("solver"))  # an unknown name or a wrong type refused in simulate's words
+    if "solver" in given and not isinstance(given["solver"], str):  # a diffrax solver object
+        return ACCURATE.options() | given, f"{type(given['solver']).__name__} with the settings given"
+    chosen = ACCURATE.replace(**given)
+    return chosen, f"{chosen.describe()}: as asked"
+

@@ -2,6 +2,8 @@
 support and mesh of `tolerax.physics.planetary`, and `MassScaledPlanetaryJoint`, the same stage
 with the inertia of its fastest coordinate families scaled up for larger explicit steps."""
 
+from typing import ClassVar
+
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -108,6 +110,8 @@ class _AbstractStageJoint(AbstractJoint):
 
 class PlanetaryJoint(_AbstractStageJoint):
     """The full planetary stage (`tolerax.physics.planetary`) as a joint."""
+
+    stiff_contact_modes: ClassVar[bool] = True
 
 
 SCALED_FAMILIES = ("sun_translation", "planet_translation", "planet_spin", "sun_rotation", "carrier_translation")

@@ -1,0 +1,143 @@
+"""The automatic integrator on a matrix of scenes: what `simulate` chooses with no option given,
+its wall time against today's explicit default (`tolerax.solve.ACCURATE`: Tsit5, rtol 1e-6,
+I-controller) in one run, and both one's output errors against an rtol 1e-10 solve (issue 60).
+
+    python benchmarks/auto_integrator.py [--rounds 2] [--scenes ...] [--before REV] [--results DIR]
+
+Scenes (`--scenes`, default all): the stage on its `TestBench` from rest; the antenna with lumped
+joints (the azimuth scan, the dual axis turning at 0.98 deg/s); planetary-scaled joints (dual);
+full planetary joints (the azimuth scan on a fixed base, the dual axis at 0.98 and at 1.96 deg/s
+on the free base, a 0.5 deg slew of both joints, the azimuth joint alone on a fixed base) over
+0.5-0.6 s, and the full planetary dual in developed rattle (steady start, 2 s, the window
+1-2 s: `rattle_window.py`'s scene). Each row: the automatic choice (`result.integrated_with`);
+the default's and the automatic choice's wall time (each compiled first by a 0.01 s run of the
+same program, then timed once per round, rounds interleaved, the fastest kept) and their ratio;
+and each one's errors against the reference (Tsit5, rtol 1e-10, atol 1e-13, I-controller) over
+the window: the pointing RMS, peak and jitter (above 20 Hz) relative errors and the output
+bearing's peak radial force (relative); the bench: the largest transmission-error difference
+(rad) and the sun meshes' peak force (relative). "inside" says whether each of the automatic
+choice's errors is at most the default's (or below 1e-9 relative, rounding), per output.
+With `--before REV`, the developed-rattle row also times tolerax at git revision REV with no
+option given (its own default), in the same run: the issue's "faster than 993e755".
+"""
+
+import math
+import time
+
+import numpy as np
+
+import tolerax as tx
+from tolerax.mechanism.outputs import pointing_metrics
+
+import harness
+
+REFERENCE = tx.Integrator(rtol=1e-10, atol=1e-13, max_steps=50_000_000)
+FLOOR = 1e-9  # relative: below it two solves differ by rounding, not by the integrator
+CUTOFF = 20.0  # Hz, the jitter's band
+
+
+def _slew():
+    times, angles = [0.0, 0.05, 0.35, 0.5], [0.0, 0.0, math.radians(0.5), math.radians(0.5)]
+    return tx.antenna("dual", fidelity="planetary", drive="profile", profile_times=times, profile_angles=angles)
+
+
+# name -> (build, duration s, start, n_save, window start s)
+SCENES = {
+    "bench": (lambda: tx.TestBench(), 0.2, "rest", 201, 0.0),
+    "lumped azimuth scan": (lambda: tx.load_scene("scan-azimuth").build(), 0.6, "steady", 301, 0.3),
+    "lumped dual 0.98 deg/s": (lambda: tx.antenna("dual", fidelity="lumped"), 1.0, "steady", 501, 0.5),
+    "planetary-scaled dual": (lambda: tx.antenna("dual", fidelity="planetary-scaled"), 0.5, "steady", 501, 0.25),
+    "planetary azimuth scan, fixed base": (lambda: tx.load_scene("scan-azimuth-planetary").build(), 0.6, "steady", 301, 0.3),
+    "planetary dual 0.98 deg/s": (lambda: tx.antenna("dual", fidelity="planetary"), 0.5, "steady", 501, 0.25),
+    "planetary dual 1.96 deg/s": (lambda: tx.antenna("dual", fidelity="planetary", rate=math.radians(1.96)), 0.5, "steady", 501, 0.25),
+    "planetary dual slew 0.5 deg": (_slew, 0.5, "rest", 501, 0.25),
+    "planetary azimuth 0.98 deg/s, fixed base": (lambda: tx.antenna("azimuth", fidelity="planetary", base="fixed"), 0.5, "steady",
+                                                 501, 0.25),
+    "planetary dual, developed rattle": (lambda: tx.antenna("dual", fidelity="planetary"), 2.0, "steady", 2001, 1.0),
+}
+
+
+def outputs(result, window_start):
+    ts = np.asarray(result.ts)
+    window = ts >= window_start - 1e-12
+    if isinstance(result, tx.BenchResult):
+        return dict(transmission_error=np.asarray(result.transmission_error)[window],
+                    sun_mesh_force=float(np.max(np.abs(np.asarray(result.sun_mesh_force)[window]))))
+    m = pointing_metrics(result, window, jitter_cutoff=CUTOFF)
+    return dict(pointing_rms=float(m["pointing_rms"]), pointing_peak=float(m["pointing_peak"]),
+                pointing_jitter=float(m["pointing_jitter"]),
+                bearing_force=float(np.max(np.abs(np.asarray(result.output_force)[window]))))
+
+
+def errors(out, ref):
+    err = {}
+    for k, v in out.items():
+        if k == "transmission_error":
+            err[k] = float(np.max(np.abs(v - ref[k])))  # rad
+        else:
+            err[k] = abs(v - ref[k]) / max(abs(ref[k]), 1e-300)
+    return err
+
+
+def main():
+    parser = harness.argument_parser(__doc__)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES), metavar="SCENE")
+    parser.add_argument("--before", default=None, help="git revision timed on the developed-rattle row")
+    args = harness.parse_args(parser)
+    start_all = time.perf_counter()
+    rows, notes = [], []
+    for name in args.scenes:
+        build, duration, start, n_save, w0 = SCENES[name]
+        scene = build()
+        run = lambda seconds, pkg=tx, sc=scene, **kw: pkg.simulate(sc, seconds, start=start, n_save=n_save, **kw)  # noqa: E731
+        configs = {"default": dict(integrator=tx.solve.ACCURATE), "auto": {}}
+        packages = {"default": tx, "auto": tx}
+        if args.before and "developed" in name:
+            old = harness.tolerax_at(args.before)
+            configs[f"@{args.before}"] = {}
+            packages[f"@{args.before}"] = old
+        scenes = {k: (scene if packages[k] is tx else packages[k].antenna("dual", fidelity="planetary")) for k in configs}
+        for k in configs:
+            run(0.01, packages[k], scenes[k], **configs[k])  # compile
+        best, results = {}, {}
+        for _ in range(args.rounds):
+            for k in configs:
+                wall, res = harness.wall(lambda: run(duration, packages[k], scenes[k], **configs[k]))
+                best[k] = min(best.get(k, math.inf), wall)
+                results[k] = res
+        t0 = time.perf_counter()
+        reference = run(duration, integrator=REFERENCE)
+        ref_wall = time.perf_counter() - t0
+        ref_out = outputs(reference, w0)
+        errs = {k: errors(outputs(results[k], w0), ref_out) for k in configs}
+        inside = {o: errs["auto"][o] <= max(errs["default"][o], FLOOR * (o != "transmission_error") or 1e-15)
+                  for o in errs["auto"]}
+        rows.append((name, results["auto"].integrated_with, best, results, errs, inside))
+        notes.append(f"- {name}: {duration} s from `start = \"{start}\"`, {n_save} saves, window from {w0} s; reference "
+                     f"{ref_wall:.1f} s, {int(reference.num_steps)} steps; " + ", ".join(f"{k} {v:.6g}" for k, v in ref_out.items()
+                                                                                    if k != "transmission_error") + ".")
+        print(name, {k: round(v, 2) for k, v in best.items()}, inside, flush=True)
+    columns = ["scene", "automatic choice", "default wall (s)", "automatic wall (s)", "default / automatic",
+               "steps default / automatic", "errors: default", "errors: automatic", "automatic inside the default's own"]
+    table = []
+    fmt = lambda e: "; ".join(f"{k.replace('pointing_', '')} {v:.1e}" for k, v in e.items())  # noqa: E731
+    for name, why, best, results, errs, inside in rows:
+        extra = "".join(f"; {k} (no option) {best[k]:.1f} s, {best[k] / best['auto']:.2f}x the automatic" for k in best
+                        if k.startswith("@"))
+        table.append([name, why.split(":")[0], f"{best['default']:.2f}", f"{best['auto']:.2f}{extra}",
+                      f"{best['default'] / best['auto']:.2f}", f"{int(results['default'].num_steps)} / {int(results['auto'].num_steps)}",
+                      fmt(errs["default"]), fmt(errs["auto"]),
+                      "yes" if all(inside.values()) else "no: " + ", ".join(k for k, v in inside.items() if not v)])
+    harness.write_table(
+        "auto_integrator", "The automatic integrator on a matrix of scenes: wall time and errors against today's default",
+        harness.command(args), columns, table,
+        about=(f"Default: `tolerax.solve.ACCURATE` given explicitly; automatic: `simulate` with no run option. Reference: Tsit5 at "
+               f"rtol 1e-10, atol 1e-13. Rounds: {args.rounds}, the fastest kept. Errors relative (transmission error: rad); "
+               f"jitter above {CUTOFF:g} Hz. Total wall {time.perf_counter() - start_all:.0f} s."),
+        notes=["Scenes and references:", "\n".join(notes), "Why each choice (`integrated_with`):",
+               "\n".join(f"- {name}: {why}" for name, why, *_ in rows)])
+
+
+if __name__ == "__main__":
+    main()
