@@ -39,10 +39,12 @@ def versions() -> str:
 
 
 def settings(scene_file) -> str:
-    """The solver settings of a scene's `[run]`, for a report."""
+    """The solver settings of a scene's `[run]`, for a report: the keys it gives, and the
+    integrator its runs use and why (chosen from the scene where `[run]` names none)."""
     run = scene_file.run
     keys = ("duration", "settle", "start", "n_save", "rtol", "atol", "pcoeff", "icoeff", "solver", "dtmax", "max_steps")
-    return ", ".join(f"{k} {run[k]}" for k in keys if run.get(k) is not None)
+    given = ", ".join(f"{k} {run[k]}" for k in keys if run.get(k) is not None)
+    return f"{given}; integrated with {scene_file.objective().integrated_with}"
 
 
 def load_average() -> str:
