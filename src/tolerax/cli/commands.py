@@ -53,7 +53,7 @@ def montecarlo_command(parser, args) -> int:
     cutoff = None if args.jitter is None else args.jitter_cutoff
     summary = run_monte_carlo(parser, scene_file, out, n=args.n, seed=args.seed, backend=args.backend, chunk=args.chunk,
                               requirement=requirement, allow_clip=args.allow_clip, command="montecarlo", jitter_cutoff=cutoff,
-                              jitter_requirement=args.jitter)
+                              jitter_requirement=args.jitter, quiet=args.quiet)
     if summary is None:
         return 2
     if args.jitter is not None:
@@ -63,7 +63,7 @@ def montecarlo_command(parser, args) -> int:
     return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
 
 
-def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command, jitter_cutoff=None,
+def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command, jitter_cutoff=None, quiet=False,
                     jitter_requirement=None, more_requirements=None):
     """`n` units of `scene_file` (its [tolerances] around its design) into the folder `out`:
     montecarlo.nc, summary.json, histogram.png and the scene; the summary (`None` where the
@@ -94,11 +94,17 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
           + ("" if pointing.life is None else f" [life]: each unit also run at {pointing.life.points} life points (its outputs at "
              "the end of life: *_eol)" + (f"; its wear rate drawn over x{pointing.life.spread[0]:.3g} to x{pointing.life.spread[1]:.3g} "
                                           "(spread)." if pointing.uncertain_inputs else ".")))
+    estimate = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
+    runs = n * (1 if pointing.life is None else pointing.life.points + 1)
+    if estimate is not None and not quiet:
+        print(f"tolerax {command}: integrated with {pointing.integrated_with}; roughly {human_seconds(max(estimate * runs, 1.0))} "
+              f"on one core plus compilation ({runs} runs of {pointing.duration} s; a rattling unit can take several times "
+              "longer); the bar below shows the chunks done and the time left.", flush=True)
     if pointing.uncertain_inputs:  # a [life] with spread: each unit's wear-rate factor is drawn with its zones
         tolerances = tolerances.joined(pointing.life.spread_tolerances(tolerances.distribution))
     try:
         res = MC.monte_carlo(pointing, tolerances, n, jax.random.key(seed), backend=backend, chunk_size=chunk, out=out / "chunks",
-                             units=UNITS, requirement=None if requirement is None else {
+                             units=UNITS, progress=not quiet, requirement=None if requirement is None else {
                                  "pointing_rms": requirement, **({"pointing_jitter": jitter_requirement} if jitter_requirement else {}),
                                  # a [life]: the RMS requirement at the end of life too (one budget over the life)
                                  **({"pointing_rms_eol": requirement} if pointing.life is not None else {}),
@@ -158,7 +164,7 @@ def run_command(parser, args) -> int:
     if scene_file is None:
         return 2
     out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name, "run", force=args.force)
-    estimate = rough_wall(scene_file.build(), scene_file.run["duration"])
+    estimate = rough_wall(scene_file.build(), scene_file.run["duration"], scene_file.objective().integrator)
     guess = "" if estimate is None else f", roughly {human_seconds(max(estimate, 1.0))} on one core plus compilation"
     print(f"tolerax run: {scene_file.title} ({scene_file.source}); {scene_file.run['duration']} s simulated{guess}; results in {out}/")
     if estimate is not None and estimate > 120 and not args.progress:

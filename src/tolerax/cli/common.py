@@ -93,12 +93,24 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
 ROUGH_COST = {"ideal": 0.03, "lumped": 0.22, "planetary-scaled": 3.2, "planetary": 8.1}
 
 
-def rough_wall(scene, duration: float) -> float | None:
-    """A rough wall time (s) for simulating `scene` over `duration` (s) on one core
-    (`ROUGH_COST` per joint), or None for a joint of a class tolerax does not know."""
-    from ..design.fidelity import joint_fidelities
+# The automatic integrator's full-stage choice (`tolerax.solve.FAST_STAGE`) against the Tsit5
+# those costs were timed with, on the full planetary dual antenna in developed rattle
+# (`benchmarks/results/auto_integrator.md`).
+FAST_STAGE_COST = 0.6
 
-    costs = [ROUGH_COST.get(f) for f in joint_fidelities(scene).values()]
+
+def rough_wall(scene, duration: float, integrator=None) -> float | None:
+    """A rough wall time (s) for simulating `scene` over `duration` (s) on one core
+    (`ROUGH_COST` per joint; `FAST_STAGE_COST` of it for a full planetary joint where
+    `integrator`, default the scene's automatic one, is `FAST_STAGE`), or None for a joint of a
+    class tolerax does not know."""
+    from ..design.fidelity import joint_fidelities
+    from ..solve import FAST_STAGE
+
+    integrator = scene.automatic_integrator()[0] if integrator is None else integrator
+    fast = FAST_STAGE_COST if integrator.replace(max_steps=FAST_STAGE.max_steps) == FAST_STAGE else 1.0
+    costs = [ROUGH_COST.get(f) * (fast if f == "planetary" else 1.0) if f in ROUGH_COST else None
+             for f in joint_fidelities(scene).values()]
     return None if any(c is None for c in costs) else float(duration) * sum(costs)
 
 
@@ -314,6 +326,9 @@ def scene_options(parser, what, command: str):
                         f"its [run] settings set the {what} horizon and window, its [tolerances] the bands and requirement")
     parser.add_argument("--duration", type=positive, default=None, help="override run.duration (simulated time per unit), s")
     parser.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress while it runs (the time estimate, phase lines and progress bars); the results "
+                        "and errors are still printed")
     out_options(parser, command)
 
 

@@ -10,8 +10,8 @@ import time
 
 from .._files import atomic_write, save_figure
 from .commands import run_monte_carlo
-from .common import (check_out, claim_out, command_line, has_features, load_average, read_scene_file, scene_and_settings,
-                     settings, versions)
+from .common import (check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file,
+                     rough_wall, scene_and_settings, settings, versions)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
@@ -77,7 +77,8 @@ def _design_setup(parser, args, command):
         zones=spec.Zones(start=start, min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])),
                          fixed=fixed),
         cost=cost, allow_proxy=args.allow_proxy, solver=solver, model=model, secant_units=args.secant_units,
-        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check))
+        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check),
+        progress=not args.quiet)
     return out, scene_file, values
 
 
@@ -97,6 +98,7 @@ class DesignValues:
     check: object
     model: object = None
     secant_units: int | None = None
+    progress: bool = True  # the phase lines (`--quiet`: none)
 
     def problem(self, pointing, requirements):
         """The `ToleranceProblem` of `pointing` (an objective) and `requirements`."""
@@ -144,7 +146,7 @@ def _propose(pointing, requirement, values, command):
 
     start = time.perf_counter()
     try:
-        report = _p.propose_design(values.problem(pointing, requirement), values.solver, check=values.check, progress=True)
+        report = _p.propose_design(values.problem(pointing, requirement), values.solver, check=values.check, progress=values.progress)
     except ValueError as err:  # e.g. a starting band outside the optimiser's range
         print(f"tolerax {command}: {err}", file=sys.stderr)
         return 2
@@ -177,7 +179,7 @@ def _life_allowance(pointing, report, requirements, values, args, scene_file, cu
     print(f"tolerax design: both designs on {units} units at both ends of life ...", flush=True)
     try:
         text, _ = life_comparison(pointing, report, alone, {r.output: r.limit for r in requirements}, units,
-                                  jax.random.key(args.seed), chunk=args.chunk, progress=True)
+                                  jax.random.key(args.seed), chunk=args.chunk, progress=not args.quiet)
     except (ValueError, RuntimeError) as err:
         print(f"tolerax design: the life comparison failed: {err}", file=sys.stderr)
         return f"## Over the mission's life: the wear allowance\n\nNot shown: the comparison failed ({err})."
@@ -241,6 +243,12 @@ def design_command(parser, args) -> int:
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
           + "".join(f" and {r.text()}" for r in more) + f"; method {args.method}.")
+    if not args.quiet:
+        unit = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
+        print(f"tolerax design: integrated with {pointing.integrated_with}"
+              + ("" if unit is None else f"; one unit roughly {human_seconds(max(unit, 1.0))} on one core plus compilation (a design "
+                 "simulates hundreds of units and their gradients: each phase is said below as it starts, with the time so far)")
+              + ". --quiet silences these lines.", flush=True)
     requirements = [Requirement("pointing_rms", requirement), *more, *([Requirement("pointing_jitter", args.jitter)] if cutoff else [])]
     try:  # before any work: a requirement the scene's joints do not read (tolerax.design.fidelity), with this command's remedy
         check_fidelity(pointing.scene, requirements, allow_proxy=args.allow_proxy, who="tolerax design",
@@ -298,7 +306,7 @@ def design_command(parser, args) -> int:
         verify = with_fidelity(verify, args.verify_fidelity)
     summary = run_monte_carlo(parser, verify, out / "verify", n=args.verify, seed=args.seed, backend="vmap", chunk=args.chunk,
                               requirement=requirement, allow_clip=False, command="design --verify", jitter_cutoff=cutoff,
-                              jitter_requirement=args.jitter, more_requirements={r.output: r.limit for r in more})
+                              jitter_requirement=args.jitter, more_requirements={r.output: r.limit for r in more}, quiet=args.quiet)
     if summary is None:
         return 2
     s = summary["pointing_rms"]
