@@ -189,19 +189,22 @@ class Integrator(eqx.Module):
         return f"{self.solver}, rtol {self.rtol:g}, atol {self.atol:g}, {control}"
 
 
-# The two integrators a scene is given when its run asks for none (`AbstractScene.
-# automatic_integrator`, the default of `simulate`, the command line, Monte Carlo and design).
-# ACCURATE: Tsit5 at rtol 1e-6, where accuracy sets the step (lumped, mass-scaled and ideal
-# joints; a stage on its bench, a physics check). FAST_STAGE: SRK53 at rtol 1e-4 with the
-# (0.2, 0.2) controller, where the full planetary stage's lightly damped mesh and bearing modes
-# (1e5 1/s, 3-12 % damped) hold an explicit step at its stability limit and SRK53's region
-# reaches farthest along them (`SRK53`). Why rtol 1e-4 and not 1e-3: on 16 rattling Monte Carlo
-# units of the planetary azimuth scan (0.6 s), rtol 1e-3 ran 2.17x ACCURATE's units per minute
-# but its errors against an rtol 1e-10 solve were 1.4-11x ACCURATE's own (the peak's median
-# 3.4e-4 against 3.1e-5); rtol 1e-4 ran 1.54x with its medians within 2.3x and its maxima within
-# 1.3x of ACCURATE's (`benchmarks/results/monte_carlo_solvers_auto.md`); in a developed rattle
-# both lie inside (`rattle_window.md`). `benchmarks/auto_integrator.py` measures the choice on a
-# matrix of scenes in one run.
+# ACCURATE: what a run gets when it names no integrator (`AbstractScene.automatic_integrator`,
+# the default of `simulate`, the command line, Monte Carlo and design): Tsit5 at rtol 1e-6, the
+# I-controller. FAST_STAGE: SRK53 at rtol 1e-4 with the (0.2, 0.2) controller, for the full
+# planetary stage, whose lightly damped mesh and bearing modes (1e5 1/s, 3-12 % damped) hold an
+# explicit step at its stability limit, where SRK53's region reaches farthest (`SRK53`). It was
+# the automatic choice for scenes with a full planetary joint until measured against ACCURATE on
+# a matrix of scenes in one run (`benchmarks/results/auto_integrator.md`): 1.18-2.00x faster
+# (2.00x in developed rattle, 3.28x tolerax at 993e755), but its errors against an rtol 1e-10
+# solve outside ACCURATE's own on 5 of the 6 full-stage scenes (the pointing RMS 2e-4 to 2e-3
+# relative against 9e-5 to 6e-4 where outside; the bearings' peak contact force 0.19-3.6 against
+# 0.001-0.56); on 16 rattling Monte Carlo units 1.54x the units per minute, its medians within
+# 2.3x of ACCURATE's (`monte_carlo_solvers_auto.md`). rtol 1e-3 is faster still (2.17x there,
+# 4.99x the start in developed rattle, `rattle_window.md`) and farther off. So the automatic
+# choice falls back to ACCURATE and says so in every full-stage result's `integrated_with`;
+# FAST_STAGE is one value away (`integrator=tolerax.solve.FAST_STAGE`) where its accuracy is
+# enough.
 ACCURATE = Integrator()
 FAST_STAGE = Integrator(solver="SRK53", rtol=1e-4, atol=1e-7, pcoeff=0.2, icoeff=0.2)
 

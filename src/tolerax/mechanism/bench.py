@@ -75,9 +75,8 @@ class TestBench(AbstractScene):
 
     def automatic_integrator(self):
         # A bench run checks the stage's physics (transmission error, impacts, restitution,
-        # frequencies) to the integrator's accuracy: ACCURATE, not the antenna scenes' FAST_STAGE,
-        # whose rtol 1e-3 reads a developed rattle as closely but a smooth run less closely.
-        return ACCURATE, "a bench run checks the stage's physics: accuracy asked, not the rattle's engineering accuracy"
+        # frequencies) to the integrator's accuracy: ACCURATE, not FAST_STAGE.
+        return ACCURATE, "a bench run checks the stage's physics: accuracy asked"
 
     def named_stages(self):
         return (("", lambda x: x.stage, DESIGN_FEATURES),)

@@ -68,8 +68,8 @@ class AbstractJoint(eqx.Module):
     # The stage's clearances and backlash this fidelity reads (see `tolerax.design.features`).
     design_features: ClassVar[tuple[str, ...]] = ()
     # Whether the fidelity carries the full stage's stiff, lightly damped mesh and bearing modes
-    # (~1e5 1/s), which then hold an explicit step at its stability limit: the scene is given
-    # `tolerax.solve.FAST_STAGE` unless its run asks otherwise (`Mechanism.automatic_integrator`).
+    # (~1e5 1/s), which then hold an explicit step at its stability limit, where
+    # `tolerax.solve.FAST_STAGE` is faster (`Mechanism.automatic_integrator` says so).
     stiff_contact_modes: ClassVar[bool] = False
 
     def __init__(self, stage=None, drive=None, motor_inertia=2e-4, drag_torque=0.05):

@@ -44,9 +44,10 @@ class AbstractScene(eqx.Module):
         `tolerax.solve.solve` and the observations at its save times."""
 
     def automatic_integrator(self) -> tuple[Integrator, str]:
-        """The integrator this scene gets when its run asks for none, and why in words:
-        `FAST_STAGE` (SRK53 at rtol 1e-4) where the scene carries the full planetary stage's
-        stiff, damped contact modes, else `ACCURATE` (Tsit5 at rtol 1e-6). Default: `ACCURATE`."""
+        """The integrator this scene gets when its run asks for none, and why in words (a
+        result's `integrated_with`). Default: `ACCURATE` (Tsit5 at rtol 1e-6); a scene whose
+        outputs a faster integrator reads as closely (measured, `benchmarks/auto_integrator.py`)
+        returns that one."""
         return ACCURATE, "no full planetary stage: accuracy, not the stage's contact modes, sets the step"
 
     def check_runnable(self) -> None:
@@ -98,16 +99,15 @@ def simulate(
       Ignored when `y0` is given.
     - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
     - `n_save`: number of equally spaced save times.
-    - **How it is integrated** (default: chosen from the scene, `integrator="auto"`). A mechanism
-      with a full planetary stage (`fidelity="planetary"`) is integrated with
-      `tolerax.solve.FAST_STAGE` (SRK53, rtol 1e-4, atol 1e-7, controller (0.2, 0.2)): the
-      stage's mesh and bearing modes, ~1e5 1/s and lightly damped, hold an explicit step at
-      its stability limit, where SRK53 reaches farthest per evaluation; any other scene, and a
-      stage on its `TestBench` (a physics check), with `tolerax.solve.ACCURATE` (Tsit5, rtol
-      1e-6, atol 1e-9, I-controller). The result's
-      `integrated_with` (and `report()`) says which and why. A choice of one's own overrides
-      it: `integrator=tolerax.Integrator(...)` (every setting as one value), or the settings
-      one by one, each replacing `ACCURATE`'s:
+    - **How it is integrated** (default: chosen from the scene, `integrator="auto"`,
+      `scene.automatic_integrator()`; every scene measured gets `tolerax.solve.ACCURATE`,
+      Tsit5 at rtol 1e-6, atol 1e-9, the I-controller). The result's `integrated_with` (and
+      `report()`) says which and why: for a scene with a full planetary joint, that
+      `tolerax.solve.FAST_STAGE` (SRK53 at rtol 1e-4, the (0.2, 0.2) controller) runs it
+      1.2-2.0x faster but reads its outputs less closely (`tolerax.solve` says by how much). A
+      choice of one's own overrides it: `integrator=tolerax.Integrator(...)` (or
+      `tolerax.solve.FAST_STAGE`), every setting as one value, or the settings one by one, each
+      replacing `ACCURATE`'s:
     - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`,
       `"Bosh3"`, `"SRK53"`, `"Dopri5"`, `"Dopri8"`); implicit solvers are compared in
       `benchmarks/work_precision.py`.
