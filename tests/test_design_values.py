@@ -69,6 +69,11 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     again = float(built.value(mine.result.x, 1e-6))
     assert again == pytest.approx(mine.objective, rel=1e-9) and again <= requirement * 1.01
     assert mine.cost == pytest.approx(ours.cost, rel=0.02) and ours.status == "converged"
+    # The status is data (an enum, like diffrax's RESULTS) that is also its string.
+    assert ours.status is tx.DesignStatus.CONVERGED and f"{ours.status}" == "converged" and ours.accepted
+    assert dataclasses.replace(ours, status="infeasible").status is tx.DesignStatus.INFEASIBLE
+    with pytest.raises(ValueError, match="'maybe' is not a valid DesignStatus"):
+        dataclasses.replace(ours, status="maybe")
     with pytest.raises(ValueError, match="re-solves from the design"):
         tx.propose_design(dataclasses.replace(problem, statistic=tx.Yield(0.99)), PenaltyMethod())
 

@@ -164,13 +164,19 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     data = {**named.data, "run": {k: v for k, v in named.data["run"].items() if k not in tx.Integrator.FIELDS}}
     bare = type(named).from_data(data, "bare", "test").objective()
     assert bare.integrator == ACCURATE.replace(max_steps=400_000) and "FAST_STAGE" in bare.integrated_with
-    # simulate: the chosen one, said in the result; settings given replace ACCURATE's.
-    res = tx.simulate(lumped, 0.01, n_save=3)
-    assert res.integrated_with.startswith("Tsit5, rtol 1e-06") and "Integrated with Tsit5" in res.report()
-    asked = tx.simulate(lumped, 0.01, n_save=3, rtol=1e-5)
-    assert asked.integrated_with == "Tsit5, rtol 1e-05, atol 1e-09, I-controller: as asked"
+    # simulate: the chosen one, said in the result; settings given replace ACCURATE's. (The runs
+    # are the bench's shared programs, test_bench.py's and test_hard_cases.py's: 51 saves.)
+    from tolerax.mechanism.scene import choose_integrator
+
+    res = tx.simulate(tx.TestBench(), 0.002, n_save=51)
+    assert res.integrated_with.startswith("Tsit5, rtol 1e-06") and "chosen automatically" in res.integrated_with
+    assert "Integrated with Tsit5" in res.report()
+    asked, why = choose_integrator(lumped, "auto", dict(rtol=1e-5, solver=None))
+    assert asked == ACCURATE.replace(rtol=1e-5) and why == "Tsit5, rtol 1e-05, atol 1e-09, I-controller: as asked"
     with pytest.raises(TypeError, match="integrator must be 'auto' or a tolerax.Integrator"):
         tx.simulate(lumped, 0.01, integrator="fast")
+    with pytest.raises(ValueError, match="give rtol in the integrator"):
+        choose_integrator(lumped, FAST_STAGE, dict(rtol=1e-5))
     with pytest.raises(tx.SimulationError, match="It was integrated with Tsit5.*as asked"):
-        tx.simulate(lumped, 0.01, n_save=3, max_steps=5)
-    assert not math.isnan(float(res.pointing_error[-1]))
+        tx.simulate(tx.TestBench(), 0.05, n_save=51, max_steps=50)
+    assert not math.isnan(float(res.output_angle[-1]))

@@ -47,6 +47,7 @@ _FACE = {
     "design.spec": ("Auto", "MeanPlusKStd", "Secants", "Surface", "Tangents", "ToleranceProblem", "Yield", "Zones"),
     "design.solvers": ("AbstractDesignMethod", "AugmentedLagrangian", "Sequential"),
     "design.report": ("RequirementOutcome",),
+    "design.outcome": ("DesignStatus",),
     "design.requirements": ("Requirement",),
     "design.reliability": ("LinearisedYield",),
     "design.check": ("Check", "YieldCheck", "yield_check"),

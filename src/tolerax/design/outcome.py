@@ -24,11 +24,32 @@ Only `"converged"` is a proposal; the others report the best design reached and 
 change the outcome (bounds, requirement, units, iterations).
 """
 
+import enum
+
 import numpy as np
 
 from .types import Design
 
-STATUSES = ("converged", "infeasible", "check missed", "noise-limited", "not converged")
+
+class DesignStatus(str, enum.Enum):
+    """What a design's answer is (`DesignReport.status`), as diffrax's `RESULTS` says what a
+    solve's is: a proposal (`CONVERGED`) or why the best design reached is not one (above). A
+    string too: `status == "converged"` holds, and it prints and serialises as its value."""
+
+    CONVERGED = "converged"
+    INFEASIBLE = "infeasible"
+    CHECK_MISSED = "check missed"
+    NOISE_LIMITED = "noise-limited"
+    NOT_CONVERGED = "not converged"
+
+    def __str__(self) -> str:
+        return self.value
+
+    def __format__(self, spec: str) -> str:
+        return format(self.value, spec)
+
+
+STATUSES = tuple(s.value for s in DesignStatus)
 
 
 def _excess(value: float, requirement: float) -> str:

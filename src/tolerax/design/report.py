@@ -9,6 +9,7 @@ import textwrap
 import numpy as np
 
 from .drawable import DrawableDesign
+from .outcome import DesignStatus
 from .check import YieldCheck
 from .requirements import Requirement
 from .types import Design, OptimisationResult
@@ -123,8 +124,9 @@ class DesignReport:
       (`target`).
     - `noise_band`: `(cost, cost with an independent set of secant units)` where the slopes are
       fitted over units (`Secants(twin=True)`), else `None`.
-    - `status`, `diagnosis`: whether this is a proposal (`"converged"`) or the best design
-      reached (`"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
+    - `status`, `diagnosis`: whether this is a proposal (`DesignStatus.CONVERGED`, equal to
+      `"converged"`) or the best design reached (`INFEASIBLE`, `CHECK_MISSED`, `NOISE_LIMITED`,
+      `NOT_CONVERGED`: `"infeasible"`, `"check missed"`, `"noise-limited"`, `"not converged"`), and
       why, with what would change it (`tolerax.design.outcome.diagnose`); `accepted`.
     - `notes`: what the method did beyond the problem as posed (e.g. finished on secant slopes
       where the tangents stalled), one sentence each.
@@ -156,7 +158,7 @@ class DesignReport:
     fixed: tuple[str, ...] = ()
     jitter: JitterRequirement | None = None
     solved_for: float | None = None
-    status: str = "converged"
+    status: DesignStatus = DesignStatus.CONVERGED
     diagnosis: str = ""
     notes: tuple[str, ...] = ()
     cost_unit: str = "relative, 1 per feature at IT7"
@@ -164,6 +166,9 @@ class DesignReport:
     drawable: "DrawableDesign | None" = None
     outcomes: tuple[RequirementOutcome, ...] = ()
     noise_band: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", DesignStatus(self.status))  # a status given as its string: the enum
 
     @property
     def accepted(self) -> bool:
