@@ -157,6 +157,10 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     assert objective.integrated_with.startswith("Tsit5, rtol 1e-06") and "chosen automatically" in objective.integrated_with
     fast = tx.PointingObjective(full, 0.1, 0.0, integrator=FAST_STAGE)
     assert fast.integrator == FAST_STAGE and fast.integrated_with.endswith("as asked")
+    import dataclasses  # a copy keeps the reason where the integrator is the same, says it again where not
+
+    assert dataclasses.replace(objective, n_save=11).integrated_with == objective.integrated_with
+    assert dataclasses.replace(objective, integrator=FAST_STAGE).integrated_with == fast.integrated_with
     assert tx.PointingObjective(full, 0.1, 0.0, rtol=1e-5).integrator == ACCURATE.replace(rtol=1e-5, max_steps=400_000)
     # A scene file whose [run] names no setting gets it too; one that names them keeps them.
     named = tx.load_scene("scan-azimuth-planetary")

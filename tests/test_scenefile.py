@@ -148,21 +148,23 @@ def test_replace_and_objective():
     # The solver by name, from [run] to the objective; an unknown name is refused naming the key.
     assert objective.solver == "Tsit5" and short.replace(solver="Bosh3").objective().solver == "Bosh3"
     # ... and it is what the objective's runs and the scene file's own run solve with.
-    # (Each run below is a program of its own, ~7 s to compile: one run per setting.)
-    tiny = short.replace(duration=0.01, n_save=11, solver="Bosh3")
+    # (Each run below is a program of its own, ~7 s to compile: one run per setting. The file's
+    # max_steps is the objective's budget, so its own run and the objective's are one program.)
+    tiny = short.replace(duration=0.01, n_save=11, solver="Bosh3", max_steps=400_000)
     by_objective = tiny.objective().simulate_scene(tiny.build())
     by_simulate = tiny.simulate()  # tx.simulate(..., solver="Bosh3") with the file's other [run] keys
     assert int(by_objective.num_steps) == int(by_simulate.num_steps)
     assert by_objective.integrated_with.startswith("Bosh3, rtol 1e-06") and by_simulate.integrated_with.startswith("Bosh3")
     # The step limits too: a fixed step of 10 us (inside the lumped stage's stability limit) takes
-    # the objective's 2 ms run through 200 steps; adaptive steps capped at 10 us take at least
-    # 200 (uncapped ones take a few tens: the Bosh3 run above took 10 ms in fewer than 200).
+    # the objective's 2 ms run through 200 steps (the adaptive Bosh3 run above took 10 ms in
+    # fewer); the other limits reach the objective's integrator, which hands them to the run as
+    # the fixed step is handed (`Integrator.options`).
     fixed = short.replace(duration=0.002, n_save=11, fixed_step=1e-5)
     assert fixed.objective().fixed_step == 1e-5
-    assert int(fixed.objective().simulate_scene(fixed.build()).num_steps) == 200
+    assert int(fixed.objective().simulate_scene(fixed.build()).num_steps) == 200 > int(by_objective.num_steps)
     capped = short.replace(duration=0.002, n_save=11, dtmax=1e-5, dt0=1e-7, dtmin=1e-12).objective()
     assert (capped.dtmax, capped.dt0, capped.dtmin) == (1e-5, 1e-7, 1e-12)
-    assert int(capped.simulate_scene(capped.scene).num_steps) >= 200 > int(by_objective.num_steps)
+    assert {k: capped.integrator.options()[k] for k in ("dtmax", "dt0", "dtmin")} == dict(dtmax=1e-5, dt0=1e-7, dtmin=1e-12)
     assert (objective.dt0, objective.dtmax, objective.fixed_step) == (1e-6, 1e-3, None)  # simulate's defaults
     # Every [run] key is an objective field of the same name carrying the file's value (a run
     # setting the file leaves out, None, is the automatic integrator's, ACCURATE, with the

@@ -197,9 +197,9 @@ class Integrator(eqx.Module):
 # the automatic choice for scenes with a full planetary joint until measured against ACCURATE on
 # a matrix of scenes in one run (`benchmarks/results/auto_integrator.md`): 1.18-2.00x faster
 # (2.00x in developed rattle, 3.28x tolerax at 993e755), but its errors against an rtol 1e-10
-# solve outside ACCURATE's own on 5 of the 6 full-stage scenes (the pointing RMS 2e-4 to 2e-3
-# relative against 9e-5 to 6e-4 where outside; the bearings' peak contact force 0.19-3.6 against
-# 0.001-0.56); on 16 rattling Monte Carlo units 1.54x the units per minute, its medians within
+# solve outside ACCURATE's own on 5 of the 6 full-stage scenes (where outside, the pointing RMS
+# 2.9e-5 to 2.0e-3 relative against 2.4e-6 to 6.1e-4; the bearings' peak contact force 0.006-3.6
+# against 0.001-0.56); on 16 rattling Monte Carlo units 1.54x the units per minute, its medians within
 # 2.3x of ACCURATE's (`monte_carlo_solvers_auto.md`). rtol 1e-3 is faster still (2.17x there,
 # 4.99x the start in developed rattle, `rattle_window.md`) and farther off. So the automatic
 # choice falls back to ACCURATE and says so in every full-stage result's `integrated_with`;

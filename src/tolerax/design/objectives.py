@@ -197,7 +197,10 @@ class PointingObjective(AbstractObjective):
             except ValueError as err:
                 raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
             why = f"{self.integrator.describe()}: as asked"
-        self.integrated_with = why if integrated_with is None else integrated_with
+        # A copy (`dataclasses.replace`) hands its `integrated_with` back: kept where it still
+        # describes this integrator, else said again.
+        kept = integrated_with is not None and integrated_with.startswith(f"{self.integrator.describe()}:")
+        self.integrated_with = integrated_with if kept else why
 
     # The run settings, read through the integrator that holds them.
     solver = property(lambda self: self.integrator.solver)
