@@ -188,6 +188,11 @@ class Integrator(eqx.Module):
         control = "I-controller" if (self.pcoeff, self.icoeff) == DEFAULT_PID else f"PI controller ({self.pcoeff:g}, {self.icoeff:g})"
         return f"{self.solver}, rtol {self.rtol:g}, atol {self.atol:g}, {control}"
 
+    def said(self, reason: str | None = None) -> str:
+        """These settings and why, in words (a result's and an objective's `integrated_with`):
+        `reason` for an automatic choice (`AbstractScene.automatic_integrator`), else asked for."""
+        return f"{self.describe()}: " + ("as asked" if reason is None else f"chosen automatically, {reason}")
+
 
 # ACCURATE: what a run gets when it names no integrator (`AbstractScene.automatic_integrator`,
 # the default of `simulate`, the command line, Monte Carlo and design): Tsit5 at rtol 1e-6, the
@@ -483,8 +488,8 @@ class SolverReport(eqx.Module):
     num_steps: Array
     num_rejected: Array
     duration: float = eqx.field(static=True)
-    # How the run was integrated and why, in words ("SRK53, rtol 0.001, ... : chosen because
-    # ..."; `simulate` sets it).
+    # How the run was integrated and why, in words ("Tsit5, rtol 1e-06, ...: chosen
+    # automatically, ..."; `simulate` sets it: `Integrator.said`).
     integrated_with: str = eqx.field(static=True, default="", kw_only=True)
     _what = "simulation"  # what the failure lines call the run (class attribute, not a field)
 

@@ -187,7 +187,7 @@ class PointingObjective(AbstractObjective):
         if integrator is None and not given:
             chosen, reason = scene.automatic_integrator()
             self.integrator = chosen.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)
-            why = f"{self.integrator.describe()}: chosen automatically, {reason}"
+            why = self.integrator.said(reason)
         else:
             base = OBJECTIVE_INTEGRATOR if integrator is None else integrator
             if not isinstance(base, Integrator):
@@ -196,7 +196,7 @@ class PointingObjective(AbstractObjective):
                 self.integrator = base.replace(**given) if given else base
             except ValueError as err:
                 raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
-            why = f"{self.integrator.describe()}: as asked"
+            why = self.integrator.said()
         # A copy (`dataclasses.replace`) hands its `integrated_with` back: kept where it still
         # describes this integrator, else said again.
         kept = integrated_with is not None and integrated_with.startswith(f"{self.integrator.describe()}:")

@@ -166,15 +166,15 @@ def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", give
     if isinstance(integrator, Integrator):
         if given:
             raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
-        return integrator, f"{integrator.describe()}: as asked"
+        return integrator, integrator.said()
     if integrator != "auto":
         raise TypeError(f"integrator must be 'auto' or a tolerax.Integrator, got {integrator!r}.")
     if not given:
         chosen, reason = scene.automatic_integrator()
-        return chosen, f"{chosen.describe()}: chosen automatically, {reason}"
+        return chosen, chosen.said(reason)
     solver_named(given.get("solver"))  # an unknown name or a wrong type refused in simulate's words
     if "solver" in given and not isinstance(given["solver"], str):  # a diffrax solver object
         return ACCURATE.options() | given, f"{type(given['solver']).__name__} with the settings given"
     chosen = ACCURATE.replace(**given)
-    return chosen, f"{chosen.describe()}: as asked"
+    return chosen, chosen.said()
 
