@@ -197,19 +197,12 @@ class Integrator(eqx.Module):
 # ACCURATE: what a run gets when it names no integrator (`AbstractScene.automatic_integrator`,
 # the default of `simulate`, the command line, Monte Carlo and design): Tsit5 at rtol 1e-6, the
 # I-controller. FAST_STAGE: SRK53 at rtol 1e-4 with the (0.2, 0.2) controller, for the full
-# planetary stage, whose lightly damped mesh and bearing modes (1e5 1/s, 3-12 % damped) hold an
-# explicit step at its stability limit, where SRK53's region reaches farthest (`SRK53`). It was
-# the automatic choice for scenes with a full planetary joint until measured against ACCURATE on
-# a matrix of scenes in one run (`benchmarks/results/auto_integrator.md`): 1.18-2.00x faster
-# (2.00x in developed rattle, 3.28x tolerax at 993e755), but its errors against an rtol 1e-10
-# solve outside ACCURATE's own on 5 of the 6 full-stage scenes (where outside, the pointing RMS
-# 2.9e-5 to 2.0e-3 relative against 2.4e-6 to 6.1e-4; the bearings' peak contact force 0.006-3.6
-# against 0.001-0.56); on 16 rattling Monte Carlo units 1.54x the units per minute, its medians within
-# 2.3x of ACCURATE's (`monte_carlo_solvers_auto.md`). rtol 1e-3 is faster still (2.17x there,
-# 4.99x the start in developed rattle, `rattle_window.md`) and farther off. So the automatic
-# choice falls back to ACCURATE and says so in every full-stage result's `integrated_with`;
-# FAST_STAGE is one value away (`integrator=tolerax.solve.FAST_STAGE`) where its accuracy is
-# enough.
+# planetary stage, whose lightly damped mesh and bearing modes hold an explicit step at its
+# stability limit, where SRK53's region reaches farthest (`SRK53`). It is faster there but was
+# measured reading the outputs less closely than ACCURATE on most full-stage scenes, so the
+# automatic choice stays ACCURATE and says so; a run names FAST_STAGE where its accuracy is
+# enough. The measurements: `benchmarks/results/auto_integrator.md`,
+# `benchmarks/results/monte_carlo_solvers_auto.md`.
 ACCURATE = Integrator()
 FAST_STAGE = Integrator(solver="SRK53", rtol=1e-4, atol=1e-7, pcoeff=0.2, icoeff=0.2)
 

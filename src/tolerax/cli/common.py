@@ -93,9 +93,8 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
 ROUGH_COST = {"ideal": 0.03, "lumped": 0.22, "planetary-scaled": 3.2, "planetary": 8.1}
 
 
-# `tolerax.solve.FAST_STAGE`'s wall time on the full stage, where a run names it, against the
-# Tsit5 those costs were timed with: 0.50 in developed rattle, 0.59-0.85 on the 0.5 s scenes of
-# `benchmarks/results/auto_integrator.md`.
+# `tolerax.solve.FAST_STAGE`'s wall time on the full stage, where a run names it, as a fraction
+# of the Tsit5 those costs were timed with (`benchmarks/results/auto_integrator.md`).
 FAST_STAGE_COST = 0.6
 
 

@@ -134,8 +134,8 @@ class Mechanism(AbstractScene):
             joints = f"the {stiff[0]} joint" if len(stiff) == 1 else f"the {' and '.join(stiff)} joints"
             # Measured, and fallen back: FAST_STAGE is faster here but reads the outputs less
             # closely than ACCURATE (tolerax.solve.FAST_STAGE says by how much).
-            return ACCURATE, (f"the full planetary stage of {joints}: FAST_STAGE (SRK53 at rtol 1e-4) runs it 1.2-2.0x faster "
-                              "but reads its pointing, jitter and bearing forces less closely than this on 5 of 6 scenes measured "
+            return ACCURATE, (f"the full planetary stage of {joints}: FAST_STAGE (SRK53 at rtol 1e-4) runs it faster but "
+                              "reads its pointing, jitter and bearing forces less closely than this on most scenes measured "
                               "(benchmarks/results/auto_integrator.md); name it, integrator=tolerax.solve.FAST_STAGE, where "
                               "that accuracy is enough")
         return ACCURATE, "no joint carries the full planetary stage: accuracy, not its contact modes, sets the step"

@@ -103,8 +103,8 @@ def simulate(
       `scene.automatic_integrator()`; every scene measured gets `tolerax.solve.ACCURATE`,
       Tsit5 at rtol 1e-6, atol 1e-9, the I-controller). The result's `integrated_with` (and
       `report()`) says which and why: for a scene with a full planetary joint, that
-      `tolerax.solve.FAST_STAGE` (SRK53 at rtol 1e-4, the (0.2, 0.2) controller) runs it
-      1.2-2.0x faster but reads its outputs less closely (`tolerax.solve` says by how much). A
+      `tolerax.solve.FAST_STAGE` (SRK53 at rtol 1e-4, the (0.2, 0.2) controller) runs it faster
+      but reads its outputs less closely (`benchmarks/results/auto_integrator.md`). A
       choice of one's own overrides it: `integrator=tolerax.Integrator(...)` (or
       `tolerax.solve.FAST_STAGE`), every setting as one value, or the settings one by one, each
       replacing `ACCURATE`'s:
