@@ -1,14 +1,16 @@
-"""Identifying an as-built unit: the clearances and backlash that make the model reproduce a test
-recording, how well the recording determines each, and the identified unit as a scene.
+"""Identifying an as-built unit: the clearances and backlash (and, where asked, the joints' drag,
+mesh stiffness and damping: `tolerax.identification.parameters`) that make the model reproduce a
+test recording, how well the recording determines each, and the identified unit as a scene.
 
-**Estimate.** With $\\theta$ the chosen design features (m) and the others at the scene's values,
+**Estimate.** With $\\theta$ the chosen parameters and the others at the scene's values,
 the residual is the model's output angle at the recording's times minus the measured one,
 
 $$r_i(\\theta) = \\frac{\\phi_i^{\\text{model}}(\\theta) - \\phi_i^{\\text{measured}}}{1\\,\\mu\\text{rad}},$$
 
 over the saves in `[settle, duration]` and the recorded axes, minimised by Levenberg-Marquardt
-(`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The features
-are optimised as $\\log(\\theta / 1\\,\\mu m)$, so they stay positive; the contacts' smoothing
+(`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The
+parameters are optimised as $\\log(\\theta / 1\\,\\mu m)$ (a clearance or backlash) or
+$\\log(\\theta / \\theta_{\\text{scene}})$ (a physical parameter), so they stay positive; the contacts' smoothing
 width is continued from wide to narrow (`widths`), and several starts (`starts`, multiples of
 the scene's values) are run because clearances make the residual non-convex; the lowest residual
 wins.
@@ -41,8 +43,9 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ..design.features import design_names, design_of, with_design
+from ..design.features import design_of, with_design
 from ..design.objectives import PointingObjective, _widths
+from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import AXES, Recording, RecordingError
 
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
@@ -51,14 +54,25 @@ LOADING = 0.3  # a parameter takes part in a direction whose eigenvector compone
 # Levenberg-Marquardt's relative and absolute tolerance on the step (log µm) and the cost (µrad²):
 # finer than the adaptive solve's own noise in the residual makes it wander without gaining.
 LM_TOL = 1e-4
+# Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
+# undetermined one would otherwise walk off to where the model is not physical (a stiffness of 1e51 N/m).
+BOUND = 100.0
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
+
+
+def show(value: float, unit: str) -> str:
+    """A parameter's value for a report: µm for a length, else 4 significant digits and the unit."""
+    if unit == "m":
+        return f"{1e6 * value:.2f} µm"
+    return f"{value:.4g}" + ("" if unit == "1" else f" {unit}")
 
 
 @dataclasses.dataclass(frozen=True)
 class Identification:
     """The result of `identify`.
 
-    - `names`: the identified features; `estimate` (m), `covariance` (m²), `standard_error` (m).
+    - `names`: the identified parameters, `units` their SI units ("m" for the clearances and
+      backlash); `estimate`, `covariance`, `standard_error` in those units.
     - `sigma` (rad): the residual's standard deviation at the estimate, $s$; `n` residuals,
       `cost` $\\lVert r\\rVert^2$ (µrad²).
     - `residual` (rad, (saves, axes)), `times` (s), `measured` and `fitted` (rad): the fit.
@@ -70,6 +84,7 @@ class Identification:
     """
 
     names: tuple[str, ...]
+    units: tuple[str, ...]
     estimate: np.ndarray
     covariance: np.ndarray
     sigma: float
@@ -93,14 +108,14 @@ class Identification:
         return self.fitted - self.measured
 
     def interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
-        """Each feature's linearised interval (m) at `level` (normal quantile)."""
+        """Each parameter's linearised interval (its unit) at `level` (normal quantile)."""
         from scipy.stats import norm
 
         z = float(norm.ppf(0.5 + level / 2))
         return self.estimate - z * self.standard_error, self.estimate + z * self.standard_error
 
     def status(self) -> tuple[str, ...]:
-        """Per feature: "determined", "in combination" or "not determined" (module docstring)."""
+        """Per parameter: "determined", "in combination" or "not determined" (module docstring)."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
@@ -116,11 +131,11 @@ class Identification:
     def table(self) -> str:
         """The estimates, intervals and identifiability as Markdown."""
         lo, hi = self.interval()
-        rows = ["| feature | estimate (µm) | 95 % interval (µm) | relative standard error | determined? |", "|---|---|---|---|---|"]
+        rows = ["| parameter | estimate | 95 % interval | relative standard error | determined? |", "|---|---|---|---|---|"]
         for j, (name, status) in enumerate(zip(self.names, self.status())):
-            rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-12)
-            interval = f"{1e6 * lo[j]:.2f} – {1e6 * hi[j]:.2f}" if rel < 1 else "not bounded by the recording"
-            rows.append(f"| {name} | {1e6 * self.estimate[j]:.2f} | {interval} | {rel:.3g} | {status} |")
+            rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
+            interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
+            rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
         lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
                  f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error)'} "
                  f"after {self.steps} steps "
@@ -133,41 +148,51 @@ class Identification:
 
 class _Fit(eqx.Module):
     """The residual of `identify`: the model's output angles at the recording's saves (`rows`)
-    and axes (`columns`) with the features `index` at values (µm) over `measured` (rad), in µrad."""
+    and axes (`columns`) with the parameters `names` at `scale * x` (SI units) over `measured`
+    (rad), in µrad."""
 
     objective: PointingObjective
-    base: jax.Array
-    index: jax.Array
+    names: tuple[str, ...] = eqx.field(static=True)
+    scale: jax.Array
     rows: jax.Array
     columns: jax.Array
     measured: jax.Array
 
-    def response(self, values_um, width):
-        res = self.objective.run(self.base.at[self.index].set(UNIT * values_um), width)
+    def run(self, x, width):
+        scene = with_parameters(self.objective.scene, self.names, self.scale * x)
+        return eqx.tree_at(lambda o: o.scene, self.objective, scene).run(design_of(scene), width)
+
+    def response(self, x, width):
+        res = self.run(x, width)
         ok = res.result == diffrax.RESULTS.successful
         return jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan), ok
 
-    def residual(self, values_um, width):
-        angles, ok = self.response(values_um, width)
+    def residual(self, x, width):
+        angles, ok = self.response(x, width)
         return jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
 
 
+def _bounded(w, centre, reach):
+    """x from the optimiser's unbounded variable `w`: $\\log x = c + R\\tanh(w/R)$, inside a factor
+    $e^R$ either side of the scene's value $e^c$ (`BOUND`); $w = \\log x - c$ near the centre."""
+    return jnp.exp(centre + reach * jnp.tanh(w / reach))
+
+
 @eqx.filter_jit
-def _solve(fit: _Fit, z0, width, max_steps: int):
-    """Levenberg-Marquardt on log(values / µm) from `z0`: (solution, cost, steps, converged)."""
-    fn = lambda z, w: fit.residual(jnp.exp(z), w)  # noqa: E731
-    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL), z0, args=width, max_steps=max_steps,
+def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
+    """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
+    fn = lambda w, width: fit.residual(_bounded(w, centre, reach), width)  # noqa: E731
+    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL), w0, args=width, max_steps=max_steps,
                              throw=False)
     return sol.value, jnp.sum(fn(sol.value, width) ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
 
 
 @eqx.filter_jit
-def _fit_and_jacobian(fit: _Fit, values_um, width):
-    """The residual's Jacobian (µrad per µm), the fitted angles and the scene's commanded angles
-    (rad) at `values_um`."""
-    res = fit.objective.run(fit.base.at[fit.index].set(UNIT * values_um), width)
-    commanded = res.commanded_angle[fit.rows][:, fit.columns]
-    return jax.jacfwd(lambda v: fit.residual(v, width))(values_um), fit.response(values_um, width)[0], commanded
+def _fit_and_jacobian(fit: _Fit, x, width):
+    """The residual's Jacobian (µrad per unit of x), the fitted angles and the scene's commanded
+    angles (rad) at `x`."""
+    commanded = fit.run(x, width).commanded_angle[fit.rows][:, fit.columns]
+    return jax.jacfwd(lambda v: fit.residual(v, width))(x), fit.response(x, width)[0], commanded
 
 
 def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
@@ -180,20 +205,25 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=(1.0, 0.5, 2.0),
              lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
-    """The features `parameters` of `scene` that reproduce `recording` (module docstring).
+    """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
     **Arguments:**
 
     - `scene`: the model (a `Mechanism` or `TestBench`) whose drive is the one the recording
-      was made with; its other features stay at its values.
+      was made with; its other parameters stay at its values.
     - `recording`: a `Recording` (`read_recording`); its axes must be joints of the scene.
-    - `parameters`: feature names (`design_names(scene)`), default all.
+    - `parameters`: names from `parameter_names(scene)`: its design features (clearances and
+      backlash, m) and its joints' physical parameters (`azimuth.drag_torque`, N m;
+      `azimuth.sun_mesh_stiffness`, N/m; damping ratios: `tolerax.identification.parameters`);
+      default all the design features. The scene's values are the first start.
     - `settle` (s): residuals from this time on; `duration` (s): the model's run, default the
       recording's length; `n_save`: the model's saves over it (default: the recording's rate,
       at most 2001). `start`: the model's initial state (`simulate`).
     - `widths`: the smoothing widths (m) continued through, `None` the scene's own; the
       estimate, its covariance and the fit are the last width's.
-    - `starts`: the starting points, as multiples of the scene's values.
+    - `starts`: the starting points, as multiples of the scene's values. Every parameter is kept
+      within a factor `BOUND` (100) of the scene's value either side: an estimate at that bound
+      is one the recording does not determine (the table says so).
     - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
@@ -202,13 +232,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
     `COMMAND_TOLERANCE` or 1 % of its range) and `ValueError` for unknown parameters.
     """
-    names = design_names(scene)
-    parameters = tuple(names) if parameters is None else tuple(parameters)
-    unknown = [p for p in parameters if p not in names]
-    if unknown or not parameters:
-        raise ValueError(f"identify: {unknown or 'no parameters'} are not design features of the scene; its features: "
-                         f"{', '.join(names)}.")
-    index = np.array([names.index(p) for p in parameters])
+    parameters = check_names(scene, parameters)
     duration = recording.duration if duration is None else float(duration)
     if duration > recording.duration + 1e-12:
         raise RecordingError(f"{recording.source}: the recording lasts {recording.duration:g} s, shorter than the model's "
@@ -219,15 +243,12 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     columns = [AXES.index(a) for a in recording.axes]
     objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start, rtol=rtol, atol=atol,
                                   **run).forward_mode()
-    base = jnp.asarray(design_of(scene), dtype=float)
-    # The problem's data as arrays (traced): one compiled program per scene structure and shape,
-    # whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
-    fit = _Fit(objective, base, jnp.asarray(index), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
+    units, scale = _scales(scene, parameters)
+    x0 = np.asarray(parameter_values(scene, parameters)) / scale
+    # The problem's data as arrays (traced): one compiled program per scene structure, parameter
+    # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
+    fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
                jnp.asarray(measured))
-    x0 = np.asarray(base)[index] / UNIT
-    if np.any(x0 <= 0):
-        raise ValueError(f"identify: the scene's values of {[p for p, v in zip(parameters, x0) if v <= 0]} are not > 0: give "
-                         "the scene a positive starting clearance or backlash.")
     own = float(np.ravel(_widths(scene)[0])[0])  # the scene's smoothing width: one compiled program for every width
     widths = [jnp.asarray(own if w is None else w, dtype=float) for w in widths]
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
@@ -242,26 +263,23 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance.")
     tried = []
+    centre, reach = jnp.log(jnp.asarray(x0)), jnp.asarray(math.log(BOUND))
     for factor in starts:
-        z = jnp.log(jnp.asarray(x0 * float(factor)))
+        if not 1 / BOUND < float(factor) < BOUND:
+            raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
+                             "either side): start nearer.")
+        z = jnp.full(len(parameters), reach * math.atanh(math.log(float(factor)) / float(reach)))
         for width in widths:
-            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps))
+            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps), centre, reach)
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
-    estimate_um = np.exp(np.asarray(z))
+    estimate_x = np.asarray(_bounded(z, centre, reach))
 
-    jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_um), widths[-1]))
+    jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_x), widths[-1]))
     r = ((fitted - measured) / UNIT).ravel()
     n, p = r.size, len(parameters)
     s2 = float(np.sum(r**2)) / max(n - p, 1)
-    # The relative Fisher information D J^T J D / s^2 (D: the estimates) in its eigenvectors. A
-    # direction the recording does not see has an eigenvalue at rounding level: floored there, its
-    # variance is huge, not dropped (a pseudo-inverse would drop it and report the parameters that
-    # load on it as sharply determined).
-    scaled = jac * estimate_um[None, :]
-    values, vectors = np.linalg.eigh(scaled.T @ scaled / s2)
-    values = np.maximum(values, max(float(values.max()), 1e-300) * 1e-15)
-    cov_um = estimate_um[:, None] * ((vectors / values) @ vectors.T) * estimate_um[None, :]
+    scaled, (values, vectors), cov_x = _information(jac, estimate_x, s2)
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     # Converged: the Gauss-Newton step left from the estimate, along each direction the recording
     # determines, is below a tenth of that direction's standard error (Levenberg-Marquardt's own
@@ -269,24 +287,53 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
     seen = 1.0 / np.sqrt(values) < DETERMINED
     converged = bool(np.all(np.abs(remaining[seen]) <= 0.1 / np.sqrt(values[seen])) and np.isfinite(s2))
-    estimate = UNIT * estimate_um
+    estimate = scale * estimate_x
     return Identification(
-        names=parameters, estimate=estimate, covariance=cov_um * UNIT**2, sigma=math.sqrt(s2) * UNIT, n=n,
+        names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried),
-        scene=with_design(scene, jnp.asarray(design_of(scene)).at[index].set(jnp.asarray(estimate))),
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)),
     )
+
+
+def _scales(scene, parameters):
+    """`(units, scale)`: each parameter is estimated as x = value / scale, in µm for a clearance
+    or backlash and as a multiple of the scene's value for a physical parameter; the scene's
+    values must be > 0 (x is estimated on a log scale)."""
+    values = np.asarray(parameter_values(scene, parameters))
+    if np.any(~(values > 0)):
+        raise ValueError(f"identify: the scene's values of {[p for p, v in zip(parameters, values) if not v > 0]} are not > 0: "
+                         "give the scene a positive starting value (they are estimated on a log scale).")
+    units = parameter_units(scene, parameters)
+    return units, np.array([UNIT if u == "m" else v for u, v in zip(units, values)])
+
+
+def _information(jac, x, s2):
+    """The relative Fisher information $D J^TJ D / s^2$ ($D$ = `x`, the values the Jacobian
+    `jac` is taken at, in its units) in its eigenvectors, and the covariance of `x`:
+    `(scaled Jacobian, (eigenvalues, eigenvectors), covariance)`. A direction the recording does
+    not see has an eigenvalue at rounding level: floored there, its variance is huge, not
+    dropped (a pseudo-inverse would drop it and report the parameters that load on it as sharply
+    determined)."""
+    scaled = jac * x[None, :]
+    values, vectors = np.linalg.eigh(scaled.T @ scaled / s2)
+    values = np.maximum(values, max(float(values.max()), 1e-300) * 1e-15)
+    return scaled, (values, vectors), x[:, None] * ((vectors / values) @ vectors.T) * x[None, :]
 
 
 def synthetic_recording(scene, values=None, *, duration: float, n_save: int, start: str = "steady", noise: float = 0.0,
                         quantum: float = 0.0, key=None, axes=("azimuth",), **run) -> Recording:
-    """A recording the model makes of itself: `scene` at design `values` (m, default its own)
-    run for `duration` (s) with `n_save` saves, its output angles plus encoder noise (standard
+    """A recording the model makes of itself: `scene` at `values` (its design vector, m, or a
+    `{parameter: value}` dict of any of `parameter_names(scene)`, SI; default its own) run for `duration` (s) with `n_save` saves, its output angles plus encoder noise (standard
     deviation `noise`, rad, drawn with `key`) and quantisation to steps of `quantum` (rad; 0:
     none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad)."""
     from ..mechanism.scene import simulate
 
-    unit = scene if values is None else with_design(scene, jnp.asarray(values, dtype=float))
+    if isinstance(values, dict):
+        names = check_names(scene, values, "synthetic_recording")
+        unit = with_parameters(scene, names, jnp.asarray([values[n] for n in names], dtype=float))
+    else:
+        unit = scene if values is None else with_design(scene, jnp.asarray(values, dtype=float))
     res = simulate(unit, duration, start=start, n_save=n_save, **run)
     columns = [AXES.index(a) for a in axes]
     angles = np.asarray(res.joint_angle)[:, columns]

@@ -1,0 +1,190 @@
+"""What test to run: the scan that makes the chosen parameters best determined by a recording.
+
+A recording determines a parameter as far as the output angle's sensitivity to it stands out of
+the encoder's noise, and that depends on the test: a slow scan loads the flanks with the drag
+alone (the lost motion and the drag show, the mesh stiffness does not), a fast one with the
+reflector's inertia too (its deflection shows the stiffness), more reversals in the same time
+cross the lost motion more often. `design_test` evaluates, at the scene's values (the best
+guess before the test), the Gauss-Newton information of each candidate scan over the same
+duration, encoder and saves — the relative Fisher information $D J^TJ D / \\sigma^2$ of
+`identify`, $J$ the output angles' exact forward-mode Jacobian through the solve — and proposes
+the candidate whose weakest parameter is best determined (the smallest largest relative standard
+error: `criterion="weakest"`, E-optimality on the parameters themselves) or the largest
+determinant (`criterion="D"`, D-optimality: the volume of the joint confidence region).
+
+The candidates are sine scans (`ScanServo`: amplitude $A$, period $T$, applied to every
+scanning joint alike) on a grid inside the mechanism's limits: amplitude at most `max_amplitude`
+and peak rate $2\\pi A/T$ at most `max_rate` (default the scene's own scan's: a test never
+drives the unit harder than the scan it was built for unless told), and at least one reversal in
+the recorded window. The prediction is linearised at the guess: how much sharper the proposed
+test really is comes from identifying recordings of both (`benchmarks/identify_test_design.py`).
+A parameter no candidate determines is named: no scan of this family separates it (the two
+backlashes of a lumped joint: the output sees their sum).
+"""
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..design.objectives import PointingObjective, _widths
+from ..mechanism.drives import ScanServo
+from .identify import DETERMINED, UNIT, _Fit, _fit_and_jacobian, _information, _scales
+from .parameters import check_names, parameter_values
+from .recording import AXES
+
+CRITERIA = ("weakest", "D")
+FACTORS = (1 / 8, 1 / 4, 1 / 2, 1.0)  # the default grid: these multiples of the limits' amplitude and period
+
+
+def _scanning(scene) -> tuple[str, ...]:
+    return tuple(j for j in AXES if isinstance(getattr(getattr(scene, j, None), "drive", None), ScanServo))
+
+
+def with_scan(scene, amplitude, period):
+    """`scene` with every scanning joint's scan set to `amplitude` (rad) and `period` (s)
+    (traceable: no new compilation)."""
+    for joint in _scanning(scene):
+        scene = eqx.tree_at(lambda s, j=joint: (getattr(s, j).drive.amplitude, getattr(s, j).drive.period), scene,
+                            (jnp.asarray(amplitude, dtype=float), jnp.asarray(period, dtype=float)))
+    return scene
+
+
+@dataclasses.dataclass(frozen=True)
+class TestDesign:
+    """The result of `design_test`.
+
+    - `names`, `units`: the parameters; `values`: the scene's (the guess the prediction is at).
+    - `amplitude` (rad), `period` (s): per candidate; `relative_error` ((candidates, parameters)):
+      each parameter's predicted relative standard error (floored at rounding level: a huge
+      value is "not determined"); `score`: the criterion, smaller is better.
+    - `plain`: the index of the scene's own scan; `best`: of the proposed one.
+    - `criterion`, `noise` (rad), `duration` (s), `settle` (s); `scene`: the scene with the
+      proposed scan; `undetermined`: the parameters no candidate determines.
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    values: np.ndarray
+    amplitude: np.ndarray
+    period: np.ndarray
+    relative_error: np.ndarray
+    score: np.ndarray
+    plain: int
+    best: int
+    criterion: str
+    noise: float
+    duration: float
+    settle: float
+    undetermined: tuple[str, ...]
+    scene: object = dataclasses.field(repr=False, default=None)
+
+    def sharper(self) -> np.ndarray:
+        """Per parameter: the plain scan's relative standard error over the proposed one's."""
+        return self.relative_error[self.plain] / self.relative_error[self.best]
+
+    def table(self) -> str:
+        """The candidates and the proposal as Markdown."""
+        def scan(k):
+            return f"{math.degrees(self.amplitude[k]):.3g}° × {self.period[k]:.3g} s"
+
+        def rel(v):
+            return f"{v:.3g}" if v < 1 else "not determined"
+
+        lines = [f"Proposed test: a ±{scan(self.best)} scan (peak rate "
+                 f"{math.degrees(2 * math.pi * self.amplitude[self.best] / self.period[self.best]):.3g} °/s) for "
+                 f"{self.duration:g} s, against the plain ±{scan(self.plain)}; predicted at the scene's values with "
+                 f"{1e6 * self.noise:.3g} µrad of encoder noise (criterion: {self.criterion}).", "",
+                 "| parameter | plain: relative standard error | proposed | sharper by |", "|---|---|---|---|"]
+        for j, name in enumerate(self.names):
+            a, b = self.relative_error[self.plain, j], self.relative_error[self.best, j]
+            lines.append(f"| {name} | {rel(a)} | {rel(b)} | {a / b:.3g}x |")
+        if self.undetermined:
+            lines += ["", f"Not determined by any candidate: {', '.join(self.undetermined)} (no scan of this family "
+                      "separates them; another measurement or a fixed value is needed)."]
+        lines += ["", "| amplitude (°) | period (s) | weakest relative standard error | score |", "|---|---|---|---|"]
+        for k in np.argsort(self.score):
+            mark = " (proposed)" if k == self.best else " (plain)" if k == self.plain else ""
+            lines.append(f"| {math.degrees(self.amplitude[k]):.3g} | {self.period[k]:.3g}{mark} | "
+                         f"{rel(float(np.max(self.relative_error[k])))} | {self.score[k]:.4g} |")
+        return "\n".join(lines)
+
+
+def design_test(scene, parameters, *, duration: float, n_save: int, noise: float, settle: float = 0.0,
+                max_amplitude: float | None = None, max_rate: float | None = None, amplitudes=None, periods=None,
+                criterion: str = "weakest", start: str = "steady", **run) -> TestDesign:
+    """The scan (amplitude, period) that makes `parameters` of `scene` best determined by a
+    recording of `duration` s (module docstring).
+
+    **Arguments:**
+
+    - `scene`: the model with its scanning joints (`ScanServo`); the recorded axes are those.
+    - `parameters`: names from `tolerax.identification.parameters.parameter_names(scene)`.
+    - `duration` (s), `n_save` (samples over it), `settle` (s, the first samples not fitted),
+      `noise` (rad): the encoder's standard deviation, quantisation included
+      ($\\sqrt{\\sigma^2 + q^2/12}$); it scales every candidate alike.
+    - `max_amplitude` (rad), `max_rate` (rad/s): the mechanism's limits; default the scene's
+      own scan's amplitude and peak rate.
+    - `amplitudes` (rad), `periods` (s): the grid; default `FACTORS` times the limits' amplitude
+      and times the plain scan's period (candidates beyond the limits dropped). The scene's own
+      scan is always a candidate.
+    - `criterion`: "weakest" (default) or "D"; `start`, `**run`: the model's run (`identify`'s).
+
+    **Returns:** a `TestDesign`. Raises `ValueError` for a scene with no scanning joint, unknown
+    parameters or criterion, or no candidate inside the limits.
+    """
+    parameters = check_names(scene, parameters, "design_test")
+    if criterion not in CRITERIA:
+        raise ValueError(f"design_test: criterion={criterion!r} is unknown; use one of {CRITERIA}.")
+    axes = _scanning(scene)
+    if not axes:
+        raise ValueError("design_test varies a sine scan: the scene has no joint driven by a ScanServo (build it with "
+                         "tolerax.scan, or a scene file whose drive is a scan).")
+    if not noise > 0:
+        raise ValueError(f"design_test: noise={noise!r} must be > 0 (rad): the encoder's standard deviation.")
+    drive = getattr(scene, axes[0]).drive
+    a0, t0 = float(drive.amplitude), float(drive.period)
+    max_amplitude = abs(a0) if max_amplitude is None else float(max_amplitude)
+    max_rate = 2 * math.pi * abs(a0) / t0 if max_rate is None else float(max_rate)
+    amplitudes = [f * max_amplitude for f in FACTORS] if amplitudes is None else list(amplitudes)
+    periods = [f * t0 for f in FACTORS] if periods is None else list(periods)
+    window = duration - settle
+    grid = [(a0, t0)] + [(a, t) for a in amplitudes for t in periods
+                         if 0 < a <= max_amplitude * (1 + 1e-12) and 2 * math.pi * a / t <= max_rate * (1 + 1e-12)
+                         and t / 2 < window and not (a == a0 and t == t0)]
+    if len(grid) < 2:
+        raise ValueError(f"design_test: no candidate scan inside the limits (amplitude <= {max_amplitude:g} rad, peak rate "
+                         f"<= {max_rate:g} rad/s, a reversal inside {window:g} s): widen the limits or give amplitudes and periods.")
+    units, scale = _scales(scene, parameters)
+    x = np.asarray(parameter_values(scene, parameters)) / scale
+    times = np.linspace(0.0, duration, int(n_save))
+    rows = jnp.asarray(np.flatnonzero(times >= settle))
+    columns = jnp.asarray([AXES.index(a) for a in axes])
+    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=int(n_save), start=start, **run).forward_mode()
+    width = jnp.asarray(float(np.ravel(_widths(scene)[0])[0]))
+    measured = jnp.zeros((rows.size, columns.size))
+    errors, logdets = [], []
+    for a, t in grid:  # one compiled program: the scan's amplitude and period are arrays of the scene
+        candidate = eqx.tree_at(lambda o: o.scene, objective, with_scan(scene, a, t))
+        jac = np.asarray(_fit_and_jacobian(_Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured),
+                                           jnp.asarray(x), width)[0])
+        _, (eigenvalues, _), cov = _information(jac, x, (noise / UNIT) ** 2)
+        errors.append(np.sqrt(np.maximum(np.diag(cov), 0.0)) / x)
+        logdets.append(float(np.sum(np.log(eigenvalues))))
+    errors = np.array(errors)
+    seen = np.any(errors < DETERMINED, axis=0)
+    if criterion == "weakest":
+        # The weakest of the parameters some candidate determines: one no scan determines would
+        # make every candidate equally bad and hide the differences among the others.
+        score = np.max(errors[:, seen], axis=1) if np.any(seen) else np.max(errors, axis=1)
+    else:
+        score = -np.array(logdets)  # -log det of the relative information
+    best = int(np.argmin(score))
+    amplitude, period = np.array([g[0] for g in grid]), np.array([g[1] for g in grid])
+    return TestDesign(names=parameters, units=units, values=x * scale, amplitude=amplitude, period=period,
+                      relative_error=errors, score=score, plain=0, best=best, criterion=criterion, noise=float(noise),
+                      duration=float(duration), settle=float(settle),
+                      undetermined=tuple(n for n, s in zip(parameters, seen) if not s),
+                      scene=with_scan(scene, amplitude[best], period[best]))
