@@ -17,7 +17,8 @@ def identify_command(parser, args) -> int:
     import numpy as np
 
     from ..design.features import design_names
-    from ..identification.identify import identify
+    from ..identification.identify import identify, show
+    from ..identification.parameters import check_names
     from ..identification.recording import RecordingError, read_recording
     from ..uncertainty.sampling import Tolerances
 
@@ -30,11 +31,10 @@ def identify_command(parser, args) -> int:
     if scene_file is None:
         return 2
     scene = scene_file.build()
-    names = design_names(scene)
-    parameters = args.parameters or list(names)
-    unknown = [p for p in parameters if p not in names]
-    if unknown:
-        parser.error(f"--parameters {' '.join(unknown)}: not design features of {scene_file.name}; its features: {', '.join(names)}")
+    try:
+        parameters = check_names(scene, args.parameters, f"--parameters of {scene_file.name}")
+    except ValueError as err:
+        parser.error(str(err))
     out = check_out(parser, args.out, "identify", force=args.force)
     duration = recording.duration if args.duration is None else args.duration
     print(f"tolerax identify: {', '.join(parameters)} of {scene_file.title} from {recording.source} "
@@ -51,13 +51,16 @@ def identify_command(parser, args) -> int:
         return 2
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)
-    # The identified unit: its values under [design], their uncertainty as zones (normal, band = 3 standard errors).
-    zones = Tolerances(got.names, got.estimate, 3.0 * got.standard_error, "normal")
+    # The identified unit: its clearances and backlash under [design], their uncertainty as zones
+    # (normal, band = 3 standard errors). Physical parameters have no key in a scene file yet.
+    features = [j for j, n in enumerate(got.names) if n in design_names(scene)]
+    physical = [n for n in got.names if n not in design_names(scene)]
+    zones = Tolerances(tuple(got.names[j] for j in features), got.estimate[features], 3.0 * got.standard_error[features], "normal")
     identified = scene_file.with_tolerances(zones)
     data = identified.data | {"title": f"Identified unit: {scene_file.title}",
                               "description": f"Written by tolerax identify from {recording.source}: " + "; ".join(
-                                  f"{n} {1e6 * e:.2f} +- {1.96e6 * s:.2f} um (95 %, {st})"
-                                  for n, e, s, st in zip(got.names, got.estimate, got.standard_error, got.status()))}
+                                  f"{n} {show(e, u)} +- {show(1.96 * s, u)} (95 %, {st})".replace("µm", "um")
+                                  for n, u, e, s, st in zip(got.names, got.units, got.estimate, got.standard_error, got.status()))}
     from ..io import scenefile as F
 
     path = F.save_scene(F.SceneFile.from_data(data, "identified", "<identified>"), out / "identified.toml")
@@ -66,12 +69,13 @@ def identify_command(parser, args) -> int:
         f"included); {load_average()}.", "", got.table(), "",
         f"The unit as a scene file: `{path}` (its values under [design], each zone 3 standard errors, normal): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
-        "recording leaves open.", "", "Reproduce with:", "", "```", command_line(args), "```", "",
+        "recording leaves open." + (f" Not in it: {', '.join(physical)} (a scene file has no key for them yet: their estimates "
+                                    "are in identification.json)." if physical else ""), "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])
     atomic_write(out / "identification.md", text + "\n")
     atomic_write(out / "identification.json", json.dumps({
-        "names": list(got.names), "estimate_m": [float(v) for v in got.estimate],
-        "standard_error_m": [float(v) for v in got.standard_error], "status": list(got.status()),
+        "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
+        "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()),
         "sigma_rad": got.sigma, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for j, axis in enumerate(recording.axes):
@@ -82,7 +86,8 @@ def identify_command(parser, args) -> int:
     top.legend(fontsize=8)
     bottom.set_ylabel("model - recording (µrad)")
     bottom.set_xlabel("time (s)")
-    top.set_title(f"{scene_file.title}: identified " + ", ".join(f"{n.split('.')[-1]} {1e6 * e:.1f} µm" for n, e in zip(got.names, got.estimate)),
+    top.set_title(f"{scene_file.title}: identified " + ", ".join(f"{n.split('.')[-1]} {show(e, u)}"
+                                                                 for n, u, e in zip(got.names, got.units, got.estimate)),
                   fontsize=9)
     save_figure(fig, out / "identification.png", dpi=120)
     plt.close(fig)
@@ -100,11 +105,89 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
         "(the unit as a scene file).", epilog=epilog)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file: the model, with the test's drive")
     parser.add_argument("recording", type=pathlib.Path, help="the recording: .csv or .nc with units in its headers")
-    parser.add_argument("--parameters", nargs="+", default=None, metavar="FEATURE",
-                        help="design features to identify (default all), e.g. azimuth.ring_backlash")
+    parser.add_argument("--parameters", nargs="+", default=None, metavar="PARAMETER",
+                        help="parameters to identify (default all the design features): clearances and backlash, e.g. "
+                        "azimuth.ring_backlash, or the joints' azimuth.drag_torque, azimuth.sun_mesh_stiffness, "
+                        "azimuth.ring_mesh_stiffness, azimuth.sun_mesh_damping_ratio, azimuth.ring_mesh_damping_ratio")
     parser.add_argument("--settle", type=non_negative, default=0.0, help="fit the samples from this time on, s (default 0)")
     parser.add_argument("--duration", type=positive, default=None, help="the model's run, s (default the recording's length)")
     parser.add_argument("--starts", type=positive, nargs="+", default=[1.0, 0.5, 2.0],
                         help="starting points as multiples of the scene's values (default 1 0.5 2)")
     out_options(parser, "identify")
+    return parser
+
+
+def plan_test_command(parser, args) -> int:
+    """`tolerax plan-test SCENE --parameters ...`: the scan whose recording determines them best."""
+    import math
+
+    from ..identification.parameters import check_names
+    from ..identification.testdesign import design_test
+
+    scene_file = read_scene_file(parser, args)
+    if scene_file is None:
+        return 2
+    scene = scene_file.build()
+    try:
+        parameters = check_names(scene, args.parameters, f"--parameters of {scene_file.name}")
+    except ValueError as err:
+        parser.error(str(err))
+    out = check_out(parser, args.out, "plan-test", force=args.force)
+    noise = math.hypot(1e-6 * args.noise, 2 * math.pi / 2**args.encoder_bits / math.sqrt(12))
+    limits = dict(max_amplitude=None if args.max_amplitude is None else math.radians(args.max_amplitude),
+                  max_rate=None if args.max_rate is None else math.radians(args.max_rate))
+    run = {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
+    print(f"tolerax plan-test: the scan of {scene_file.title} whose {args.duration:g} s recording determines "
+          f"{', '.join(parameters)} best; results in {out}/", flush=True)
+    start = time.perf_counter()
+    try:
+        plan = design_test(scene, parameters, duration=args.duration, n_save=args.samples, noise=noise, settle=args.settle,
+                           criterion=args.criterion, **limits, **run)
+    except ValueError as err:
+        print(f"tolerax plan-test: {err}", file=sys.stderr)
+        return 2
+    wall = time.perf_counter() - start
+    claim_out(out, "plan-test", fresh=args.force)
+    from ..io import scenefile as F
+
+    data = scene_file.data | {"title": f"Test: {scene_file.title}"}
+    prefix = "scan_" if data["scene"].get("kind") == "antenna" else ""  # an antenna's keys are scan_amplitude, scan_period
+    data["scene"] = dict(data["scene"]) | {f"{prefix}amplitude": float(plan.amplitude[plan.best]),
+                                           f"{prefix}period": float(plan.period[plan.best])}
+    data["run"] = dict(data.get("run", {})) | {"duration": args.duration, "settle": args.settle, "n_save": args.samples}
+    path = F.save_scene(F.SceneFile.from_data(data, "test", "<plan-test>"), out / "test.toml")
+    text = "\n".join([
+        f"# Test plan: {scene_file.title}", "", f"{wall:.1f} s of wall time ({len(plan.amplitude)} candidates, compilation "
+        f"included); {load_average()}; encoder: {args.encoder_bits} bits and {args.noise:g} µrad of noise.", "",
+        plan.table(), "", f"The test as a scene file: `{path}`. Record the unit running it, then "
+        f"`tolerax identify {path} RECORDING --parameters {' '.join(parameters)}"
+        + (f" --settle {args.settle:g}`." if args.settle else "`."), "", "Reproduce with:", "", "```",
+        command_line(args), "```", "", *scene_and_settings(scene_file)])
+    atomic_write(out / "test_plan.md", text + "\n")
+    print(text)
+    return 0
+
+
+def add_plan_parser(sub, out_options, positive, non_negative, epilog):
+    parser = sub.add_parser(
+        "plan-test", help="the scan whose recording determines the chosen clearances and parameters best",
+        description="Before a unit's acceptance test: of the sine scans inside the mechanism's limits (amplitude, peak "
+        "rate; default the scene's own scan's), the one whose recording of --duration s through the encoder determines "
+        "--parameters best at the scene's values (tolerax.identification.testdesign), against the scene's own scan. "
+        "Writes test_plan.md and test.toml (the scene running the proposed test, for tolerax identify).", epilog=epilog)
+    parser.add_argument("scene", help="built-in scene name or path to a .toml scene file whose joints scan")
+    parser.add_argument("--parameters", nargs="+", required=True, metavar="PARAMETER",
+                        help="what the test must determine (tolerax identify --help lists the kinds)")
+    parser.add_argument("--duration", type=positive, default=1.0, help="the recording's length, s (default 1)")
+    parser.add_argument("--samples", type=int, default=401, help="samples over it (default 401)")
+    parser.add_argument("--settle", type=non_negative, default=0.0, help="fit the samples from this time on, s (default 0)")
+    parser.add_argument("--encoder-bits", type=int, default=20, help="the output encoder's resolution, bits (default 20)")
+    parser.add_argument("--noise", type=positive, default=2.0, help="its noise, µrad standard deviation (default 2)")
+    parser.add_argument("--max-amplitude", type=positive, default=None, metavar="DEG",
+                        help="the largest scan amplitude the unit may run, deg (default the scene's)")
+    parser.add_argument("--max-rate", type=positive, default=None, metavar="DEG_PER_S",
+                        help="the highest rate, deg/s (default the scene's scan's peak rate)")
+    parser.add_argument("--criterion", default="weakest", choices=("weakest", "D"),
+                        help="the weakest parameter's error (default) or the joint region's volume (D-optimal)")
+    out_options(parser, "plan-test")
     return parser

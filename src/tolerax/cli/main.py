@@ -13,6 +13,8 @@
 - `tolerax studies`: the reference paper's studies (a JSON table per study).
 - `tolerax identify SCENE RECORDING`: a built unit's clearances and backlash from its test
   recording (encoder angles), with intervals, and the unit as a scene file.
+- `tolerax plan-test SCENE --parameters ...`: before that test, the scan whose recording
+  determines the chosen parameters best.
 
 The engineer's path in three commands (design, verify, trade off):
 
@@ -46,7 +48,7 @@ from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
                      scene_options)
 from .demo import demo_command
-from .identify import add_parser as identify_parser, identify_command
+from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
 
 # What an interrupted command has kept, and how to go on.
 RESUME = {
@@ -231,6 +233,7 @@ def main(argv=None) -> int:
     mc.add_argument("--allow-clip", action="store_true",
                     help="accept bands reaching below zero (units drawn there are clipped to 0 um); refused otherwise")
     identify = identify_parser(sub, out_options, positive, non_negative, EPILOG)
+    plan_test = add_plan_parser(sub, out_options, positive, non_negative, EPILOG)
     studies = sub.add_parser("studies", help="run the reference paper's studies, write a JSON table per study")
     studies.add_argument("names", nargs="*", help="studies to run (default: all)")
     studies.add_argument("--size", default="small", help="'small' (seconds) or 'full' (the paper's grids)")
@@ -261,6 +264,7 @@ def main(argv=None) -> int:
         "demo": (demo, demo_command), "run": (run, run_command), "design": (design, design_command), "montecarlo": (mc, montecarlo_command),
         "tradeoff": (tradeoff, tradeoff_command),
         "studies": (parser, studies_command), "identify": (identify, identify_command),
+        "plan-test": (plan_test, plan_test_command),
     }
     command_parser, command = commands[args.command]
     from ..cache import enable_compilation_cache

@@ -263,17 +263,27 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance.")
     tried = []
-    centre, reach = jnp.log(jnp.asarray(x0)), jnp.asarray(math.log(BOUND))
+    centre, reach = jnp.log(jnp.asarray(x0)), jnp.full(len(parameters), math.log(BOUND))
+    # A physical parameter is held at the scene's value while the contacts are smoothed wider than the
+    # scene's (its reach ~0): the wide smoothing adds a compliance of its own, which a stiffness
+    # would absorb and run to its bound. It is released at the scene's width, from its start (its
+    # value in the scene times the start's factor).
+    physical = jnp.asarray([u != "m" for u in units])
+    held = jnp.where(physical, 1e-9, reach)
     for factor in starts:
         if not 1 / BOUND < float(factor) < BOUND:
             raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
                              "either side): start nearer.")
-        z = jnp.full(len(parameters), reach * math.atanh(math.log(float(factor)) / float(reach)))
-        for width in widths:
-            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps), centre, reach)
+        z0 = jnp.full(len(parameters), math.log(BOUND) * math.atanh(math.log(float(factor)) / math.log(BOUND)))
+        z = z0
+        for k, width in enumerate(widths):
+            last = k == len(widths) - 1
+            if last and k > 0:
+                z = jnp.where(physical, z0, z)
+            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps), centre, reach if last else held)
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
-    estimate_x = np.asarray(_bounded(z, centre, reach))
+    estimate_x = np.asarray(_bounded(z, centre, reach))  # the last width's: every parameter free
 
     jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_x), widths[-1]))
     r = ((fitted - measured) / UNIT).ravel()
@@ -317,7 +327,9 @@ def _information(jac, x, s2):
     determined)."""
     scaled = jac * x[None, :]
     values, vectors = np.linalg.eigh(scaled.T @ scaled / s2)
-    values = np.maximum(values, max(float(values.max()), 1e-300) * 1e-15)
+    if not float(values.max()) > 1e-200:  # the recording sees none of them (no reversal, a joint that does not move)
+        return scaled, (np.full_like(values, 1e-200), vectors), np.full((x.size, x.size), np.inf)
+    values = np.maximum(values, float(values.max()) * 1e-15)
     return scaled, (values, vectors), x[:, None] * ((vectors / values) @ vectors.T) * x[None, :]
 
 
