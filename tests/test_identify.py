@@ -150,6 +150,37 @@ def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, caps
     with pytest.raises(SystemExit) as info:
         cli.main(["identify", "scan-azimuth", str(good), "--parameters", "azimuth.bogus", "--out", str(tmp_path / "id")])
     assert info.value.code == 2 and "not parameters of the scene" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        cli.main(["plan-test", "scan-azimuth", "--parameters", "pitch.drag_torque", "--out", str(tmp_path / "plan")])
+    assert info.value.code == 2 and "physical parameters: azimuth.drag_torque" in capsys.readouterr().err
+    assert not (tmp_path / "plan").exists()
+
+
+@pytest.mark.slow
+def test_the_command_line_plans_a_test_and_identifies_the_unit_from_its_recording(tmp_path, capsys):
+    """`tolerax plan-test` writes the proposed test as a scene file, and `tolerax identify` on
+    that file and a recording of it recovers the drag (a physical parameter: reported, not in
+    identified.toml). (Enlarges test_the_command_line_refuses_a_bad_recording_before_any_work.)"""
+    from tolerax import cli
+
+    plan = tmp_path / "plan"
+    assert cli.main(["plan-test", "scan-azimuth", "--parameters", "azimuth.ring_backlash", "azimuth.drag_torque",
+                     "--duration", "0.35", "--samples", "141", "--out", str(plan)]) == 0, capsys.readouterr().err
+    assert "Proposed test" in (plan / "test_plan.md").read_text()
+    test = tx.load_scene(str(plan / "test.toml"))
+    scene = test.build()
+    assert float(scene.azimuth.drive.period) < 1.0 and test.run["duration"] == 0.35
+    rec = synthetic_recording(scene, {"azimuth.drag_torque": 0.07}, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER,
+                              key=jax.random.key(5))
+    out = tmp_path / "id"
+    code = cli.main(["identify", str(plan / "test.toml"), str(rec.write_csv(tmp_path / "unit.csv")), "--parameters",
+                     "azimuth.drag_torque", "--starts", "1", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    import json
+
+    got = json.loads((out / "identification.json").read_text())
+    assert got["units"] == ["N m"] and got["estimate"][0] == pytest.approx(0.07, rel=1e-3)
+    assert "Not in it: azimuth.drag_torque" in (out / "identification.md").read_text()
 
 
 @pytest.mark.slow
@@ -196,32 +227,26 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
 
 
-def test_the_test_design_proposes_the_scan_that_shows_the_stiffness_and_names_what_no_scan_separates():
-    """The mesh stiffness shows in the output only through the deflection under the reflector's
-    inertia, so a faster-reversing scan at the same peak rate determines it better than the
-    plain one; the sun and ring backlash are seen only as their sum by every scan of a lumped
-    joint, and are named as such. Then the prediction checked against an identification:
-    identify's stated standard error of the stiffness, from a recording of the proposed test
-    made at the scene's values, is the predicted one (the same linearisation, but with the
-    residual's variance estimated from the recording's noise and quantisation, and the
-    Jacobian at the estimate: to 30 %)."""
+def test_the_test_design_proposes_the_scan_that_shows_the_drag_and_names_what_no_scan_separates():
+    """At the same peak rate, a scan with more reversals holds the output on its flanks against
+    the drag for longer: the test design proposes it over the plain scan for the drag. The sun
+    and ring backlash are seen only as their sum by every scan of a lumped joint, and are named as
+    such (the criterion then weighs the drag alone). (Whether the predicted
+    gain holds on recordings of both: `benchmarks/identify_test_design.py`.)"""
     from tolerax.identification.testdesign import design_test
 
     scene = _scene()
-    names = ("azimuth.ring_backlash", "azimuth.sun_mesh_stiffness")
+    names = ("azimuth.sun_backlash", "azimuth.ring_backlash", "azimuth.drag_torque")
     noise = math.hypot(NOISE, ENCODER / math.sqrt(12))
     a0 = float(scene.azimuth.drive.amplitude)
     plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25])
-    assert plan.best == 1 and plan.period[plan.best] == 0.25 and plan.sharper()[1] > 3.0, plan.table()
+    assert plan.best == 1 and plan.period[plan.best] == 0.25 and plan.sharper()[2] > 1.5, plan.table()
     assert float(plan.scene.azimuth.drive.period) == 0.25 and "Proposed test: a ±0.125° × 0.25 s scan" in plan.table()
-    both = design_test(scene, ("azimuth.sun_backlash", "azimuth.ring_backlash"), duration=0.35, n_save=141, noise=noise,
-                       amplitudes=[a0 / 4], periods=[0.25])
-    assert both.undetermined == ("azimuth.sun_backlash", "azimuth.ring_backlash") and "Not determined by any candidate" in both.table()
-    rec = synthetic_recording(plan.scene, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(4))
-    got = identify(plan.scene, rec, names, starts=(1.0,), widths=(None,))
-    stated = got.standard_error / got.estimate
-    assert stated[1] == pytest.approx(plan.relative_error[plan.best, 1], rel=0.3), (got.table(), plan.table())
+    assert plan.undetermined == names[:2] and "Not determined by any candidate: azimuth.sun_backlash, azimuth.ring_backlash" in plan.table()
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")
     with pytest.raises(ValueError, match="no candidate scan inside the limits"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0], periods=[0.1])
+    with pytest.raises(ValueError, match="has no joint driven by a ScanServo"):
+        design_test(tx.scan("azimuth", fidelity=("lumped", "ideal"), profile_times=[0.0, 1.0], profile_angles=[0.0, 0.01]),
+                    names, duration=0.35, n_save=141, noise=noise)

@@ -55,8 +55,10 @@ def identify_command(parser, args) -> int:
     # (normal, band = 3 standard errors). Physical parameters have no key in a scene file yet.
     features = [j for j, n in enumerate(got.names) if n in design_names(scene)]
     physical = [n for n in got.names if n not in design_names(scene)]
-    zones = Tolerances(tuple(got.names[j] for j in features), got.estimate[features], 3.0 * got.standard_error[features], "normal")
-    identified = scene_file.with_tolerances(zones)
+    identified = scene_file
+    if features:
+        identified = scene_file.with_tolerances(Tolerances(tuple(got.names[j] for j in features), got.estimate[features],
+                                                           3.0 * got.standard_error[features], "normal"))
     data = identified.data | {"title": f"Identified unit: {scene_file.title}",
                               "description": f"Written by tolerax identify from {recording.source}: " + "; ".join(
                                   f"{n} {show(e, u)} +- {show(1.96 * s, u)} (95 %, {st})".replace("µm", "um")

@@ -12,6 +12,15 @@ the candidate whose weakest parameter is best determined (the smallest largest r
 error: `criterion="weakest"`, E-optimality on the parameters themselves) or the largest
 determinant (`criterion="D"`, D-optimality: the volume of the joint confidence region).
 
+That information is local: a test can be sharp at the truth and rugged around it. A fast scan
+makes the drag decide when the output leaves its flank at each reversal, and the fit's cost over
+the drag then has dips away from the truth, where Levenberg-Marquardt stops (tried: a unit at
+1.4x the guessed drag, identified from a 0.125° × 0.25 s scan, stopped at 1.2x with a residual
+25 times the noise). So each candidate's noise-free cost profile of each parameter over the
+prior range (`SPREAD`, 0.5-2x the guess) is checked too, and a candidate with a dip away from
+the truth is not proposed: the proposal is the sharpest test whose fit has one basin over the
+range.
+
 The candidates are sine scans (`ScanServo`: amplitude $A$, period $T$, applied to every
 scanning joint alike) on a grid inside the mechanism's limits: amplitude at most `max_amplitude`
 and peak rate $2\\pi A/T$ at most `max_rate` (default the scene's own scan's: a test never
@@ -36,6 +45,10 @@ from .parameters import check_names, parameter_values
 from .recording import AXES
 
 CRITERIA = ("weakest", "D")
+# The prior range a unit's values may lie in, as factors of the guess, and the points of each
+# parameter's cost profile over it (`_rugged`).
+SPREAD = (0.5, 2.0)
+PROFILE_POINTS = 9
 FACTORS = (1 / 8, 1 / 4, 1 / 2, 1.0)  # the default grid: these multiples of the limits' amplitude and period
 
 
@@ -52,6 +65,24 @@ def with_scan(scene, amplitude, period):
     return scene
 
 
+@eqx.filter_jit
+def _profiles(fit: _Fit, x, width, factors):
+    """The noise-free cost $\\lVert r\\rVert^2$ (µrad²) with each parameter in turn at `factors`
+    times `x`, the others at `x`: ((parameters, factors)), in one batched run."""
+    p, k = x.shape[0], factors.shape[0]
+    points = jnp.where(jnp.eye(p, dtype=bool)[:, None, :], x[None, None, :] * factors[None, :, None], x[None, None, :])
+    cost = eqx.filter_vmap(lambda v: jnp.sum(fit.residual(v, width) ** 2))(points.reshape(p * k, p))
+    return cost.reshape(p, k)
+
+
+def _rugged(profiles, middle: int) -> np.ndarray:
+    """Per parameter: does its cost profile have a dip other than at the guess (`middle`)? A fit
+    started from anywhere in the range could then stop there (a local minimum)."""
+    left, right = profiles[:, : middle + 1], profiles[:, middle:]
+    slack = 1e-9 * np.max(profiles, axis=1, keepdims=True)  # the adaptive solve's rounding in a flat profile
+    return ~(np.all(np.diff(left, axis=1) <= slack, axis=1) & np.all(np.diff(right, axis=1) >= -slack, axis=1))
+
+
 @dataclasses.dataclass(frozen=True)
 class TestDesign:
     """The result of `design_test`.
@@ -60,6 +91,9 @@ class TestDesign:
     - `amplitude` (rad), `period` (s): per candidate; `relative_error` ((candidates, parameters)):
       each parameter's predicted relative standard error (floored at rounding level: a huge
       value is "not determined"); `score`: the criterion, smaller is better.
+    - `rugged` ((candidates, parameters), bool): the parameter's noise-free cost profile over the
+      prior range `SPREAD` has a dip away from the truth: a fit could stop there, and the
+      candidate is not proposed (unless every candidate is).
     - `plain`: the index of the scene's own scan; `best`: of the proposed one.
     - `criterion`, `noise` (rad), `duration` (s), `settle` (s); `scene`: the scene with the
       proposed scan; `undetermined`: the parameters no candidate determines.
@@ -71,6 +105,7 @@ class TestDesign:
     amplitude: np.ndarray
     period: np.ndarray
     relative_error: np.ndarray
+    rugged: np.ndarray
     score: np.ndarray
     plain: int
     best: int
@@ -104,11 +139,16 @@ class TestDesign:
         if self.undetermined:
             lines += ["", f"Not determined by any candidate: {', '.join(self.undetermined)} (no scan of this family "
                       "separates them; another measurement or a fixed value is needed)."]
-        lines += ["", "| amplitude (°) | period (s) | weakest relative standard error | score |", "|---|---|---|---|"]
+        if self.rugged[self.best].any():
+            lines += ["", "**Every candidate's fit is rugged** (a local minimum inside the range for "
+                      f"{', '.join(n for n, r in zip(self.names, self.rugged[self.best]) if r)}): identify from several starts."]
+        lines += ["", f"| amplitude (°) | period (s) | weakest relative standard error | score | a local minimum within "
+                  f"{SPREAD[0]:g}-{SPREAD[1]:g}x for |", "|---|---|---|---|---|"]
         for k in np.argsort(self.score):
             mark = " (proposed)" if k == self.best else " (plain)" if k == self.plain else ""
+            dips = ", ".join(n for n, r in zip(self.names, self.rugged[k]) if r) or "none"
             lines.append(f"| {math.degrees(self.amplitude[k]):.3g} | {self.period[k]:.3g}{mark} | "
-                         f"{rel(float(np.max(self.relative_error[k])))} | {self.score[k]:.4g} |")
+                         f"{rel(float(np.max(self.relative_error[k])))} | {self.score[k]:.4g} | {dips} |")
         return "\n".join(lines)
 
 
@@ -165,15 +205,22 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     objective = PointingObjective(scene, duration=duration, settle=settle, n_save=int(n_save), start=start, **run).forward_mode()
     width = jnp.asarray(float(np.ravel(_widths(scene)[0])[0]))
     measured = jnp.zeros((rows.size, columns.size))
-    errors, logdets = [], []
-    for a, t in grid:  # one compiled program: the scan's amplitude and period are arrays of the scene
+    factors = np.geomspace(SPREAD[0], SPREAD[1], PROFILE_POINTS)
+    middle = int(np.argmin(np.abs(np.log(factors))))
+    factors[middle] = 1.0
+    errors, logdets, rugged = [], [], []
+    for a, t in grid:  # one compiled program each: the scan's amplitude and period are arrays of the scene
         candidate = eqx.tree_at(lambda o: o.scene, objective, with_scan(scene, a, t))
-        jac = np.asarray(_fit_and_jacobian(_Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured),
-                                           jnp.asarray(x), width)[0])
+        fit = _Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured)
+        jac, angles, _ = _fit_and_jacobian(fit, jnp.asarray(x), width)
+        jac = np.asarray(jac)
+        # The noise-free recording at the guess, and the fit's cost profile of each parameter over the range.
+        truth = eqx.tree_at(lambda f: f.measured, fit, angles)
+        rugged.append(_rugged(np.asarray(_profiles(truth, jnp.asarray(x), width, jnp.asarray(factors))), middle))
         _, (eigenvalues, _), cov = _information(jac, x, (noise / UNIT) ** 2)
         errors.append(np.sqrt(np.maximum(np.diag(cov), 0.0)) / x)
         logdets.append(float(np.sum(np.log(eigenvalues))))
-    errors = np.array(errors)
+    errors, rugged = np.array(errors), np.array(rugged)
     seen = np.any(errors < DETERMINED, axis=0)
     if criterion == "weakest":
         # The weakest of the parameters some candidate determines: one no scan determines would
@@ -181,10 +228,11 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
         score = np.max(errors[:, seen], axis=1) if np.any(seen) else np.max(errors, axis=1)
     else:
         score = -np.array(logdets)  # -log det of the relative information
-    best = int(np.argmin(score))
+    smooth = ~np.any(rugged, axis=1)
+    best = int(np.argmin(np.where(smooth, score, np.inf))) if smooth.any() else int(np.argmin(score))
     amplitude, period = np.array([g[0] for g in grid]), np.array([g[1] for g in grid])
     return TestDesign(names=parameters, units=units, values=x * scale, amplitude=amplitude, period=period,
-                      relative_error=errors, score=score, plain=0, best=best, criterion=criterion, noise=float(noise),
+                      relative_error=errors, rugged=rugged, score=score, plain=0, best=best, criterion=criterion, noise=float(noise),
                       duration=float(duration), settle=float(settle),
                       undetermined=tuple(n for n, s in zip(parameters, seen) if not s),
                       scene=with_scan(scene, amplitude[best], period[best]))
