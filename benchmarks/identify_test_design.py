@@ -3,8 +3,8 @@
 `tolerax.identification.testdesign.design_test` proposes, at the scene's values (the guess before
 the test), the scan that makes the chosen parameters best determined, from the linearised
 information of each candidate. This checks the prediction where it matters: a unit whose
-values are not the guess (ring backlash 60 µm against the scene's 100, drag 0.07 N m against
-0.05) is recorded `--n` times through each test (a 20-bit
+values are not the guess (`--truth`: ring backlash 0.8x the scene's 100 µm, drag 1.2x its
+0.05 N m) is recorded `--n` times through each test (a 20-bit
 encoder, 6.0 µrad steps, and 2 µrad of noise; the same noise draws for both), each recording
 identified from the scene's values (`identify`'s defaults but one start). The mechanism may run
 twice the plain scan's peak rate and four times its amplitude. Reported per parameter and test:
@@ -12,7 +12,7 @@ the intervals' stated relative standard error (mean), the estimates' spread over
 (what the stated error claims to be), how many 95 % intervals hold the truth, and the measured
 ratio plain / proposed against the predicted one. One core, one process.
 
-    python benchmarks/identify_test_design.py --n 8 --out benchmarks/results/identify_test_design.md
+    python benchmarks/identify_test_design.py --n 6 --out benchmarks/results/identify_test_design.md
 """
 
 import argparse
@@ -37,11 +37,13 @@ PERIODS = (0.25, 0.5, 1.0)  # s: the candidates' periods (amplitudes: design_tes
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=8, help="recordings per test (default 8)")
+    parser.add_argument("--truth", type=float, nargs=2, default=(0.8, 1.2), metavar=("BACKLASH", "DRAG"),
+                        help="the unit's ring backlash and drag as factors of the scene's (default 0.8 1.2)")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
     scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
     guess = np.asarray(parameter_values(scene, NAMES))
-    truth = dict(zip(NAMES, guess * np.array([0.6, 1.4])))
+    truth = dict(zip(NAMES, guess * np.array(args.truth)))
     start = time.perf_counter()
     a0 = float(scene.azimuth.drive.amplitude)
     # The mechanism's limits: twice the acceptance scan's peak rate, four times its amplitude.
@@ -58,13 +60,14 @@ def main(argv=None) -> int:
             t0 = time.perf_counter()
             got = tx.identify(test, rec, NAMES, starts=(1.0,))
             results[label].setdefault("converged", []).append(got.converged)
+            results[label].setdefault("sigma", []).append(got.sigma)
             results[label]["wall"].append(time.perf_counter() - t0)
             lo, hi = got.interval()
             true = np.array([truth[n] for n in NAMES])
             results[label]["est"].append(got.estimate / true)
             results[label]["se"].append(got.standard_error / true)
             results[label]["hit"].append((lo <= true) & (true <= hi))
-            print(f"{label} {seed}: estimate/truth {np.round(got.estimate / true, 5)}, relative se "
+            print(f"{label} {seed}: estimate/truth {np.round(got.estimate / true, 5)}, residual sd {1e6 * got.sigma:.2f} µrad, relative se "
                   f"{np.round(got.standard_error / true, 6)}, converged {got.converged}, {results[label]['wall'][-1]:.1f} s",
                   flush=True)
     summary = {k: {m: np.array(v) for m, v in r.items()} for k, r in results.items()}
@@ -81,10 +84,10 @@ def main(argv=None) -> int:
     a, t = proposal.amplitude, proposal.period
     text = "\n".join([
         "# Test design, measured: the plain scan against the proposed one", "",
-        f"`python benchmarks/identify_test_design.py --n {args.n}`; {os.cpu_count()} cores, one used; load average "
+        f"`python benchmarks/identify_test_design.py --n {args.n} --truth {args.truth[0]:g} {args.truth[1]:g}`; {os.cpu_count()} cores, one used; load average "
         f"{os.getloadavg()[0]:.2f} at the end.", "",
         f"Lumped azimuth scan (`tx.scan('azimuth', fidelity=('lumped', 'ideal'))`), {DURATION:g} s recorded, {N_SAVE} "
-        "samples, 20-bit encoder and 2 µrad of noise. The unit: ring backlash 0.6x and drag 1.4x the scene's values; the test designed and each recording identified from the scene's values.", "",
+        f"samples, 20-bit encoder and 2 µrad of noise. The unit: ring backlash {args.truth[0]:g}x and drag {args.truth[1]:g}x the scene's values; the test designed and each recording identified from the scene's values.", "",
         f"Proposed by `design_test` in {design_wall:.1f} s ({len(a)} candidates, compilation included): ±"
         f"{math.degrees(a[proposal.best]):.3g}° × {t[proposal.best]:.3g} s against the plain ±{math.degrees(a[0]):.3g}° × "
         f"{t[0]:.3g} s; limits: amplitude <= {math.degrees(4 * a0):.3g}°, peak rate <= "
@@ -98,7 +101,10 @@ def main(argv=None) -> int:
         f"{np.median(summary['proposed']['wall']):.1f} s (the first of each includes compilation: "
         f"{summary['plain']['wall'][0]:.1f} s); Levenberg-Marquardt's own convergence test passed on "
         f"{int(np.sum(summary['plain']['converged']))}/{args.n} plain and {int(np.sum(summary['proposed']['converged']))}/"
-        f"{args.n} proposed.", "", "## The candidates", "", proposal.table()])
+        f"{args.n} proposed. The residual's standard deviation (a fit in the truth's basin leaves the encoder's "
+        f"{1e6 * math.hypot(NOISE, ENCODER / math.sqrt(12)):.2f} µrad): plain "
+        f"{', '.join(f'{1e6 * v:.2f}' for v in summary['plain']['sigma'])}; proposed "
+        f"{', '.join(f'{1e6 * v:.2f}' for v in summary['proposed']['sigma'])} µrad.", "", "## The candidates", "", proposal.table()])
     print(text)
     if args.out:
         args.out.write_text(text + "\n")

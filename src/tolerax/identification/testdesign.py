@@ -25,7 +25,7 @@ The candidates are sine scans (`ScanServo`: amplitude $A$, period $T$, applied t
 scanning joint alike) on a grid inside the mechanism's limits: amplitude at most `max_amplitude`
 and peak rate $2\\pi A/T$ at most `max_rate` (default the scene's own scan's: a test never
 drives the unit harder than the scan it was built for unless told), and at least one reversal in
-the recorded window. The prediction is linearised at the guess: how much sharper the proposed
+the recorded window (from a steady start, at $T/4 + kT/2$). The prediction is linearised at the guess: how much sharper the proposed
 test really is comes from identifying recordings of both (`benchmarks/identify_test_design.py`).
 A parameter no candidate determines is named: no scan of this family separates it (the two
 backlashes of a lumped joint: the output sees their sum).
@@ -48,12 +48,19 @@ CRITERIA = ("weakest", "D")
 # The prior range a unit's values may lie in, as factors of the guess, and the points of each
 # parameter's cost profile over it (`_rugged`).
 SPREAD = (0.5, 2.0)
-PROFILE_POINTS = 9
+PROFILE_POINTS = 33  # steps of 4.4 %: the fast scans' dips in the drag lie ~20 % apart
 FACTORS = (1 / 8, 1 / 4, 1 / 2, 1.0)  # the default grid: these multiples of the limits' amplitude and period
 
 
 def _scanning(scene) -> tuple[str, ...]:
     return tuple(j for j in AXES if isinstance(getattr(getattr(scene, j, None), "drive", None), ScanServo))
+
+
+def _reverses(period: float, settle: float, duration: float) -> bool:
+    """Does a scan from a steady start ($\\sin$ from 0: reversals at $T/4 + kT/2$) reverse inside
+    the recorded window `[settle, duration]`?"""
+    k = max(math.ceil((settle - period / 4) / (period / 2)), 0)
+    return period / 4 + k * period / 2 <= duration
 
 
 def with_scan(scene, amplitude, period):
@@ -135,20 +142,21 @@ class TestDesign:
                  "| parameter | plain: relative standard error | proposed | sharper by |", "|---|---|---|---|"]
         for j, name in enumerate(self.names):
             a, b = self.relative_error[self.plain, j], self.relative_error[self.best, j]
-            lines.append(f"| {name} | {rel(a)} | {rel(b)} | {a / b:.3g}x |")
+            lines.append(f"| {name} | {rel(a)} | {rel(b)} | {f'{a / b:.3g}x' if min(a, b) < 1 else '—'} |")
         if self.undetermined:
             lines += ["", f"Not determined by any candidate: {', '.join(self.undetermined)} (no scan of this family "
                       "separates them; another measurement or a fixed value is needed)."]
         if self.rugged[self.best].any():
             lines += ["", "**Every candidate's fit is rugged** (a local minimum inside the range for "
                       f"{', '.join(n for n, r in zip(self.names, self.rugged[self.best]) if r)}): identify from several starts."]
-        lines += ["", f"| amplitude (°) | period (s) | weakest relative standard error | score | a local minimum within "
+        lines += ["", f"| amplitude (°) | period (s) | weakest relative standard error (of those some candidate determines) | score | a local minimum within "
                   f"{SPREAD[0]:g}-{SPREAD[1]:g}x for |", "|---|---|---|---|---|"]
         for k in np.argsort(self.score):
             mark = " (proposed)" if k == self.best else " (plain)" if k == self.plain else ""
             dips = ", ".join(n for n, r in zip(self.names, self.rugged[k]) if r) or "none"
+            seen = [j for j, n in enumerate(self.names) if n not in self.undetermined] or list(range(len(self.names)))
             lines.append(f"| {math.degrees(self.amplitude[k]):.3g} | {self.period[k]:.3g}{mark} | "
-                         f"{rel(float(np.max(self.relative_error[k])))} | {self.score[k]:.4g} | {dips} |")
+                         f"{rel(float(np.max(self.relative_error[k, seen])))} | {self.score[k]:.4g} | {dips} |")
         return "\n".join(lines)
 
 
@@ -193,7 +201,7 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     window = duration - settle
     grid = [(a0, t0)] + [(a, t) for a in amplitudes for t in periods
                          if 0 < a <= max_amplitude * (1 + 1e-12) and 2 * math.pi * a / t <= max_rate * (1 + 1e-12)
-                         and t / 2 < window and not (a == a0 and t == t0)]
+                         and _reverses(t, settle, duration) and not (a == a0 and t == t0)]
     if len(grid) < 2:
         raise ValueError(f"design_test: no candidate scan inside the limits (amplitude <= {max_amplitude:g} rad, peak rate "
                          f"<= {max_rate:g} rad/s, a reversal inside {window:g} s): widen the limits or give amplitudes and periods.")
