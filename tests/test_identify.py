@@ -227,12 +227,14 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
 
 
-def test_the_test_design_proposes_the_scan_that_shows_the_drag_and_names_what_no_scan_separates():
+def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_no_scan_separates():
     """At the same peak rate, a scan with more reversals holds the output on its flanks against
-    the drag for longer: the test design proposes it over the plain scan for the drag. The sun
-    and ring backlash are seen only as their sum by every scan of a lumped joint, and are named as
-    such (the criterion then weighs the drag alone). (Whether the predicted
-    gain holds on recordings of both: `benchmarks/identify_test_design.py`.)"""
+    the drag for longer: its linearised information on the drag is higher than the plain
+    scan's. But in a fast scan the drag also decides when the output leaves its flank, and the
+    fit's cost over the drag has dips away from the truth (a unit at 1.4x the guessed drag, fitted
+    from the guess with one start, stopped at 1.2x with a residual 25 times the noise): the design finds the dip in its cost profile and proposes
+    the plain scan instead. The sun and ring backlash are seen only as their sum by every scan
+    of a lumped joint, and are named as such (the criterion then weighs the drag alone)."""
     from tolerax.identification.testdesign import design_test
 
     scene = _scene()
@@ -240,8 +242,10 @@ def test_the_test_design_proposes_the_scan_that_shows_the_drag_and_names_what_no
     noise = math.hypot(NOISE, ENCODER / math.sqrt(12))
     a0 = float(scene.azimuth.drive.amplitude)
     plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25])
-    assert plan.best == 1 and plan.period[plan.best] == 0.25 and plan.sharper()[2] > 1.5, plan.table()
-    assert float(plan.scene.azimuth.drive.period) == 0.25 and "Proposed test: a ±0.125° × 0.25 s scan" in plan.table()
+    assert plan.relative_error[1, 2] < plan.relative_error[0, 2] / 2 and plan.score[1] < plan.score[0], plan.table()
+    assert list(plan.rugged[1]) == [False, False, True] and not plan.rugged[0].any(), plan.table()
+    assert plan.best == plan.plain == 0 and float(plan.scene.azimuth.drive.period) == 1.0
+    assert "Proposed test: a ±0.5° × 1 s scan" in plan.table() and "| 0.125 | 0.25 | " in plan.table()
     assert plan.undetermined == names[:2] and "Not determined by any candidate: azimuth.sun_backlash, azimuth.ring_backlash" in plan.table()
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")

@@ -45,7 +45,8 @@ def identify_command(parser, args) -> int:
     # window and saves, which identify sets from the recording.
     run = {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
     try:
-        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, starts=tuple(args.starts), **run)
+        starts = {} if args.starts is None else {"starts": tuple(args.starts)}
+        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search, **starts, **run)
     except (RecordingError, ValueError) as err:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
@@ -113,8 +114,11 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
                         "azimuth.ring_mesh_stiffness, azimuth.sun_mesh_damping_ratio, azimuth.ring_mesh_damping_ratio")
     parser.add_argument("--settle", type=non_negative, default=0.0, help="fit the samples from this time on, s (default 0)")
     parser.add_argument("--duration", type=positive, default=None, help="the model's run, s (default the recording's length)")
-    parser.add_argument("--starts", type=positive, nargs="+", default=[1.0, 0.5, 2.0],
-                        help="starting points as multiples of the scene's values (default 1 0.5 2)")
+    parser.add_argument("--starts", type=positive, nargs="+", default=None,
+                        help="starting points as multiples of the scene's values (default: the best 2 of 32 points screened "
+                        "within --search of them)")
+    parser.add_argument("--search", type=float, default=2.0,
+                        help="the screened box: within this factor of the scene's values either side (default 2)")
     out_options(parser, "identify")
     return parser
 

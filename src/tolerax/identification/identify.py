@@ -11,9 +11,9 @@ over the saves in `[settle, duration]` and the recorded axes, minimised by Leven
 (`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The
 parameters are optimised as $\\log(\\theta / 1\\,\\mu m)$ (a clearance or backlash) or
 $\\log(\\theta / \\theta_{\\text{scene}})$ (a physical parameter), so they stay positive; the contacts' smoothing
-width is continued from wide to narrow (`widths`), and several starts (`starts`, multiples of
-the scene's values) are run because clearances make the residual non-convex; the lowest residual
-wins.
+width is continued from wide to narrow (`widths`), and several starts are run because
+clearances and drag make the residual non-convex (the best of a Sobol screen over the prior box,
+`starts`, `search`); the lowest residual wins.
 
 **How well.** At the estimate, with $J = \\partial r/\\partial\\theta$ and $s^2 = \\lVert r \\rVert^2
 / (N - p)$ the residual variance, the Gauss-Newton covariance is $s^2 (J^TJ)^{+}$ and a 95 %
@@ -57,6 +57,10 @@ LM_TOL = 1e-4
 # Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
 # undetermined one would otherwise walk off to where the model is not physical (a stiffness of 1e51 N/m).
 BOUND = 100.0
+# The Gauss-Newton polish after it (`_polish`): steps and tolerance.
+POLISH_STEPS, POLISH_TOL = 3, 1e-7
+# Of the screened starts (`_starts`), Levenberg-Marquardt runs from this many of the lowest cost.
+STARTS_KEPT = 2
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -78,8 +82,10 @@ class Identification:
     - `residual` (rad, (saves, axes)), `times` (s), `measured` and `fitted` (rad): the fit.
     - `directions`: [(relative standard error, eigenvector over `names`)], best determined first.
     - `steps`: Levenberg-Marquardt steps of the winning start at the last width; `converged`:
-      the Gauss-Newton step left from the estimate is below a tenth of each standard error;
-      `starts`: each start's final cost (µrad²).
+      the Gauss-Newton step left from the estimate is below a tenth of each standard error (or
+      below one where a Gauss-Newton polish could not lower the cost: the solve's own noise);
+      `starts`: each start's final cost (µrad²); `screened`: the points the starts were chosen
+      from (0: the starts were given).
     - `scene`: the identified unit (the scene with the estimates).
     """
 
@@ -97,6 +103,7 @@ class Identification:
     steps: int
     converged: bool
     starts: tuple
+    screened: int
     scene: object = dataclasses.field(repr=False, default=None)
 
     @property
@@ -137,9 +144,9 @@ class Identification:
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
             rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
         lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
-                 f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error)'} "
+                 f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
-                 f"(best of {len(self.starts)} starts).", "", *rows, "", "Directions (relative standard error: combination):", ""]
+                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
         for se, vector in self.directions:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
@@ -170,6 +177,53 @@ class _Fit(eqx.Module):
     def residual(self, x, width):
         angles, ok = self.response(x, width)
         return jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+
+
+@eqx.filter_jit
+def _polish(fit: "_Fit", w0, width, centre, reach):
+    """A few Gauss-Newton steps (optimistix) at a tolerance finer than `LM_TOL` from
+    Levenberg-Marquardt's estimate `w0`: LM stops within its tolerance of the minimum, about
+    half a standard error for a parameter the recording determines to 1e-4. (solution, cost)."""
+    fn = lambda w, width: fit.residual(_bounded(w, centre, reach), width)  # noqa: E731
+    sol = optx.least_squares(fn, optx.GaussNewton(rtol=POLISH_TOL, atol=POLISH_TOL), w0, args=width, max_steps=POLISH_STEPS,
+                             throw=False)
+    return sol.value, jnp.sum(fn(sol.value, width) ** 2)
+
+
+def _unbounded(x, centre, reach):
+    """The optimiser's variable at `x` (`_bounded`'s inverse; `x` inside the bounds)."""
+    return reach * np.arctanh(np.clip((np.log(x) - centre) / reach, -1 + 1e-12, 1 - 1e-12))
+
+
+@eqx.filter_jit
+def _costs(fit: "_Fit", points, width):
+    """$\\lVert r\\rVert^2$ (µrad²) at each row of `points` (x), in one batched run."""
+    return eqx.filter_vmap(lambda v: jnp.sum(fit.residual(v, width) ** 2))(points)
+
+
+def _starts(fit, x0, width, starts, search: float):
+    """The Levenberg-Marquardt starts (x): `starts` multiples of `x0` as given, or (an int) the
+    `STARTS_KEPT` lowest-cost of `starts` points of a scrambled Sobol sequence over the box
+    $[x_0/s, s\\,x_0]$ (log-uniform, $s$ = `search`) and `x0` itself, costed against the recording
+    in one batched run at the scene's width. Returns `(starts, screened)`, `screened` the number
+    of points costed (0 where the starts were given)."""
+    if isinstance(starts, int):
+        from scipy.stats import qmc
+
+        if starts < 1 or not 1 < search < BOUND:
+            raise ValueError(f"identify: starts={starts!r} must be >= 1 and search={search!r} in (1, {BOUND:g}).")
+        unit = qmc.Sobol(len(x0), scramble=True, seed=0).random(starts)
+        points = np.vstack([x0, x0 * search ** (2 * unit - 1)])
+        cost = np.asarray(_costs(fit, jnp.asarray(points), width))
+        cost = np.where(np.isfinite(cost), cost, np.inf)
+        return points[np.argsort(cost)[:STARTS_KEPT]], len(points)
+    out = []
+    for factor in starts:
+        if not 1 / BOUND < float(factor) < BOUND:
+            raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
+                             "either side): start nearer.")
+        out.append(x0 * float(factor))
+    return out, 0
 
 
 def _bounded(w, centre, reach):
@@ -203,7 +257,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
-             n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=(1.0, 0.5, 2.0),
+             n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=32, search: float = 2.0,
              lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
@@ -221,10 +275,16 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       at most 2001). `start`: the model's initial state (`simulate`).
     - `widths`: the smoothing widths (m) continued through, `None` the scene's own; the
       estimate, its covariance and the fit are the last width's.
-    - `starts`: the starting points, as multiples of the scene's values. Every parameter is kept
-      within a factor `BOUND` (100) of the scene's value either side: an estimate at that bound
-      is one the recording does not determine (the table says so).
-    - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`);
+    - `starts`: an int (default 32): that many points of a Sobol sequence over the box within a
+      factor `search` (2) of the scene's values either side, and the scene's values, costed
+      against the recording in one batched run; Levenberg-Marquardt runs from the `STARTS_KEPT`
+      (2) best. The fit of a clearance or a drag is not convex: from a start 40 % off it can
+      stop in another basin with a residual many times the noise. Or a tuple: the starts, as
+      multiples of the scene's values. Every parameter is kept within a factor `BOUND` (100)
+      of the scene's value either side: an estimate at that bound is one the recording does not
+      determine (the table says so).
+    - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`; then
+      `POLISH_STEPS` Gauss-Newton steps at `POLISH_TOL` from the best, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
 
@@ -262,28 +322,30 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance.")
+    centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
+    x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
+    # A physical parameter is held at its start while the contacts are smoothed wider than the
+    # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
+    # stiffness would absorb and run to its bound. It is released at the scene's width.
+    physical = np.array([u != "m" for u in units])
     tried = []
-    centre, reach = jnp.log(jnp.asarray(x0)), jnp.full(len(parameters), math.log(BOUND))
-    # A physical parameter is held at the scene's value while the contacts are smoothed wider than the
-    # scene's (its reach ~0): the wide smoothing adds a compliance of its own, which a stiffness
-    # would absorb and run to its bound. It is released at the scene's width, from its start (its
-    # value in the scene times the start's factor).
-    physical = jnp.asarray([u != "m" for u in units])
-    held = jnp.where(physical, 1e-9, reach)
-    for factor in starts:
-        if not 1 / BOUND < float(factor) < BOUND:
-            raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
-                             "either side): start nearer.")
-        z0 = jnp.full(len(parameters), math.log(BOUND) * math.atanh(math.log(float(factor)) / math.log(BOUND)))
-        z = z0
+    for xs in x_starts:
+        free = _unbounded(xs, centre, reach)
+        held_centre, held_reach = np.where(physical, np.log(xs), centre), np.where(physical, 1e-9, reach)
+        z = np.where(physical, 0.0, free)
         for k, width in enumerate(widths):
             last = k == len(widths) - 1
             if last and k > 0:
-                z = jnp.where(physical, z0, z)
-            z, cost, steps, _ = _solve(fit, z, width, int(lm_steps), centre, reach if last else held)
+                z = np.where(physical, free, np.asarray(z))
+            z, cost, steps, _ = _solve(fit, jnp.asarray(z), width, int(lm_steps), *(jnp.asarray(v) for v in (
+                (centre, reach) if last else (held_centre, held_reach))))
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
-    estimate_x = np.asarray(_bounded(z, centre, reach))  # the last width's: every parameter free
+    polished, polished_cost = _polish(fit, jnp.asarray(z), widths[-1], jnp.asarray(centre), jnp.asarray(reach))
+    floor = not float(polished_cost) < cost  # Gauss-Newton cannot lower it: the cost's numerical floor
+    if not floor:  # kept only where it lowers the cost (the adaptive solve's noise in the residual can defeat it)
+        z = polished
+    estimate_x = np.asarray(_bounded(z, jnp.asarray(centre), jnp.asarray(reach)))  # the last width's: every parameter free
 
     jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(estimate_x), widths[-1]))
     r = ((fitted - measured) / UNIT).ravel()
@@ -296,12 +358,15 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # criterion can fail on the adaptive solve's noise in the cost).
     remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
     seen = 1.0 / np.sqrt(values) < DETERMINED
-    converged = bool(np.all(np.abs(remaining[seen]) <= 0.1 / np.sqrt(values[seen])) and np.isfinite(s2))
+    # Or, where Gauss-Newton could not lower the cost, within one standard error: the step left
+    # is then the solve's noise in the Jacobian, not a distance to the minimum.
+    left = np.abs(remaining[seen]) * np.sqrt(values[seen])  # in standard errors
+    converged = bool((np.all(left <= 0.1) or (floor and np.all(left <= 1.0))) and np.isfinite(s2))
     estimate = scale * estimate_x
     return Identification(
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
-        steps=steps, converged=converged, starts=tuple(t[0] for t in tried),
+        steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)),
     )
 
