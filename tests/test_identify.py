@@ -174,7 +174,7 @@ def test_the_command_line_plans_a_test_and_identifies_the_unit_from_its_recordin
                               key=jax.random.key(5))
     out = tmp_path / "id"
     code = cli.main(["identify", str(plan / "test.toml"), str(rec.write_csv(tmp_path / "unit.csv")), "--parameters",
-                     "azimuth.drag_torque", "--starts", "1", "--out", str(out)])
+                     "azimuth.drag_torque", "--out", str(out)])
     assert code == 0, capsys.readouterr().err
     import json
 
@@ -254,3 +254,23 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     with pytest.raises(ValueError, match="has no joint driven by a ScanServo"):
         design_test(tx.scan("azimuth", fidelity=("lumped", "ideal"), profile_times=[0.0, 1.0], profile_angles=[0.0, 0.01]),
                     names, duration=0.35, n_save=141, noise=noise)
+
+
+@pytest.mark.slow
+def test_a_dual_axis_unit_is_identified_from_both_encoders():
+    """Both joints of the lumped dual scan, recorded by both output encoders: each joint's ring
+    backlash recovered inside its interval from the scene's values (screened starts), each
+    determined by its own axis (the table's directions one joint each). (Enlarges
+    test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_recording to two
+    joints and two axes.)"""
+    scene = tx.scan("dual", fidelity="lumped")
+    truth = {"azimuth.ring_backlash": 60e-6, "pitch.ring_backlash": 130e-6}
+    rec = synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER, key=jax.random.key(6),
+                              axes=("azimuth", "pitch"))
+    got = identify(scene, rec, tuple(truth))
+    lo, hi = got.interval()
+    assert np.all(lo <= np.array(list(truth.values()))) and np.all(np.array(list(truth.values())) <= hi), got.table()
+    assert got.status() == ("determined", "determined") and got.converged, got.table()
+    assert got.sigma == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12)), rel=0.3)
+    for _, vector in got.directions:
+        assert np.max(np.abs(vector)) > 0.95  # each direction one joint's: the axes do not mix them

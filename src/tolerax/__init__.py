@@ -60,6 +60,8 @@ _FACE = {
     "design.optimise": ("Design", "Features", "OptimisationResult", "optimise_design", "realise", "robust"),
     "identification.recording": ("Recording", "RecordingError", "read_recording"),
     "identification.identify": ("Identification", "identify", "synthetic_recording"),
+    "identification.parameters": ("parameter_names",),
+    "identification.testdesign": ("TestDesign", "design_test"),
 }
 _KERNELS = ("smooth", "contact", "mesh", "planetary")  # modules of `tolerax.physics`, on the face as modules
 _WHERE = {name: module for module, names in _FACE.items() for name in names}

@@ -9,6 +9,27 @@ from .._files import atomic_write, save_figure
 from .common import check_out, claim_out, command_line, load_average, read_scene_file, scene_and_settings
 
 
+def _scene_and_parameters(parser, args):
+    """`(scene file, scene, parameters)` of the command line (`--parameters` checked against the
+    scene: exit 2 naming the ones it has), or `None` where the scene file cannot be read."""
+    from ..identification.parameters import check_names
+
+    scene_file = read_scene_file(parser, args)
+    if scene_file is None:
+        return None
+    scene = scene_file.build()
+    try:
+        return scene_file, scene, check_names(scene, args.parameters, f"--parameters of {scene_file.name}")
+    except ValueError as err:
+        parser.error(str(err))
+
+
+def _run_settings(scene_file) -> dict:
+    """The scene file's `[run]` keys but the window and saves, which the recording (or the
+    planned test) sets: every one is a `PointingObjective` field (`SceneFile.objective`)."""
+    return {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
+
+
 def identify_command(parser, args) -> int:
     import matplotlib
 
@@ -18,7 +39,6 @@ def identify_command(parser, args) -> int:
 
     from ..design.features import design_names
     from ..identification.identify import identify, show
-    from ..identification.parameters import check_names
     from ..identification.recording import RecordingError, read_recording
     from ..uncertainty.sampling import Tolerances
 
@@ -27,23 +47,17 @@ def identify_command(parser, args) -> int:
     except RecordingError as err:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
-    scene_file = read_scene_file(parser, args)
-    if scene_file is None:
+    read = _scene_and_parameters(parser, args)
+    if read is None:
         return 2
-    scene = scene_file.build()
-    try:
-        parameters = check_names(scene, args.parameters, f"--parameters of {scene_file.name}")
-    except ValueError as err:
-        parser.error(str(err))
+    scene_file, scene, parameters = read
     out = check_out(parser, args.out, "identify", force=args.force)
     duration = recording.duration if args.duration is None else args.duration
     print(f"tolerax identify: {', '.join(parameters)} of {scene_file.title} from {recording.source} "
           f"({recording.time.size} samples over {recording.duration:g} s, axes {', '.join(recording.axes)}); results in {out}/",
           flush=True)
     start = time.perf_counter()
-    # Every [run] key is a PointingObjective field (SceneFile.objective): all pass through but the
-    # window and saves, which identify sets from the recording.
-    run = {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
+    run = _run_settings(scene_file)
     try:
         starts = {} if args.starts is None else {"starts": tuple(args.starts)}
         got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search, **starts, **run)
@@ -127,22 +141,17 @@ def plan_test_command(parser, args) -> int:
     """`tolerax plan-test SCENE --parameters ...`: the scan whose recording determines them best."""
     import math
 
-    from ..identification.parameters import check_names
     from ..identification.testdesign import design_test
 
-    scene_file = read_scene_file(parser, args)
-    if scene_file is None:
+    read = _scene_and_parameters(parser, args)
+    if read is None:
         return 2
-    scene = scene_file.build()
-    try:
-        parameters = check_names(scene, args.parameters, f"--parameters of {scene_file.name}")
-    except ValueError as err:
-        parser.error(str(err))
+    scene_file, scene, parameters = read
     out = check_out(parser, args.out, "plan-test", force=args.force)
     noise = math.hypot(1e-6 * args.noise, 2 * math.pi / 2**args.encoder_bits / math.sqrt(12))
     limits = dict(max_amplitude=None if args.max_amplitude is None else math.radians(args.max_amplitude),
                   max_rate=None if args.max_rate is None else math.radians(args.max_rate))
-    run = {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
+    run = _run_settings(scene_file)
     print(f"tolerax plan-test: the scan of {scene_file.title} whose {args.duration:g} s recording determines "
           f"{', '.join(parameters)} best; results in {out}/", flush=True)
     start = time.perf_counter()

@@ -30,7 +30,13 @@ at a reversal sees the backlash and the pin play together), or not determined.
 in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
 planetary stage in developed rattle the output angle's forward-mode derivative over a window is
 dominated by the chaotic rattle (the reason the jitter design uses secants), and the estimate
-stays at its start: a residual the rattle does not scramble is not built yet.
+stays at its start: a residual the rattle does not scramble is not built yet. Of the physical
+parameters, the drag is seen as the clearances are (it sets which flank the output rides); a
+mesh stiffness or damping ratio only through the output's ringing after each reversal (the
+reflector swinging on the mesh stiffness): that fit is non-convex beyond a few per cent (tried: a unit at
+0.7x the scene's stiffness, fitted from the scene's value, ran to its bound), and the ringing's
+sensitivity changes by tens of per cent within a fraction of its standard error, so its interval
+is a rough guide; identify a stiffness from a close start, or leave it at its value.
 """
 
 import dataclasses

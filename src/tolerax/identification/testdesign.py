@@ -107,6 +107,8 @@ class TestDesign:
       proposed scan; `undetermined`: the parameters no candidate determines.
     """
 
+    __test__ = False  # not a pytest class, though its name starts with "Test"
+
     names: tuple[str, ...]
     units: tuple[str, ...]
     values: np.ndarray
