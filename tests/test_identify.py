@@ -95,6 +95,11 @@ def test_a_backlash_is_recovered_inside_its_interval_from_a_noisy_quantised_reco
     assert lo[0] <= 60e-6 <= hi[0] and hi[0] - lo[0] < 2e-6, got.table()
     assert got.sigma == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12)), rel=0.3)
     assert got.status() == ("determined",) and "determined" in got.table()
+    # The residual is the recording's stated noise: no misfit said; a residual 3x a stated noise is.
+    assert got.noise == rec.noise and "misses part of the unit" not in got.table()
+    import dataclasses
+
+    assert "is 3x the recording's stated noise" in dataclasses.replace(got, noise=got.sigma / 3).table()
     assert float(design_of(got.scene)[design_names(scene).index("azimuth.ring_backlash")]) == pytest.approx(got.estimate[0])
     # A recording of another test (its command 1.5x the scene's) is refused before any fitting:
     # the difference would be fitted as clearance.

@@ -14,22 +14,21 @@ determinant (`criterion="D"`, D-optimality: the volume of the joint confidence r
 
 That information is local: a test can be sharp at the truth and rugged around it. A fast scan
 makes the drag decide when the output leaves its flank at each reversal, and the fit's cost over
-the drag then has dips away from the truth, where Levenberg-Marquardt stops (tried: a unit at
-1.4x the guessed drag, identified from a 0.125° × 0.25 s scan, stopped at 1.2x with a residual
-25 times the noise). So each candidate's noise-free cost profile of each parameter over the
-prior range (`SPREAD`, 0.5-2x the guess) is checked too, and a candidate with a dip away from
-the truth is not proposed: the proposal is the sharpest test whose fit has one basin over the
-range. The check is one parameter at a time about the guess: a unit far from the guess in
-several parameters can still meet a dip it does not see (a 0.25° × 0.5 s scan passed it, and a
-unit at 1.4x the drag fitted from the guess with one start stopped at 1.09x): `identify`'s
+the drag then has dips away from the truth, where Levenberg-Marquardt stops with a residual
+many times the noise (`tests/test_identify.py`). So each candidate's noise-free cost profile of
+each parameter over the prior range (`SPREAD`, 0.5-2x the guess) is checked too, and a candidate
+with a dip away from the truth is not proposed: the proposal is the sharpest test whose fit has
+one basin over the range. The check is one parameter at a time about the guess: a unit far from
+the guess, in one parameter or several, can still meet a dip it does not see: `identify`'s
 screened starts are what finds the basin then.
 
 The candidates are sine scans (`ScanServo`: amplitude $A$, period $T$, applied to every
 scanning joint alike) on a grid inside the mechanism's limits: amplitude at most `max_amplitude`
 and peak rate $2\\pi A/T$ at most `max_rate` (default the scene's own scan's: a test never
 drives the unit harder than the scan it was built for unless told), and at least one reversal in
-the recorded window (from a steady start, at $T/4 + kT/2$). The prediction is linearised at the guess: how much sharper the proposed
-test really is comes from identifying recordings of both (`benchmarks/identify_test_design.py`).
+the recorded window (from a steady start, at $T/4 + kT/2$). The prediction is linearised at the
+guess: how much sharper the proposed test really is, at a unit's own values, comes from
+identifying recordings of both (`benchmarks/identify_test_design.py`).
 A parameter no candidate determines is named: no scan of this family separates it (the two
 backlashes of a lumped joint: the output sees their sum).
 """
@@ -51,7 +50,7 @@ CRITERIA = ("weakest", "D")
 # The prior range a unit's values may lie in, as factors of the guess, and the points of each
 # parameter's cost profile over it (`_rugged`).
 SPREAD = (0.5, 2.0)
-PROFILE_POINTS = 33  # steps of 4.4 %: the fast scans' dips in the drag lie ~20 % apart
+PROFILE_POINTS = 33  # steps of 4.4 %: fine enough for the fast scans' dips in the drag, which 9 points missed
 FACTORS = (1 / 8, 1 / 4, 1 / 2, 1.0)  # the default grid: these multiples of the limits' amplitude and period
 
 
