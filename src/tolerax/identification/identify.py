@@ -298,13 +298,15 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       of the scene's value either side: an estimate at that bound is one the recording does not
       determine (the table says so).
     - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`; then
-      `POLISH_STEPS` Gauss-Newton steps at `POLISH_TOL` from the best, kept if they lower the cost);
+      where the best is not within a tenth of a standard error, `POLISH_STEPS` Gauss-Newton steps
+      at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
-    `COMMAND_TOLERANCE` or 1 % of its range) and `ValueError` for unknown parameters.
+    `COMMAND_TOLERANCE` or 1 % of its range) and `ValueError` for unknown parameters, a scene
+    value that is not > 0, or starts outside the bounds.
     """
     parameters = check_names(scene, parameters)
     duration = recording.duration if duration is None else float(duration)
