@@ -183,14 +183,17 @@ class _Fit(eqx.Module):
         scene = with_parameters(self.objective.scene, self.names, self.scale * x)
         return eqx.tree_at(lambda o: o.scene, self.objective, scene).run(design_of(scene), width)
 
-    def response(self, x, width):
+    def outputs(self, x, width):
+        """`(residual, (model angles, commanded angles))` at `x`: the residual (µrad) and, from
+        the same solve, the model's output and commanded angles (rad) at the fitted saves."""
         res = self.run(x, width)
         ok = res.result == diffrax.RESULTS.successful
-        return jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan), ok
+        angles = jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan)
+        residual = jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+        return residual, (angles, res.commanded_angle[self.rows][:, self.columns])
 
     def residual(self, x, width):
-        angles, ok = self.response(x, width)
-        return jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+        return self.outputs(x, width)[0]
 
 
 @eqx.filter_jit
@@ -258,9 +261,9 @@ def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
 @eqx.filter_jit
 def _fit_and_jacobian(fit: _Fit, x, width):
     """The residual's Jacobian (µrad per unit of x), the fitted angles and the scene's commanded
-    angles (rad) at `x`."""
-    commanded = fit.run(x, width).commanded_angle[fit.rows][:, fit.columns]
-    return jax.jacfwd(lambda v: fit.residual(v, width))(x), fit.response(x, width)[0], commanded
+    angles (rad) at `x`, from one forward-mode solve (the angles are its primal)."""
+    jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
+    return jac, angles, commanded
 
 
 def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
@@ -325,8 +328,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
     fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
                jnp.asarray(measured))
-    own = float(np.ravel(_widths(scene)[0])[0])  # the scene's smoothing width: one compiled program for every width
-    widths = [jnp.asarray(own if w is None else w, dtype=float) for w in widths]
+    widths = [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
         commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), widths[-1])[2])
         recorded = recording.at(times[window], "commanded")
@@ -395,6 +397,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)),
     )
+
+
+def own_width(scene) -> jax.Array:
+    """The scene's smoothing width (m) as an array: one compiled program for every width."""
+    return jnp.asarray(float(np.ravel(_widths(scene)[0])[0]))
 
 
 def _scales(scene, parameters):

@@ -40,9 +40,9 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..design.objectives import PointingObjective, _widths
+from ..design.objectives import PointingObjective
 from ..mechanism.drives import ScanServo
-from .identify import DETERMINED, UNIT, _costs, _Fit, _fit_and_jacobian, _information, _scales
+from .identify import DETERMINED, UNIT, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
 from .parameters import check_names, parameter_values
 from .recording import AXES
 
@@ -213,7 +213,7 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     rows = jnp.asarray(np.flatnonzero(times >= settle))
     columns = jnp.asarray([AXES.index(a) for a in axes])
     objective = PointingObjective(scene, duration=duration, settle=settle, n_save=int(n_save), start=start, **run).forward_mode()
-    width = jnp.asarray(float(np.ravel(_widths(scene)[0])[0]))
+    width = own_width(scene)
     measured = jnp.zeros((rows.size, columns.size))
     factors = np.geomspace(SPREAD[0], SPREAD[1], PROFILE_POINTS)
     middle = int(np.argmin(np.abs(np.log(factors))))
