@@ -164,8 +164,8 @@ def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, caps
 @pytest.mark.slow
 def test_the_command_line_plans_a_test_and_identifies_the_unit_from_its_recording(tmp_path, capsys):
     """`tolerax plan-test` writes the proposed test as a scene file, and `tolerax identify` on
-    that file and a recording of it recovers the drag (a physical parameter: reported, not in
-    identified.toml). (Enlarges test_the_command_line_refuses_a_bad_recording_before_any_work.)"""
+    that file and a recording of it recovers the drag (a physical parameter: reported, and
+    written into identified.toml as the scene's drag_torque). (Enlarges test_the_command_line_refuses_a_bad_recording_before_any_work.)"""
     from tolerax import cli
 
     plan = tmp_path / "plan"
@@ -185,7 +185,9 @@ def test_the_command_line_plans_a_test_and_identifies_the_unit_from_its_recordin
 
     got = json.loads((out / "identification.json").read_text())
     assert got["units"] == ["N m"] and got["estimate"][0] == pytest.approx(0.07, rel=1e-3)
-    assert "Not in it: azimuth.drag_torque" in (out / "identification.md").read_text()
+    # The drag is written into identified.toml (the pitch is ideal: the file's one drag is the azimuth's).
+    assert "Not in it" not in (out / "identification.md").read_text()
+    assert float(tx.load_scene(str(out / "identified.toml")).build().azimuth.drag_torque) == pytest.approx(0.07, rel=1e-3)
 
 
 @pytest.mark.slow
@@ -213,7 +215,10 @@ def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, c
 def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     """The joints' drag, mesh stiffness and damping are parameters of a modelled joint only (the
     ideal pitch has none), read and written by name; unknown or repeated names are refused with
-    the ones that exist."""
+    the ones that exist; an identified unit is written as a scene file with what its schema
+    holds."""
+    import dataclasses
+
     from tolerax.identification.parameters import check_names, parameter_names, parameter_units, parameter_values, with_parameters
 
     scene = _scene()
@@ -230,6 +235,27 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
         check_names(scene, ["pitch.drag_torque"])
     with pytest.raises(ValueError, match="named twice"):
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
+    # The identified unit as a scene file: the backlash in [design] with its zone (normal, 3
+    # standard errors), the drag as the file's drag_torque (the pitch is ideal: no other drag
+    # acts), the stiffness named as not written; with both joints modelled the file's one drag
+    # would set both, so it is not written either.
+    from tolerax.identification.identify import Identification
+
+    se = np.array([0.2e-6, 1e-3, 1e6])
+    got = Identification(names=chosen, units=("m", "N m", "N/m"), estimate=np.array([61e-6, 0.07, 9e7]),
+                         covariance=np.diag(se**2), sigma=2.6e-6, n=100, cost=1.0, times=None, measured=None, fitted=None,
+                         directions=((0.01, np.eye(3)[0]),) * 3, steps=3, converged=True, starts=(1.0,), screened=0, scene=scene)
+    written = got.scene_file(tx.load_scene("scan-azimuth"), "unit7.csv")
+    zones = written.tolerances()
+    k = zones.names.index("azimuth.ring_backlash")
+    assert float(zones.nominal[k]) == pytest.approx(61e-6) and float(zones.band[k]) == pytest.approx(0.6e-6)
+    assert zones.distribution == "normal" and written.data["scene"]["drag_torque"] == pytest.approx(0.07)
+    built = written.build()
+    assert float(built.azimuth.drag_torque) == pytest.approx(0.07)
+    assert float(design_of(built)[design_names(built).index("azimuth.ring_backlash")]) == pytest.approx(61e-6)
+    assert got.unwritten() == ("azimuth.sun_mesh_stiffness",) and "unit7.csv" in written.data["description"]
+    dual = dataclasses.replace(got, scene=tx.scan("azimuth", fidelity=("lumped", "lumped")))
+    assert dual.unwritten() == ("azimuth.drag_torque", "azimuth.sun_mesh_stiffness")
 
 
 def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_no_scan_separates():

@@ -37,10 +37,8 @@ def identify_command(parser, args) -> int:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from ..design.features import design_names
     from ..identification.identify import identify, show
     from ..identification.recording import RecordingError, read_recording
-    from ..uncertainty.sampling import Tolerances
 
     try:
         recording = read_recording(args.recording)
@@ -67,24 +65,15 @@ def identify_command(parser, args) -> int:
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
-    # (normal, band = 3 standard errors). Physical parameters have no key in a scene file yet.
-    features = [j for j, n in enumerate(got.names) if n in design_names(scene)]
-    physical = [n for n in got.names if n not in design_names(scene)]
-    identified = scene_file
-    if features:
-        identified = scene_file.with_tolerances(Tolerances(tuple(got.names[j] for j in features), got.estimate[features],
-                                                           3.0 * got.standard_error[features], "normal"))
-    data = identified.data | {"title": f"Identified unit: {scene_file.title}",
-                              "description": f"Written by tolerax identify from {recording.source}: " + "; ".join(
-                                  f"{n} {show(e, u)} +- {show(1.96 * s, u)} (95 %, {st})".replace("µm", "um")
-                                  for n, u, e, s, st in zip(got.names, got.units, got.estimate, got.standard_error, got.status()))}
+    # (normal, band = 3 standard errors), the drag where the file can hold it.
+    physical = got.unwritten()
     from ..io import scenefile as F
 
-    path = F.save_scene(F.SceneFile.from_data(data, "identified", "<identified>"), out / "identified.toml")
+    path = F.save_scene(got.scene_file(scene_file, recording.source), out / "identified.toml")
     text = "\n".join([
         f"# Identified unit: {scene_file.title}", "", f"Recording `{recording.source}`; {wall:.1f} s of wall time (compilation "
         f"included); {load_average()}.", "", got.table(), "",
-        f"The unit as a scene file: `{path}` (its values under [design], each zone 3 standard errors, normal): "
+        f"The unit as a scene file: `{path}` (its values under [design], each zone 3 standard errors, normal; an identified drag as its drag_torque where one joint's drag acts): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
         "recording leaves open." + (f" Not in it: {', '.join(physical)} (a scene file has no key for them yet: their estimates "
                                     "are in identification.json)." if physical else ""), "", "Reproduce with:", "", "```", command_line(args), "```", "",

@@ -40,6 +40,7 @@ sensitivity changes within a fraction of its standard error, so its interval is 
 
 import dataclasses
 import math
+import time
 
 import diffrax
 import equinox as eqx
@@ -94,6 +95,10 @@ class Identification:
       below one where a Gauss-Newton polish could not lower the cost: the solve's own noise);
       `starts`: each start's final cost (µrad²); `screened`: the points the starts were chosen
       from (0: the starts were given). `noise` (rad): the recording's stated noise, or None.
+    - `wall` (s): where the call's wall time went, by phase: `"check"` (the recording's command
+      against the scene's), `"screen"` (the starts' costs), `"fit"` (Levenberg-Marquardt from each
+      start through each width), `"assess"` (the Jacobian at the estimate, the covariance, and the
+      polish where one ran); tracing and compiling included where a program was new.
     - `scene`: the identified unit (the scene with the estimates).
     """
 
@@ -114,6 +119,7 @@ class Identification:
     screened: int
     noise: float | None = None
     scene: object = dataclasses.field(repr=False, default=None)
+    wall: dict = dataclasses.field(default_factory=dict)
 
     @property
     def standard_error(self) -> np.ndarray:
@@ -143,6 +149,57 @@ class Identification:
             else:
                 out.append("not determined")
         return tuple(out)
+
+    def scene_file(self, scene_file, source: str = "a recording"):
+        """The identified unit as a scene file (`tolerax.io.scenefile.SceneFile`), so that
+        `tolerax run`, `montecarlo` (with its `[life]`) and the design tools answer for *this*
+        unit: `scene_file` (the one the identification ran) with
+
+        - the identified clearances and backlash under `[design]`, their uncertainty as zones
+          (`[tolerances]`: normal, band = 3 standard errors, so the zone's sigma is the standard
+          error; features not identified keep the file's values and zones);
+        - the identified drag as the scene's `drag_torque` where one modelled joint's drag was
+          identified and no other joint's drag acts (the scene file's key holds one drag for
+          both joints); other physical parameters have no key of their own in a scene file
+          (`unwritten`);
+        - every estimate, its 95 % interval and status in its title and description
+          (`source`: what the recording was).
+        """
+        from ..io import scenefile as F
+        from ..uncertainty.sampling import Tolerances
+
+        features = [j for j, u in enumerate(self.units) if u == "m"]
+        out = scene_file
+        if features:
+            out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
+                                                        3.0 * self.standard_error[features], "normal"))
+        scene = dict(out.data["scene"])
+        for name, value in zip(self.names, self.estimate):
+            if name in self._drag_writable():
+                scene["drag_torque"] = float(value)
+        lo, hi = self.interval()
+        data = out.data | {"scene": scene, "title": f"Identified unit: {scene_file.title}",
+                           "description": f"Written by tolerax identify from {source}: " + "; ".join(
+                               f"{n} {show(e, u)} ({show(a, u)} to {show(b, u)}, 95 %, {st})".replace("µm", "um")
+                               for n, u, e, a, b, st in zip(self.names, self.units, self.estimate, lo, hi, self.status()))}
+        return F.SceneFile.from_data(data, "identified", "<identified>")
+
+    def unwritten(self) -> tuple[str, ...]:
+        """The identified parameters `scene_file` cannot write (no scene-file key holds them)."""
+        return tuple(n for n, u in zip(self.names, self.units) if u != "m" and n not in self._drag_writable())
+
+    def _drag_writable(self) -> tuple[str, ...]:
+        """`("joint.drag_torque",)` where that joint's drag was identified and no other joint's
+        drag acts (every other joint ideal and servo-driven, no coordinate to drag)."""
+        from ..mechanism.drives import TorqueDrive
+        from ..mechanism.joints import IdealJoint
+
+        drags = [n for n in self.names if n.endswith(".drag_torque")]
+        if len(drags) != 1 or self.scene is None or not hasattr(self.scene, "named_joints"):
+            return ()
+        joint = drags[0].split(".")[0]
+        others = [j for name, j in self.scene.named_joints() if name != joint]
+        return tuple(drags) if all(isinstance(j, IdealJoint) and not isinstance(j.drive, TorqueDrive) for j in others) else ()
 
     def table(self) -> str:
         """The estimates, intervals and identifiability as Markdown."""
@@ -329,6 +386,15 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
                jnp.asarray(measured))
     widths = [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
+    clock = time.perf_counter()
+    wall = {}
+
+    def lap(phase):
+        nonlocal clock
+        now = time.perf_counter()
+        wall[phase] = wall.get(phase, 0.0) + now - clock
+        clock = now
+
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
         commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), widths[-1])[2])
         recorded = recording.at(times[window], "commanded")
@@ -340,8 +406,10 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance.")
+    lap("check")
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
     x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
+    lap("screen")
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -360,6 +428,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
     centre, reach = jnp.asarray(centre), jnp.asarray(reach)
+    lap("fit")
 
     def assess(z):
         """The fit at `z` (the last width's: every parameter free) and the Gauss-Newton step left
@@ -388,6 +457,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
+    lap("assess")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
@@ -395,7 +465,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
-        scene=with_parameters(scene, parameters, jnp.asarray(estimate)),
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall,
     )
 
 

@@ -7,9 +7,10 @@ ideal joint) has none: its parameters do not reach its output.
 
 `parameter_names(scene)` lists them (the features first), `parameter_units` gives each one's SI
 unit, `parameter_values(scene, names)` reads them and `with_parameters(scene, names, values)`
-writes them back (traceable: `values` may be a tracer under `jacfwd`). Identified physical
-parameters have no place in a scene file's schema yet: `tolerax identify` reports them and
-writes only the features into `identified.toml`.
+writes them back (traceable: `values` may be a tracer under `jacfwd`). Of the physical
+parameters, a scene file holds the drag (its `drag_torque`, one for both joints: written where
+one joint's drag acts, `Identification.scene_file`); the mesh stiffness and damping of each mesh
+family have no key of their own there: `tolerax identify` reports them beside `identified.toml`.
 """
 
 import equinox as eqx
