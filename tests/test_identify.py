@@ -195,6 +195,8 @@ def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, c
     """`tolerax identify` on a recording file: the report, the fit's figure and the identified
     unit as a scene file whose [design] holds the estimate, read back as a scene. (Enlarges
     test_the_command_line_refuses_a_bad_recording_before_any_work.)"""
+    import json
+
     from tolerax import cli
 
     scene = _scene()
@@ -203,13 +205,22 @@ def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, c
     path = rec.write_csv(tmp_path / "unit7.csv")
     out = tmp_path / "id"
     code = cli.main(["identify", "scan-azimuth", str(path), "--parameters", "azimuth.ring_backlash", "--starts", "1",
-                     "--out", str(out)])
+                     "--noise", "2", "--encoder-bits", "20", "--out", str(out)])
     assert code == 0, capsys.readouterr().err
     text = (out / "identification.md").read_text()
+    # The encoder's stated noise (and rounding) reaches the report: the residual is the encoder's, no misfit said.
+    stated = json.loads((out / "identification.json").read_text())["noise_rad"]
+    assert stated == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12))) and "misses part of the unit" not in text
     assert "azimuth.ring_backlash" in text and "determined" in text and (out / "identification.png").stat().st_size > 10_000
     unit = tx.load_scene(str(out / "identified.toml"))
     assert unit.data["design"]["azimuth.ring_backlash"] == pytest.approx(60e-6, abs=0.3e-6)
-    assert unit.tolerances().distribution == "normal"
+    # The drawing's zones keep their distribution (uniform); the identified one's standard
+    # deviation is the standard error: a uniform band of sqrt(3) standard errors.
+    zones = unit.tolerances()
+    k = zones.names.index("azimuth.ring_backlash")
+    assert zones.distribution == "uniform" and float(zones.band[k]) == pytest.approx(math.sqrt(3) * float(json.loads(
+        (out / "identification.json").read_text())["standard_error"][0]))
+    assert float(zones.band[zones.names.index("azimuth.sun_backlash")]) == pytest.approx(10e-6)
 
 
 def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
@@ -235,8 +246,8 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
         check_names(scene, ["pitch.drag_torque"])
     with pytest.raises(ValueError, match="named twice"):
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
-    # The identified unit as a scene file: the backlash in [design] with its zone (normal, 3
-    # standard errors), the drag as the file's drag_torque (the pitch is ideal: no other drag
+    # The identified unit as a scene file: the backlash in [design] with its zone (the file's
+    # uniform distribution, the standard error its standard deviation: sqrt(3) of them), the drag as the file's drag_torque (the pitch is ideal: no other drag
     # acts), the stiffness named as not written; with both joints modelled the file's one drag
     # would set both, so it is not written either.
     from tolerax.identification.identify import Identification
@@ -248,8 +259,8 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     written = got.scene_file(tx.load_scene("scan-azimuth"), "unit7.csv")
     zones = written.tolerances()
     k = zones.names.index("azimuth.ring_backlash")
-    assert float(zones.nominal[k]) == pytest.approx(61e-6) and float(zones.band[k]) == pytest.approx(0.6e-6)
-    assert zones.distribution == "normal" and written.data["scene"]["drag_torque"] == pytest.approx(0.07)
+    assert float(zones.nominal[k]) == pytest.approx(61e-6) and float(zones.band[k]) == pytest.approx(math.sqrt(3) * 0.2e-6)
+    assert zones.distribution == "uniform" and written.data["scene"]["drag_torque"] == pytest.approx(0.07)
     built = written.build()
     assert float(built.azimuth.drag_torque) == pytest.approx(0.07)
     assert float(design_of(built)[design_names(built).index("azimuth.ring_backlash")]) == pytest.approx(61e-6)

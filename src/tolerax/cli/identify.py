@@ -45,6 +45,12 @@ def identify_command(parser, args) -> int:
     except RecordingError as err:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
+    if args.noise is not None or args.encoder_bits is not None:  # the encoder's stated noise: the misfit is judged against it
+        import dataclasses
+        import math
+
+        step = 0.0 if args.encoder_bits is None else 2 * math.pi / 2**args.encoder_bits
+        recording = dataclasses.replace(recording, noise=math.hypot(1e-6 * (args.noise or 0.0), step / math.sqrt(12)))
     read = _scene_and_parameters(parser, args)
     if read is None:
         return 2
@@ -65,7 +71,7 @@ def identify_command(parser, args) -> int:
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
-    # (normal, band = 3 standard errors), the drag where the file can hold it.
+    # (Identification.scene_file), the drag where the file can hold it.
     physical = got.unwritten()
     from ..io import scenefile as F
 
@@ -73,7 +79,7 @@ def identify_command(parser, args) -> int:
     text = "\n".join([
         f"# Identified unit: {scene_file.title}", "", f"Recording `{recording.source}`; {wall:.1f} s of wall time (compilation "
         f"included); {load_average()}.", "", got.table(), "",
-        f"The unit as a scene file: `{path}` (its values under [design], each zone 3 standard errors, normal; an identified drag as its drag_torque where one joint's drag acts): "
+        f"The unit as a scene file: `{path}` (its values under [design], each identified zone's standard deviation the standard error, in the file's distribution; an identified drag as its drag_torque where one joint's drag acts): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
         "recording leaves open." + (f" Not in it: {', '.join(physical)} (a scene file has no key for them yet: their estimates "
                                     "are in identification.json)." if physical else ""), "", "Reproduce with:", "", "```", command_line(args), "```", "",
@@ -82,7 +88,7 @@ def identify_command(parser, args) -> int:
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
         "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()),
-        "sigma_rad": got.sigma, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
+        "sigma_rad": got.sigma, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for j, axis in enumerate(recording.axes):
         top.plot(got.times, np.degrees(got.measured[:, j]), ".", ms=3, label=f"{axis}: recording")
@@ -122,6 +128,10 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
                         "within --search of them)")
     parser.add_argument("--search", type=float, default=2.0,
                         help="the screened box: within this factor of the scene's values either side (default 2)")
+    parser.add_argument("--noise", type=positive, default=None,
+                        help="the encoder's noise, µrad standard deviation: with it (or --encoder-bits) the report says "
+                        "where the residual exceeds what the encoder explains (a model that misses part of the unit)")
+    parser.add_argument("--encoder-bits", type=int, default=None, help="the encoder's resolution, bits per turn (its rounding)")
     out_options(parser, "identify")
     return parser
 

@@ -57,9 +57,16 @@ from .recording import AXES, Recording, RecordingError
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
 DETERMINED = 0.25  # a relative standard error below this (95 % interval within +-50 %) is determined
 LOADING = 0.3  # a parameter takes part in a direction whose eigenvector component exceeds this
-# Levenberg-Marquardt's relative and absolute tolerance on the step (log µm) and the cost (µrad²):
-# finer than the adaptive solve's own noise in the residual makes it wander without gaining.
+# Levenberg-Marquardt's relative and absolute tolerance on the step (log µm, log of the scene's
+# value); it stops where an accepted step moves the parameters less than that and changes no
+# residual by more than RESIDUAL_TOL (1 + |r|) µrad (`_termination_norm`). A finer residual
+# tolerance is below the adaptive solve's own noise in the residual: at the cost floor every
+# further step is rejected on that noise and the solve ran to its step limit (20 steps where 4-5
+# found the same estimate to 1e-9: the fit's wall time 62 s against 38 s on the lumped scan with
+# the drag, benchmarks/results/identify_wall_time.md). The estimate is then checked to a tenth of
+# a standard error and polished where it is not (`identify`).
 LM_TOL = 1e-4
+RESIDUAL_TOL = 0.2
 # Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
 # undetermined one would otherwise walk off to where the model is not physical (a stiffness of 1e51 N/m).
 BOUND = 100.0
@@ -156,8 +163,9 @@ class Identification:
         unit: `scene_file` (the one the identification ran) with
 
         - the identified clearances and backlash under `[design]`, their uncertainty as zones
-          (`[tolerances]`: normal, band = 3 standard errors, so the zone's sigma is the standard
-          error; features not identified keep the file's values and zones);
+          whose standard deviation is the standard error, in the file's own distribution (a
+          scene file has one for all its zones, and the drawing's zones of the features not
+          identified stay as drawn): normal, band = 3 standard errors; uniform, band = sqrt(3);
         - the identified drag as the scene's `drag_torque` where one modelled joint's drag was
           identified and no other joint's drag acts (the scene file's key holds one drag for
           both joints); other physical parameters have no key of their own in a scene file
@@ -171,8 +179,10 @@ class Identification:
         features = [j for j, u in enumerate(self.units) if u == "m"]
         out = scene_file
         if features:
+            distribution = scene_file.tolerances().distribution
+            per_sigma = 3.0 if distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
             out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
-                                                        3.0 * self.standard_error[features], "normal"))
+                                                        per_sigma * self.standard_error[features], distribution))
         scene = dict(out.data["scene"])
         for name, value in zip(self.names, self.estimate):
             if name in self._drag_writable():
@@ -306,13 +316,20 @@ def _bounded(w, centre, reach):
     return jnp.exp(centre + reach * jnp.tanh(w / reach))
 
 
+def _termination_norm(tree):
+    """The norm of Levenberg-Marquardt's Cauchy termination (optimistix's `norm`: it measures the
+    step in the parameters and the change in the residual, each divided by `LM_TOL` (1 + |.|)):
+    the max norm, the residual's (the `{"residual": r}` of `_solve`) read at `RESIDUAL_TOL`."""
+    return optx.max_norm(tree) * (LM_TOL / RESIDUAL_TOL if isinstance(tree, dict) else 1.0)
+
+
 @eqx.filter_jit
 def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
     """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
-    fn = lambda w, width: fit.residual(_bounded(w, centre, reach), width)  # noqa: E731
-    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL), w0, args=width, max_steps=max_steps,
-                             throw=False)
-    return sol.value, jnp.sum(fn(sol.value, width) ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
+    fn = lambda w, width: {"residual": fit.residual(_bounded(w, centre, reach), width)}  # noqa: E731
+    solver = optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm)
+    sol = optx.least_squares(fn, solver, w0, args=width, max_steps=max_steps, throw=False)
+    return sol.value, jnp.sum(fn(sol.value, width)["residual"] ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
 
 
 @eqx.filter_jit
