@@ -11,6 +11,7 @@ identification (tracing and compiling included) against the later ones (the comp
 reused).
 
     python benchmarks/identify_coverage.py --n 40 --out benchmarks/results/identify_coverage.md
+    python benchmarks/identify_coverage.py --n 20 --dual --out benchmarks/results/identify_coverage_dual.md
 """
 
 import argparse
@@ -32,42 +33,57 @@ def main(argv=None) -> int:
     parser.add_argument("--n", type=int, default=40, help="recordings (default 40)")
     parser.add_argument("--truth", type=float, default=60.0, help="the unit's ring backlash, µm (default 60)")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
+    parser.add_argument("--dual", action="store_true",
+                        help="the lumped dual scan recorded by both encoders: both ring backlashes (azimuth --truth, pitch 130 µm)")
     args = parser.parse_args(argv)
-    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    if args.dual:
+        scene, axes = tx.scan("dual", fidelity="lumped"), ("azimuth", "pitch")
+        chosen, truths = ("azimuth.ring_backlash", "pitch.ring_backlash"), (args.truth, 130.0)
+    else:
+        scene, axes = tx.scan("azimuth", fidelity=("lumped", "ideal")), ("azimuth",)
+        chosen, truths = ("azimuth.ring_backlash",), (args.truth,)
     names = design_names(scene)
     truth = np.asarray(design_of(scene)).copy()
-    truth[names.index("azimuth.ring_backlash")] = args.truth * 1e-6
+    for name, value in zip(chosen, truths):
+        truth[names.index(name)] = value * 1e-6
     encoder, noise = 2 * math.pi / 2**20, 2e-6
     rows, walls, inside, estimates, errors = [], [], 0, [], []
     for seed in range(args.n):
         rec = tx.synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=noise, quantum=encoder,
-                                     key=jax.random.key(1000 + seed))
+                                     key=jax.random.key(1000 + seed), axes=axes)
         start = time.perf_counter()
-        got = tx.identify(scene, rec, ["azimuth.ring_backlash"], starts=(1.0,))
+        got = tx.identify(scene, rec, list(chosen), starts=(1.0,))
         walls.append(time.perf_counter() - start)
         lo, hi = got.interval()
-        hit = bool(lo[0] <= args.truth * 1e-6 <= hi[0])
-        inside += hit
-        estimates.append(1e6 * got.estimate[0])
-        errors.append(1e6 * got.standard_error[0])
-        rows.append(f"| {seed} | {1e6 * got.estimate[0]:.3f} | {1e6 * lo[0]:.3f} – {1e6 * hi[0]:.3f} | {'yes' if hit else 'NO'} | "
+        cells = []
+        for j, value in enumerate(truths):
+            hit = bool(lo[j] <= value * 1e-6 <= hi[j])
+            inside += hit
+            estimates.append(1e6 * got.estimate[j] - value)
+            errors.append(1e6 * got.standard_error[j])
+            cells.append(f"{1e6 * got.estimate[j]:.3f} | {1e6 * lo[j]:.3f} – {1e6 * hi[j]:.3f} | {'yes' if hit else 'NO'}")
+        rows.append(f"| {seed} | {' | '.join(cells)} | "
                     f"{1e6 * got.sigma:.2f} | {got.steps} | {'yes' if got.converged else 'no'} | {walls[-1]:.1f} |")
         print(rows[-1], flush=True)
-    p_low = binom.cdf(inside, args.n, 0.95)
+    intervals = args.n * len(chosen)
+    p_low = binom.cdf(inside, intervals, 0.95)
+    what = (f"Lumped dual scan recorded by both encoders, ring backlash {args.truth:g} µm (azimuth) and 130 µm (pitch)"
+            if args.dual else f"Lumped azimuth scan, ring backlash {args.truth:g} µm")
+    header = " | ".join(f"{n.split('.')[0]}: estimate (µm) | 95 % interval (µm) | holds the truth" for n in chosen)
     text = "\n".join([
         "# Identification: coverage of the 95 % intervals on synthetic recordings", "",
-        f"`python benchmarks/identify_coverage.py --n {args.n}`; {os.cpu_count()} cores, one used; load average "
-        f"{os.getloadavg()[0]:.2f} at the end.", "",
-        f"Lumped azimuth scan, ring backlash {args.truth:g} µm identified from the scene's 100 µm; 20-bit encoder "
-        f"(6.0 µrad steps) and 2 µrad of noise, one draw per recording.", "",
-        f"**Coverage: {inside} of {args.n} intervals hold the truth** (P(X <= {inside}) = {p_low:.3f} for X ~ "
-        f"Binomial({args.n}, 0.95)). Estimates: mean {np.mean(estimates):.3f} µm, standard deviation "
+        f"`python benchmarks/identify_coverage.py --n {args.n}{' --dual' if args.dual else ''}`; {os.cpu_count()} cores, "
+        f"one used; load average {os.getloadavg()[0]:.2f} at the end.", "",
+        f"{what}, identified from the scene's 100 µm; 20-bit encoder (6.0 µrad steps) and 2 µrad of noise, one draw per "
+        "recording.", "",
+        f"**Coverage: {inside} of {intervals} intervals hold the truth** (P(X <= {inside}) = {p_low:.3f} for X ~ "
+        f"Binomial({intervals}, 0.95)). Estimates minus the truth: mean {np.mean(estimates):+.3f} µm, standard deviation "
         f"{np.std(estimates, ddof=1):.3f} µm against the stated standard error's mean {np.mean(errors):.3f} µm.", "",
         f"Wall time: the first identification {walls[0]:.1f} s (tracing and compiling the Levenberg-Marquardt program "
         f"and the Jacobian's included), the later ones {np.median(walls[1:]):.1f} s (median; two smoothing widths, "
         "a forward-mode solve per step).", "",
-        "| recording | estimate (µm) | 95 % interval (µm) | holds the truth | residual sd (µrad) | steps | converged | wall (s) |",
-        "|---|---|---|---|---|---|---|---|", *rows])
+        f"| recording | {header} | residual sd (µrad) | steps | converged | wall (s) |",
+        "|---|" + "---|---|---|" * len(chosen) + "---|---|---|---|", *rows])
     print(text)
     if args.out:
         args.out.write_text(text + "\n")

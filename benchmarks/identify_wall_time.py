@@ -62,7 +62,9 @@ def run(label, scene, truth, names, seeds):
         start = time.perf_counter()
         got = tx.identify(scene, rec, names)
         total = time.perf_counter() - start
-        shown = ", ".join(f"{n.split('.')[-1]} {I.show(e, u)}" for n, u, e in zip(got.names, got.units, got.estimate))
+        lo, hi = got.interval()
+        shown = ", ".join(f"{n.split('.')[-1]} {I.show(e, u)} ({I.show(a, u)} – {I.show(b, u)})"
+                          for n, u, e, a, b in zip(got.names, got.units, got.estimate, lo, hi))
         rows.append((label, "first (compiling)" if k == 0 else "second (compiled)", total, got.wall, got, shown))
         print(label, rows[-1][1], f"{total:.1f} s", {p: round(got.wall.get(p, 0.0), 1) for p in PHASES}, shown,
               f"sigma {1e6 * got.sigma:.2f} urad", flush=True)
@@ -106,7 +108,7 @@ def main(argv=None) -> int:
         "1e-4 (1 + |z|) and changes no residual by more than 0.2 (1 + |r|) µrad) and as it was (1e-4 (1 + |r|) µrad "
         "for the residual too: below the adaptive solve's own noise in it, so at the cost floor every step is "
         "rejected until the step limit).", "",
-        "| model | call | wall (s) | check | screen | fit | assess | LM steps (last width) | estimate | truth | residual (µrad) |",
+        "| model | call | wall (s) | check | screen | fit | assess | LM steps (last width) | estimate (95 % interval) | truth | residual (µrad) |",
         "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|",
     ]
     for (label, call, total, wall, got, shown), truth in table:

@@ -43,7 +43,9 @@ def pytest_configure(config):
 # CI's two cores busy to the end instead of one finishing a long file alone. The notebooks come
 # after test_cli.py, whose designs and studies compile programs two of them read back from the
 # run's cache (tests/_notebooks.py); test_hard_cases.py before test_bench.py (the bench
-# program). A stale order costs only time, never a result.
+# program). A stale order costs only time, never a result. Last of all: the identification
+# notebook, whose programs test_identify.py and the mission-life notebook compile.
+_LAST = ("test_notebooks_identify.py",)
 _LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_mechanism.py", "test_life.py", "test_hard_cases.py",
                   "test_notebooks.py", "test_notebooks_physics.py", "test_montecarlo.py", "test_scenefile.py", "test_loaded.py",
                   "test_gradients.py", "test_design.py", "test_identify.py", "test_cache.py", "test_bench.py", "test_joint.py",
@@ -52,7 +54,8 @@ _LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_mechanism.py", "te
 
 def pytest_collection_modifyitems(config, items):
     rank = {name: i for i, name in enumerate(_LONGEST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: each file's own order kept
+    last = {name: len(rank) + 1 + i for i, name in enumerate(_LAST)}  # after the files not listed
+    items.sort(key=lambda item: last.get(item.path.name, rank.get(item.path.name, len(rank))))  # stable: each file's own order kept
 
 
 def pytest_unconfigure(config):

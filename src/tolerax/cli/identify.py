@@ -64,7 +64,8 @@ def identify_command(parser, args) -> int:
     run = _run_settings(scene_file)
     try:
         starts = {} if args.starts is None else {"starts": tuple(args.starts)}
-        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search, **starts, **run)
+        got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search,
+                       progress=not args.quiet, **starts, **run)
     except (RecordingError, ValueError) as err:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
@@ -132,6 +133,7 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
                         help="the encoder's noise, µrad standard deviation: with it (or --encoder-bits) the report says "
                         "where the residual exceeds what the encoder explains (a model that misses part of the unit)")
     parser.add_argument("--encoder-bits", type=int, default=None, help="the encoder's resolution, bits per turn (its rounding)")
+    parser.add_argument("--quiet", action="store_true", help="no phase lines while it runs (the report and errors are still printed)")
     out_options(parser, "identify")
     return parser
 

@@ -28,9 +28,13 @@ at a reversal sees the backlash and the pin play together), or not determined.
 
 **Where it holds.** The residual matches trajectories, so it needs a response whose derivative
 in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
-planetary stage in developed rattle the output angle's forward-mode derivative over a window is
-dominated by the chaotic rattle (the reason the jitter design uses secants), and the estimate
-stays at its start: a residual the rattle does not scramble is not built yet. Of the physical
+planetary stage the output angle's forward-mode derivative over a window is dominated by the
+rattle (the reason the jitter design uses secants): on the 0.35 s scan from a steady start the
+screen's best point (60.65 µm for a unit at 60) was where Levenberg-Marquardt stayed, on two
+recordings, with an interval of a few nanometres that held the truth in neither and a residual
+1.4-1.5x the encoder's (`benchmarks/results/identify_wall_time.md`). The full stage's estimate
+is the screen's, its interval is not to be read: a residual the rattle does not scramble is not
+built yet. Of the physical
 parameters, the drag is seen as the clearances are (it sets which flank the output rides); a
 mesh stiffness or damping ratio only through the output's ringing after each reversal (the
 reflector swinging on the mesh stiffness): that fit is non-convex beyond a few per cent (a unit well
@@ -40,6 +44,7 @@ sensitivity changes within a fraction of its standard error, so its interval is 
 
 import dataclasses
 import math
+import sys
 import time
 
 import diffrax
@@ -61,9 +66,9 @@ LOADING = 0.3  # a parameter takes part in a direction whose eigenvector compone
 # value); it stops where an accepted step moves the parameters less than that and changes no
 # residual by more than RESIDUAL_TOL (1 + |r|) µrad (`_termination_norm`). A finer residual
 # tolerance is below the adaptive solve's own noise in the residual: at the cost floor every
-# further step is rejected on that noise and the solve ran to its step limit (20 steps where 4-5
-# found the same estimate to 1e-9: the fit's wall time 62 s against 38 s on the lumped scan with
-# the drag, benchmarks/results/identify_wall_time.md). The estimate is then checked to a tenth of
+# further step is rejected on that noise and the solve ran to its step limit (20 steps where 4
+# found the same estimates to four digits: a compiled identification of the lumped scan's backlash
+# and drag 79.8 s against 39.1 s, benchmarks/results/identify_wall_time.md). The estimate is then checked to a tenth of
 # a standard error and polished where it is not (`identify`).
 LM_TOL = 1e-4
 RESIDUAL_TOL = 0.2
@@ -349,7 +354,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=32, search: float = 2.0,
-             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, **run) -> Identification:
+             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, progress=False, **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
     **Arguments:**
@@ -379,6 +384,10 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
+    - `progress`: True prints a line per phase to stderr as it ends (the screen, each start at
+      each width with its steps and cost, the assessment), with its wall time; or a callable
+      taking that line. An identification takes ~40 s compiled on the lumped scan, minutes
+      where it compiles and on the full stage (`benchmarks/results/identify_wall_time.md`).
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
@@ -405,11 +414,14 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     widths = [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
     clock = time.perf_counter()
     wall = {}
+    say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
 
-    def lap(phase):
+    def lap(phase, line=None):
         nonlocal clock
         now = time.perf_counter()
         wall[phase] = wall.get(phase, 0.0) + now - clock
+        if say and line:
+            say(f"identify: {line} ({now - clock:.1f} s)")
         clock = now
 
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
@@ -423,10 +435,10 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance.")
-    lap("check")
+    lap("check", "the recording's command checked against the scene's" if recording.commanded is not None else None)
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
     x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
-    lap("screen")
+    lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -442,10 +454,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 z = np.where(physical, free, np.asarray(z))
             z, cost, steps, _ = _solve(fit, jnp.asarray(z), width, int(lm_steps), *(jnp.asarray(v) for v in (
                 (centre, reach) if last else (held_centre, held_reach))))
+            lap("fit", f"start {len(tried) + 1} of {len(x_starts)}, width {1e6 * float(width):.3g} µm: {int(steps)} steps, "
+                       f"residual {math.sqrt(float(cost) / measured.size):.3g} µrad rms")
         tried.append((float(cost), z, int(steps)))
     cost, z, steps = min(tried, key=lambda t: t[0])
     centre, reach = jnp.asarray(centre), jnp.asarray(reach)
-    lap("fit")
 
     def assess(z):
         """The fit at `z` (the last width's: every parameter free) and the Gauss-Newton step left
@@ -474,7 +487,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    lap("assess")
+    lap("assess", "the Jacobian, covariance and intervals at the estimate")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
