@@ -29,12 +29,10 @@ at a reversal sees the backlash and the pin play together), or not determined.
 **Where it holds.** The residual matches trajectories, so it needs a response whose derivative
 in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
 planetary stage the output angle's forward-mode derivative over a window is dominated by the
-rattle (the reason the jitter design uses secants): on the 0.35 s scan from a steady start the
-screen's best point (60.65 µm for a unit at 60) was where Levenberg-Marquardt stayed, on two
-recordings, with an interval of a few nanometres that held the truth in neither and a residual
-1.4-1.5x the encoder's (`benchmarks/results/identify_wall_time.md`). The full stage's estimate
-is the screen's, its interval is not to be read: a residual the rattle does not scramble is not
-built yet. Of the physical
+rattle (the reason the jitter design uses secants): Levenberg-Marquardt stays at the screen's
+best point, with an interval far narrower than its error and a residual near the misfit
+threshold. The full stage's estimate is the screen's, its interval is not to be read: a residual
+the rattle does not scramble is not built yet. Of the physical
 parameters, the drag is seen as the clearances are (it sets which flank the output rides); a
 mesh stiffness or damping ratio only through the output's ringing after each reversal (the
 reflector swinging on the mesh stiffness): that fit is non-convex beyond a few per cent (a unit well
@@ -66,10 +64,9 @@ LOADING = 0.3  # a parameter takes part in a direction whose eigenvector compone
 # value); it stops where an accepted step moves the parameters less than that and changes no
 # residual by more than RESIDUAL_TOL (1 + |r|) µrad (`_termination_norm`). A finer residual
 # tolerance is below the adaptive solve's own noise in the residual: at the cost floor every
-# further step is rejected on that noise and the solve ran to its step limit (20 steps where 4
-# found the same estimates to four digits: a compiled identification of the lumped scan's backlash
-# and drag 79.8 s against 39.1 s, benchmarks/results/identify_wall_time.md). The estimate is then checked to a tenth of
-# a standard error and polished where it is not (`identify`).
+# further step is rejected on that noise and the solve runs to its step limit for no gain
+# (measured in benchmarks/identify_wall_time.py). The estimate is then checked to a tenth of a
+# standard error and polished where it is not (`identify`).
 LM_TOL = 1e-4
 RESIDUAL_TOL = 0.2
 # Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
@@ -188,9 +185,9 @@ class Identification:
             per_sigma = 3.0 if distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
             out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
                                                         per_sigma * self.standard_error[features], distribution))
-        scene = dict(out.data["scene"])
+        scene, writable = dict(out.data["scene"]), self._drag_writable()
         for name, value in zip(self.names, self.estimate):
-            if name in self._drag_writable():
+            if name in writable:
                 scene["drag_torque"] = float(value)
         lo, hi = self.interval()
         data = out.data | {"scene": scene, "title": f"Identified unit: {scene_file.title}",
@@ -386,8 +383,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       `max_steps`, ...), as a scene file's `[run]` holds them.
     - `progress`: True prints a line per phase to stderr as it ends (the screen, each start at
       each width with its steps and cost, the assessment), with its wall time; or a callable
-      taking that line. An identification takes ~40 s compiled on the lumped scan, minutes
-      where it compiles and on the full stage (`benchmarks/results/identify_wall_time.md`).
+      taking that line (an identification can take minutes where it compiles, or on the full
+      stage).
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
