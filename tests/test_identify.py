@@ -268,6 +268,22 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     assert got.unwritten() == ("azimuth.sun_mesh_stiffness",) and "unit7.csv" in written.data["description"]
     dual = dataclasses.replace(got, scene=tx.scan("azimuth", fidelity=("lumped", "lumped")))
     assert dual.unwritten() == ("azimuth.drag_torque", "azimuth.sun_mesh_stiffness")
+    # Where the residual is not quadratic along an interval (`Identification.profile`: its cost
+    # rise over the linearised one at 1.96, 10 and 100 standard errors), the status says the
+    # interval does not hold, the table says why and what would change it, and the estimate is
+    # not written: the drawing's zone stays. The backlash's ratios here are the full planetary
+    # stage's as measured (a rattle: the cost falls below the estimate's 100 standard errors
+    # away); the drag's and stiffness's those of a quadratic residual.
+    quadratic = np.array([[0.99, 1.0, 1.04], [1.0, 0.98, 0.82]])
+    rugged = dataclasses.replace(got, profile=np.stack([np.array([[-0.18, -0.014, -5.8e-5], [0.27, 0.017, -1.3e-5]]),
+                                                        quadratic, np.full((2, 3), np.nan)]))
+    assert got.holds() == (None,) * 3 and rugged.holds() == (False, True, None)
+    assert rugged.status() == ("interval does not hold", "determined", "determined")
+    assert "**The interval of azimuth.ring_backlash does not hold**" in rugged.table() and "lumped joint" in rugged.table()
+    assert dataclasses.replace(got, profile=np.stack([quadratic * 2.5] * 3)).holds() == (False,) * 3  # too steep counts too
+    drawn, kept = tx.load_scene("scan-azimuth").tolerances(), rugged.scene_file(tx.load_scene("scan-azimuth")).tolerances()
+    k = drawn.names.index("azimuth.ring_backlash")
+    assert (float(kept.nominal[k]), float(kept.band[k])) == (float(drawn.nominal[k]), float(drawn.band[k]))
 
 
 def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_no_scan_separates():

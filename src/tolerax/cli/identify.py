@@ -74,6 +74,7 @@ def identify_command(parser, args) -> int:
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
     # (Identification.scene_file), the drag where the file can hold it.
     physical = got.unwritten()
+    rugged = [n for n, held in zip(got.names, got.holds()) if held is False]
     from ..io import scenefile as F
 
     path = F.save_scene(got.scene_file(scene_file, recording.source), out / "identified.toml")
@@ -83,12 +84,14 @@ def identify_command(parser, args) -> int:
         f"The unit as a scene file: `{path}` (its values under [design], each identified zone's standard deviation the standard error, in the file's distribution; an identified drag as its drag_torque where one joint's drag acts): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
         "recording leaves open." + (f" Not in it: {', '.join(physical)} (a scene file has no key for them yet: their estimates "
-                                    "are in identification.json)." if physical else ""), "", "Reproduce with:", "", "```", command_line(args), "```", "",
+                                    "are in identification.json)." if physical else "")
+        + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold)." if rugged else ""),
+        "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])
     atomic_write(out / "identification.md", text + "\n")
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
-        "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()),
+        "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()), "interval_holds": list(got.holds()),
         "sigma_rad": got.sigma, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for j, axis in enumerate(recording.axes):
@@ -105,7 +108,7 @@ def identify_command(parser, args) -> int:
     save_figure(fig, out / "identification.png", dpi=120)
     plt.close(fig)
     print(text)
-    return 0 if got.converged else 3
+    return 0 if got.converged and not rugged else 3
 
 
 def add_parser(sub, out_options, positive, non_negative, epilog):
@@ -115,7 +118,8 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
         "the output encoder's angles while the unit ran SCENE's drive: tolerax.identification.recording), by least squares "
         "through the simulation (Levenberg-Marquardt, exact Jacobian), with 95 % intervals and which of them the "
         "recording determines. Writes identification.md, identification.json, identification.png and identified.toml "
-        "(the unit as a scene file).", epilog=epilog)
+        "(the unit as a scene file). Exits 3 where the fit did not converge or an interval does not hold (the residual "
+        "not quadratic along it: the report says which and what would change it).", epilog=epilog)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file: the model, with the test's drive")
     parser.add_argument("recording", type=pathlib.Path, help="the recording: .csv or .nc with units in its headers")
     parser.add_argument("--parameters", nargs="+", default=None, metavar="PARAMETER",

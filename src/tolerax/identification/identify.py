@@ -19,7 +19,12 @@ clearances and drag make the residual non-convex (the best of a Sobol screen ove
 / (N - p)$ the residual variance, the Gauss-Newton covariance is $s^2 (J^TJ)^{+}$ and a 95 %
 interval $\\hat\\theta \\pm 1.96\\,\\sigma_\\theta$ (the linearised one: it holds where the residual is
 close to quadratic over the interval and the residuals are independent; `tests/test_identify.py`
-measures its coverage on synthetic recordings instead of assuming it). The identifiability
+measures its coverage on synthetic recordings instead of assuming it). Each interval is checked
+against the residual itself along its profile path $\\hat\\theta \\pm k\\,\\Sigma e_j/\\sigma_j$ (the
+other parameters at their linearised conditional best), where the linearised cost rises by
+$k^2 s^2$: the measured rise over that at $k$ = 1.96, 10 and 100 (`Identification.profile`) is
+1 where the residual is quadratic; an interval whose ratio at 1.96 or 10 is off by more than
+`PROFILE_FACTOR` does not hold (`Identification.holds`, the status says so). The identifiability
 table is the eigen-decomposition of the relative Fisher information $D J^TJ D / s^2$
 ($D$ = the estimates): a direction whose relative standard error is below `DETERMINED` is
 determined; a parameter is determined itself, determined only in combination (it loads on a
@@ -30,9 +35,10 @@ at a reversal sees the backlash and the pin play together), or not determined.
 in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
 planetary stage the output angle's forward-mode derivative over a window is dominated by the
 rattle (the reason the jitter design uses secants): Levenberg-Marquardt stays at the screen's
-best point, with an interval far narrower than its error and a residual near the misfit
-threshold. The full stage's estimate is the screen's, its interval is not to be read: a residual
-the rattle does not scramble is not built yet. Of the physical
+best point, with an interval of nanometres and a residual near the misfit threshold, and the
+profile check finds the cost along that interval nowhere near its linearised rise (its status
+"interval does not hold", not written into the identified scene). A residual the rattle does
+not scramble is not built yet. Of the physical
 parameters, the drag is seen as the clearances are (it sets which flank the output rides); a
 mesh stiffness or damping ratio only through the output's ringing after each reversal (the
 reflector swinging on the mesh stiffness): that fit is non-convex beyond a few per cent (a unit well
@@ -79,6 +85,13 @@ MISFIT = 1.5
 POLISH_STEPS, POLISH_TOL = 3, 1e-7
 # Of the screened starts (`_starts`), Levenberg-Marquardt runs from this many of the lowest cost.
 STARTS_KEPT = 2
+# The interval's check (`_profile`): the cost along each parameter's profile direction at these
+# many standard errors either side of the estimate, against the linearised model's rise. The
+# interval holds where the rise at the first two is within this factor of the linearised one
+# either way (the profile interval's ends then within ~1.4x of the linearised ones); the third
+# says whether the curvature is the basin's or only the estimate's neighbourhood's.
+PROFILE_STEPS = (1.96, 10.0, 100.0)
+PROFILE_FACTOR = 2.0
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -109,6 +122,10 @@ class Identification:
       start through each width), `"assess"` (the Jacobian at the estimate, the covariance, and the
       polish where one ran); tracing and compiling included where a program was new.
     - `scene`: the identified unit (the scene with the estimates).
+    - `profile` ((parameters, 2, 3)): the intervals checked against the residual itself
+      (`_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
+      estimate along each parameter's profile path, over the rise the linearised model predicts
+      there; 1 where the residual is quadratic out to there. `holds` reads it.
     """
 
     names: tuple[str, ...]
@@ -129,6 +146,7 @@ class Identification:
     noise: float | None = None
     scene: object = dataclasses.field(repr=False, default=None)
     wall: dict = dataclasses.field(default_factory=dict)
+    profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
     @property
     def standard_error(self) -> np.ndarray:
@@ -145,13 +163,29 @@ class Identification:
         z = float(norm.ppf(0.5 + level / 2))
         return self.estimate - z * self.standard_error, self.estimate + z * self.standard_error
 
+    def holds(self) -> tuple[bool | None, ...]:
+        """Per parameter: does its linearised interval hold (the cost's rise along its profile at
+        1.96 and 10 standard errors within `PROFILE_FACTOR` of the linearised rise on both
+        sides)? None where it was not checked (an interval reaching past the bounds)."""
+        if self.profile is None:
+            return (None,) * len(self.names)
+        out = []
+        for ratios in self.profile[:, :, :2]:
+            seen = ratios[np.isfinite(ratios)]
+            out.append(None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR))))
+        return tuple(out)
+
     def status(self) -> tuple[str, ...]:
-        """Per parameter: "determined", "in combination" or "not determined" (module docstring)."""
+        """Per parameter: "determined", "in combination", "not determined" (module docstring), or
+        "interval does not hold" where the residual is not quadratic over it (`holds`): the
+        estimate is where the search stopped, not a minimum the recording determines."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
-        for j in range(len(self.names)):
-            if relative[j] < DETERMINED:
+        for j, holds in enumerate(self.holds()):
+            if holds is False:
+                out.append("interval does not hold")
+            elif relative[j] < DETERMINED:
                 out.append("determined")
             elif any(abs(v[j]) > LOADING for v in good):
                 out.append("in combination")
@@ -174,11 +208,14 @@ class Identification:
           (`unwritten`);
         - every estimate, its 95 % interval and status in its title and description
           (`source`: what the recording was).
+
+        A parameter whose interval does not hold (`holds`) is not written: its zone (or value)
+        stays the drawing's.
         """
         from ..io import scenefile as F
         from ..uncertainty.sampling import Tolerances
 
-        features = [j for j, u in enumerate(self.units) if u == "m"]
+        features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False]
         out = scene_file
         if features:
             distribution = scene_file.tolerances().distribution
@@ -197,8 +234,10 @@ class Identification:
         return F.SceneFile.from_data(data, "identified", "<identified>")
 
     def unwritten(self) -> tuple[str, ...]:
-        """The identified parameters `scene_file` cannot write (no scene-file key holds them)."""
-        return tuple(n for n, u in zip(self.names, self.units) if u != "m" and n not in self._drag_writable())
+        """The identified parameters `scene_file` cannot write (no scene-file key holds them; those
+        whose interval does not hold are not written either, and not listed here)."""
+        return tuple(n for n, u, held in zip(self.names, self.units, self.holds())
+                     if u != "m" and held is not False and n not in self._drag_writable())
 
     def _drag_writable(self) -> tuple[str, ...]:
         """`("joint.drag_torque",)` where that joint's drag was identified and no other joint's
@@ -206,7 +245,7 @@ class Identification:
         from ..mechanism.drives import TorqueDrive
         from ..mechanism.joints import IdealJoint
 
-        drags = [n for n in self.names if n.endswith(".drag_torque")]
+        drags = [n for n, held in zip(self.names, self.holds()) if n.endswith(".drag_torque") and held is not False]
         if len(drags) != 1 or self.scene is None or not hasattr(self.scene, "named_joints"):
             return ()
         joint = drags[0].split(".")[0]
@@ -220,6 +259,7 @@ class Identification:
         for j, (name, status) in enumerate(zip(self.names, self.status())):
             rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
+            interval += " (does not hold)" if status == "interval does not hold" else ""
             rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
         lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
                  f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
@@ -230,6 +270,18 @@ class Identification:
                           f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
                           "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
                           "count that bias: the estimates can be off by more than they say."]
+        rugged = [j for j, held in enumerate(self.holds()) if held is False]
+        if rugged:
+            near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
+            lines[1:1] = ["", f"**The interval{'s' * (len(rugged) > 1)} of {', '.join(self.names[j] for j in rugged)} {'do' if len(rugged) > 1 else 'does'} not hold**: along them the "
+                          f"residual's cost rose {np.nanmin(near):.2g} to {np.nanmax(near):.2g} times what the linearised model "
+                          f"predicts at 1.96 and 10 standard errors (1 where it holds) and {np.nanmin(far):.2g} to "
+                          f"{np.nanmax(far):.2g} times at 100. The residual is rugged at the interval's scale: its "
+                          "derivative is not the recording's sensitivity to the parameter (on the full planetary stage the "
+                          "rattle scrambles the trajectory's derivative), so the estimate is where the search stopped, not a "
+                          "minimum the recording determines, and it is not written into the identified scene. What would "
+                          "change it: identify with a joint whose response the parameter moves smoothly (the lumped joint, "
+                          "with its bias against the full stage in mind), or a recording without rattle."]
         for se, vector in self.directions:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
@@ -274,6 +326,32 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     sol = optx.least_squares(fn, optx.GaussNewton(rtol=POLISH_TOL, atol=POLISH_TOL), w0, args=width, max_steps=POLISH_STEPS,
                              throw=False)
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
+
+
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int) -> np.ndarray:
+    """The linearised intervals checked against the residual itself: for each parameter $j$ the
+    cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the linearised profile path: the other parameters
+    at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
+    `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1 where the cost is quadratic out to there.
+    `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
+    is not finite. Costed in batches of `batch` (the screen's: its compiled program)."""
+    se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
+    ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
+    points, where = [x], []
+    for j in range(x.size):
+        if not (np.isfinite(se[j]) and se[j] > 0):
+            continue
+        for side, sign in enumerate((-1.0, 1.0)):
+            for m, k in enumerate(PROFILE_STEPS):
+                point = x + sign * k * cov_x[:, j] / se[j]
+                if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
+                    points.append(point)
+                    where.append((j, side, m, k))
+    points = np.vstack(points + [x] * (-len(points) % batch))
+    costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width)) for i in range(0, len(points), batch)])
+    for (j, side, m, k), c in zip(where, costs[1:]):
+        ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
+    return ratio
 
 
 def _unbounded(x, centre, reach):
@@ -484,7 +562,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    lap("assess", "the Jacobian, covariance and intervals at the estimate")
+    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or 1 + 2 * len(PROFILE_STEPS) * len(parameters))
+    lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
@@ -492,7 +571,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
-        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall,
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile,
     )
 
 
