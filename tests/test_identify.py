@@ -91,7 +91,7 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     where it is that noise."""
     import dataclasses
 
-    from tolerax.identification.identify import Identification
+    from tolerax.identification.result import Identification
 
     scene = _scene()
     rec = synthetic_recording(scene, _truth(scene, ring_backlash=60.0), duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER,
@@ -251,7 +251,7 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     # uniform distribution, the standard error its standard deviation: sqrt(3) of them), the drag as the file's drag_torque (the pitch is ideal: no other drag
     # acts), the stiffness named as not written; with both joints modelled the file's one drag
     # would set both, so it is not written either.
-    from tolerax.identification.identify import Identification
+    from tolerax.identification.result import Identification
 
     se = np.array([0.2e-6, 1e-3, 1e6])
     got = Identification(names=chosen, units=("m", "N m", "N/m"), estimate=np.array([61e-6, 0.07, 9e7]),

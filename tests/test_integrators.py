@@ -148,7 +148,7 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     full = tx.antenna("azimuth", fidelity=("planetary", "ideal"), base="fixed")
     lumped = tx.antenna("azimuth", fidelity="lumped")
     chosen, why = full.automatic_integrator()
-    assert chosen == ACCURATE and "azimuth joint" in why and "FAST_STAGE" in why and "auto_integrator.md" in why
+    assert chosen == ACCURATE and "azimuth joint" in why and "FAST_STAGE" in why and "auto_integrator.py" in why
     assert lumped.automatic_integrator()[0] == ACCURATE and tx.TestBench().automatic_integrator()[0] == ACCURATE
     assert (FAST_STAGE.solver, FAST_STAGE.rtol, FAST_STAGE.pcoeff, FAST_STAGE.icoeff) == ("SRK53", 1e-4, 0.2, 0.2)
     # The objective of Monte Carlo and design: the same choice with its step budget, said in words.

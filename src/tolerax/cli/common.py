@@ -94,7 +94,7 @@ ROUGH_COST = {"ideal": 0.03, "lumped": 0.22, "planetary-scaled": 3.2, "planetary
 
 
 # `tolerax.solve.FAST_STAGE`'s wall time on the full stage, where a run names it, as a fraction
-# of the Tsit5 those costs were timed with (`benchmarks/results/auto_integrator.md`).
+# of the Tsit5 those costs were timed with (benchmarks/README.md, speed: auto_integrator.py).
 FAST_STAGE_COST = 0.6
 
 

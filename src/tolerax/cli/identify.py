@@ -37,7 +37,8 @@ def identify_command(parser, args) -> int:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from ..identification.identify import identify, show
+    from ..identification.identify import identify
+    from ..identification.result import show
     from ..identification.recording import RecordingError, read_recording
 
     try:

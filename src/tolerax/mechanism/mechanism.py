@@ -42,27 +42,10 @@ from .blocks import KaneBlocks, block_solve, partition  # noqa: F401 (KaneBlocks
 from .joints import AbstractJoint
 from .stage_joints import PlanetaryJoint
 from ..physics.rigid import PITCH_HOUSING, planar_to_world, quat_matrix, quat_rate, rz, small_einsum, vee, world_inertia
-from .structure import Geometry, Inertias
+from .structure import Geometry, Inertias, MechanismLayout
 from .kinematics import Frames, base_frame, offset, planar_frames, planar_motion, take
 from .scene import AbstractScene
 from ..solve import ACCURATE
-
-
-@dataclasses.dataclass(frozen=True)
-class MechanismLayout:
-    """Index map of the mechanism's coordinates `q` and speeds `u` (static)."""
-
-    base_q: int  # 7 (position, unit quaternion) for a free base, else 0
-    base_u: int  # 6 (velocity in the world frame, angular velocity in the base frame) or 0
-    azimuth_q: slice
-    pitch_q: slice
-    azimuth_u: slice
-    pitch_u: slice
-    azimuth_v: slice  # impact-rate states
-    pitch_v: slice
-    size_q: int
-    size_u: int
-    size_v: int
 
 
 BASES = ("free", "fixed")
@@ -136,7 +119,7 @@ class Mechanism(AbstractScene):
             # closely than ACCURATE (tolerax.solve.FAST_STAGE says by how much).
             return ACCURATE, (f"the full planetary stage of {joints}: FAST_STAGE (SRK53 at rtol 1e-4) runs it faster but "
                               "reads its pointing, jitter and bearing forces less closely than this on most scenes measured "
-                              "(benchmarks/results/auto_integrator.md); name it, integrator=tolerax.solve.FAST_STAGE, where "
+                              "(benchmarks/auto_integrator.py); name it, integrator=tolerax.solve.FAST_STAGE, where "
                               "that accuracy is enough")
         return ACCURATE, "no joint carries the full planetary stage: accuracy, not its contact modes, sets the step"
 

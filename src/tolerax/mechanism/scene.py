@@ -104,7 +104,7 @@ def simulate(
       Tsit5 at rtol 1e-6, atol 1e-9, the I-controller). The result's `integrated_with` (and
       `report()`) says which and why: for a scene with a full planetary joint, that
       `tolerax.solve.FAST_STAGE` (SRK53 at rtol 1e-4, the (0.2, 0.2) controller) runs it faster
-      but reads its outputs less closely (`benchmarks/results/auto_integrator.md`). A
+      but reads its outputs less closely (`benchmarks/auto_integrator.py`). A
       choice of one's own overrides it: `integrator=tolerax.Integrator(...)` (or
       `tolerax.solve.FAST_STAGE`), every setting as one value, or the settings one by one, each
       replacing `ACCURATE`'s:

@@ -122,3 +122,20 @@ class Inertias(eqx.Module):
 
     def __check_init__(self):
         V.check(self, **{f.name: V.POSITIVE("kg" if f.name.endswith("mass") else "kg m^2") for f in dataclasses.fields(self)})
+
+
+@dataclasses.dataclass(frozen=True)
+class MechanismLayout:
+    """Index map of the mechanism's coordinates `q` and speeds `u` (static)."""
+
+    base_q: int  # 7 (position, unit quaternion) for a free base, else 0
+    base_u: int  # 6 (velocity in the world frame, angular velocity in the base frame) or 0
+    azimuth_q: slice
+    pitch_q: slice
+    azimuth_u: slice
+    pitch_u: slice
+    azimuth_v: slice  # impact-rate states
+    pitch_v: slice
+    size_q: int
+    size_u: int
+    size_v: int

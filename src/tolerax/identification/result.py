@@ -1,0 +1,212 @@
+"""The result of an identification (`identify`): the estimates, their intervals and the check of
+them, the identifiability table, and the identified unit as a scene file."""
+
+import dataclasses
+import math
+
+import numpy as np
+
+DETERMINED = 0.25  # a relative standard error below this (95 % interval within +-50 %) is determined
+LOADING = 0.3  # a parameter takes part in a direction whose eigenvector component exceeds this
+# A residual this many times the recording's stated noise is a model misfit, said in the table.
+MISFIT = 1.5
+# The interval's check (`identify`'s `_profile`): the cost along each parameter's profile direction at these
+# many standard errors either side of the estimate, against the linearised model's rise. The
+# interval holds where the rise at the first two is within this factor of the linearised one
+# either way (the profile interval's ends then within ~1.4x of the linearised ones); the third
+# says whether the curvature is the basin's or only the estimate's neighbourhood's.
+PROFILE_STEPS = (1.96, 10.0, 100.0)
+PROFILE_FACTOR = 2.0
+
+
+def show(value: float, unit: str) -> str:
+    """A parameter's value for a report: µm for a length, else 4 significant digits and the unit."""
+    if unit == "m":
+        return f"{1e6 * value:.2f} µm"
+    return f"{value:.4g}" + ("" if unit == "1" else f" {unit}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Identification:
+    """The result of `identify`.
+
+    - `names`: the identified parameters, `units` their SI units ("m" for the clearances and
+      backlash); `estimate`, `covariance`, `standard_error` in those units.
+    - `sigma` (rad): the residual's standard deviation at the estimate, $s$; `n` residuals,
+      `cost` $\\lVert r\\rVert^2$ (µrad²).
+    - `residual` (rad, (saves, axes)), `times` (s), `measured` and `fitted` (rad): the fit.
+    - `directions`: [(relative standard error, eigenvector over `names`)], best determined first.
+    - `steps`: Levenberg-Marquardt steps of the winning start at the last width; `converged`:
+      the Gauss-Newton step left from the estimate is below a tenth of each standard error (or
+      below one where a Gauss-Newton polish could not lower the cost: the solve's own noise);
+      `starts`: each start's final cost (µrad²); `screened`: the points the starts were chosen
+      from (0: the starts were given). `noise` (rad): the recording's stated noise, or None.
+    - `wall` (s): where the call's wall time went, by phase: `"check"` (the recording's command
+      against the scene's), `"screen"` (the starts' costs), `"fit"` (Levenberg-Marquardt from each
+      start through each width), `"assess"` (the Jacobian at the estimate, the covariance, and the
+      polish where one ran); tracing and compiling included where a program was new.
+    - `scene`: the identified unit (the scene with the estimates).
+    - `profile` ((parameters, 2, 3)): the intervals checked against the residual itself
+      (`_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
+      estimate along each parameter's profile path, over the rise the linearised model predicts
+      there; 1 where the residual is quadratic out to there. `holds` reads it.
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    estimate: np.ndarray
+    covariance: np.ndarray
+    sigma: float
+    n: int
+    cost: float
+    times: np.ndarray
+    measured: np.ndarray
+    fitted: np.ndarray
+    directions: tuple
+    steps: int
+    converged: bool
+    starts: tuple
+    screened: int
+    noise: float | None = None
+    scene: object = dataclasses.field(repr=False, default=None)
+    wall: dict = dataclasses.field(default_factory=dict)
+    profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
+
+    @property
+    def standard_error(self) -> np.ndarray:
+        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
+
+    @property
+    def residual(self) -> np.ndarray:
+        return self.fitted - self.measured
+
+    def interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """Each parameter's linearised interval (its unit) at `level` (normal quantile)."""
+        from scipy.stats import norm
+
+        z = float(norm.ppf(0.5 + level / 2))
+        return self.estimate - z * self.standard_error, self.estimate + z * self.standard_error
+
+    def holds(self) -> tuple[bool | None, ...]:
+        """Per parameter: does its linearised interval hold (the cost's rise along its profile at
+        1.96 and 10 standard errors within `PROFILE_FACTOR` of the linearised rise on both
+        sides)? None where it was not checked (an interval reaching past the bounds)."""
+        if self.profile is None:
+            return (None,) * len(self.names)
+        out = []
+        for ratios in self.profile[:, :, :2]:
+            seen = ratios[np.isfinite(ratios)]
+            out.append(None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR))))
+        return tuple(out)
+
+    def status(self) -> tuple[str, ...]:
+        """Per parameter: "determined", "in combination", "not determined" (module docstring), or
+        "interval does not hold" where the residual is not quadratic over it (`holds`): the
+        estimate is where the search stopped, not a minimum the recording determines."""
+        relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
+        good = [vector for se, vector in self.directions if se < DETERMINED]
+        out = []
+        for j, holds in enumerate(self.holds()):
+            if holds is False:
+                out.append("interval does not hold")
+            elif relative[j] < DETERMINED:
+                out.append("determined")
+            elif any(abs(v[j]) > LOADING for v in good):
+                out.append("in combination")
+            else:
+                out.append("not determined")
+        return tuple(out)
+
+    def scene_file(self, scene_file, source: str = "a recording"):
+        """The identified unit as a scene file (`tolerax.io.scenefile.SceneFile`), so that
+        `tolerax run`, `montecarlo` (with its `[life]`) and the design tools answer for *this*
+        unit: `scene_file` (the one the identification ran) with
+
+        - the identified clearances and backlash under `[design]`, their uncertainty as zones
+          whose standard deviation is the standard error, in the file's own distribution (a
+          scene file has one for all its zones, and the drawing's zones of the features not
+          identified stay as drawn): normal, band = 3 standard errors; uniform, band = sqrt(3);
+        - the identified drag as the scene's `drag_torque` where one modelled joint's drag was
+          identified and no other joint's drag acts (the scene file's key holds one drag for
+          both joints); other physical parameters have no key of their own in a scene file
+          (`unwritten`);
+        - every estimate, its 95 % interval and status in its title and description
+          (`source`: what the recording was).
+
+        A parameter whose interval does not hold (`holds`) is not written: its zone (or value)
+        stays the drawing's.
+        """
+        from ..io import scenefile as F
+        from ..uncertainty.sampling import Tolerances
+
+        features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False]
+        out = scene_file
+        if features:
+            distribution = scene_file.tolerances().distribution
+            per_sigma = 3.0 if distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
+            out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
+                                                        per_sigma * self.standard_error[features], distribution))
+        scene, writable = dict(out.data["scene"]), self._drag_writable()
+        for name, value in zip(self.names, self.estimate):
+            if name in writable:
+                scene["drag_torque"] = float(value)
+        lo, hi = self.interval()
+        data = out.data | {"scene": scene, "title": f"Identified unit: {scene_file.title}",
+                           "description": f"Written by tolerax identify from {source}: " + "; ".join(
+                               f"{n} {show(e, u)} ({show(a, u)} to {show(b, u)}, 95 %, {st})".replace("µm", "um")
+                               for n, u, e, a, b, st in zip(self.names, self.units, self.estimate, lo, hi, self.status()))}
+        return F.SceneFile.from_data(data, "identified", "<identified>")
+
+    def unwritten(self) -> tuple[str, ...]:
+        """The identified parameters `scene_file` cannot write (no scene-file key holds them; those
+        whose interval does not hold are not written either, and not listed here)."""
+        return tuple(n for n, u, held in zip(self.names, self.units, self.holds())
+                     if u != "m" and held is not False and n not in self._drag_writable())
+
+    def _drag_writable(self) -> tuple[str, ...]:
+        """`("joint.drag_torque",)` where that joint's drag was identified and no other joint's
+        drag acts (every other joint ideal and servo-driven, no coordinate to drag)."""
+        from ..mechanism.drives import TorqueDrive
+        from ..mechanism.joints import IdealJoint
+
+        drags = [n for n, held in zip(self.names, self.holds()) if n.endswith(".drag_torque") and held is not False]
+        if len(drags) != 1 or self.scene is None or not hasattr(self.scene, "named_joints"):
+            return ()
+        joint = drags[0].split(".")[0]
+        others = [j for name, j in self.scene.named_joints() if name != joint]
+        return tuple(drags) if all(isinstance(j, IdealJoint) and not isinstance(j.drive, TorqueDrive) for j in others) else ()
+
+    def table(self) -> str:
+        """The estimates, intervals and identifiability as Markdown."""
+        lo, hi = self.interval()
+        rows = ["| parameter | estimate | 95 % interval | relative standard error | determined? |", "|---|---|---|---|---|"]
+        for j, (name, status) in enumerate(zip(self.names, self.status())):
+            rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
+            interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
+            interval += " (does not hold)" if status == "interval does not hold" else ""
+            rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
+        lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
+                 f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
+                 f"after {self.steps} steps "
+                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
+        if self.noise and self.sigma > MISFIT * self.noise:
+            lines[1:1] = ["", f"**The residual ({1e6 * self.sigma:.3g} µrad) is {self.sigma / self.noise:.2g}x the recording's stated "
+                          f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
+                          "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
+                          "count that bias: the estimates can be off by more than they say."]
+        rugged = [j for j, held in enumerate(self.holds()) if held is False]
+        if rugged:
+            near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
+            lines[1:1] = ["", f"**The interval{'s' * (len(rugged) > 1)} of {', '.join(self.names[j] for j in rugged)} {'do' if len(rugged) > 1 else 'does'} not hold**: along them the "
+                          f"residual's cost rose {np.nanmin(near):.2g} to {np.nanmax(near):.2g} times what the linearised model "
+                          f"predicts at 1.96 and 10 standard errors (1 where it holds) and {np.nanmin(far):.2g} to "
+                          f"{np.nanmax(far):.2g} times at 100. The residual is rugged at the interval's scale: its "
+                          "derivative is not the recording's sensitivity to the parameter (on the full planetary stage the "
+                          "rattle scrambles the trajectory's derivative), so the estimate is where the search stopped, not a "
+                          "minimum the recording determines, and it is not written into the identified scene. What would "
+                          "change it: identify with a joint whose response the parameter moves smoothly (the lumped joint, "
+                          "with its bias against the full stage in mind), or a recording without rattle."]
+        for se, vector in self.directions:
+            terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
+            lines.append(f"- {se:.3g}: {terms}")
+        return "\n".join(lines)
