@@ -244,10 +244,16 @@ def test_studies_take_a_horizon_save_each_scene_and_resume(tmp_path, monkeypatch
     rows = json.loads((out / "backlash-small.json").read_text())
     assert len(rows) == 2 and all(r["duration_s"] == 0.03 and r["settle_s"] == 0.02 for r in rows)
     assert calls == [(0.03, 61)] * 2  # the small size: 0.03 s, saved every 0.5 ms
+    # Before the study, how many scenes and roughly how long; after each, the time left.
+    said = capsys.readouterr().out
+    assert "backlash: 2 of 2 scenes to run, 0.03 s simulated each, roughly" in said
+    assert "1 of 2 run, about" in said and "2 of 2 run" in said and "2 of 2 run, about" not in said
 
     assert cli.main(args + ["--resume"]) == 0
     assert len(calls) == 2 and json.loads((out / "backlash-small.json").read_text()) == rows
-    assert "kept from the earlier run" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "kept from the earlier run" in said and "backlash: 0 of 2 scenes to run" in said
+    assert cli.main(args + ["--resume", "--quiet"]) == 0 and "scenes to run" not in capsys.readouterr().out
     # One row removed: only that scene runs again.
     (out / "backlash-small.json").write_text(json.dumps(rows[:1]))
     assert cli.main(args + ["--resume"]) == 0

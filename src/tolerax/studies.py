@@ -227,11 +227,23 @@ def run(
       horizon and step control (`pcoeff`, `icoeff`, recorded in each row) is not run again and its
       row is kept (a long study resumes where it stopped).
     - `on_row(rows)`: called with the rows so far after each scene (to save them as they come).
+    - `progress`: before the study, how many scenes and roughly how long (`tolerax.eta`, before
+      compilation); after each scene a line with its wall time and the time left at the pace so far.
     """
+    from .eta import human_seconds, rough_wall
+
     spec = size_spec(size, duration, settle)
-    rows = []
+    rows, todo = [], []
     for labels, mech in scenes(study, size):
         kept = next((r for r in done if r.get("study", study) == study and _same_scene(r, labels, spec, size)), None)
+        todo.append((labels, mech, kept))
+    fresh = [mech for _, mech, kept in todo if kept is None]
+    if progress:
+        guesses = [rough_wall(mech, spec.duration) for mech in fresh]
+        guess = "" if not fresh or None in guesses else f", roughly {human_seconds(max(sum(guesses), 1.0))} on one core plus compilation"
+        print(f"{study}: {len(fresh)} of {len(todo)} scenes to run, {spec.duration:g} s simulated each{guess}", flush=True)
+    ran, spent = 0, 0.0
+    for labels, mech, kept in todo:
         if kept is not None:
             rows.append(kept)
             if progress:
@@ -248,6 +260,9 @@ def run(
         rows.append(row)
         if on_row is not None:
             on_row(rows)
+        ran, spent = ran + 1, spent + wall
         if progress:
-            print(f"{study} {labels}: {wall:.1f} s wall, {row['steps']} steps", flush=True)
+            left = len(fresh) - ran
+            print(f"{study} {labels}: {wall:.1f} s wall, {row['steps']} steps; {ran} of {len(fresh)} run"
+                  + (f", about {human_seconds(spent / ran * left)} left" if left else ""), flush=True)
     return rows

@@ -35,7 +35,7 @@ def studies_command(parser, args) -> int:
             later = [r for r in done if not any(r is k for k in rows)]
             atomic_write(path, json.dumps(rows + later, indent=1))
 
-        rows = S.run(name, args.size, duration=args.duration, settle=args.settle, done=done, on_row=save)
+        rows = S.run(name, args.size, not args.quiet, duration=args.duration, settle=args.settle, done=done, on_row=save)
         save(rows, done=[])
         print(f"wrote {path}")
     return 0

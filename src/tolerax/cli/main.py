@@ -244,6 +244,7 @@ def main(argv=None) -> int:
                          help="metrics from this time on, s (default: the size's, full 2 s)")
     studies.add_argument("--resume", action="store_true",
                          help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
+    studies.add_argument("--quiet", action="store_true", help="no estimate or line per scene (errors are still printed)")
     args = parser.parse_args(argv)
     args.argv = argv
     # What can be wrong with the scene file before the simulator loads (unreadable, not TOML, an
