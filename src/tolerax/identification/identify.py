@@ -123,13 +123,15 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
 
 
-def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int) -> np.ndarray:
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None) -> np.ndarray:
     """The linearised intervals checked against the residual itself: for each parameter $j$ the
     cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the linearised profile path: the other parameters
     at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
     `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1 where the cost is quadratic out to there.
     `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
-    is not finite. Costed in batches of `batch` (the screen's: its compiled program)."""
+    is not finite. Costed in batches of `batch` (the screen's: its compiled program), or where
+    no screen ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
+    assessment already: no program compiled for the check)."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
     points, where = [x], []
@@ -142,8 +144,12 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int) -> np.ndarray:
                 if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
                     points.append(point)
                     where.append((j, side, m, k))
-    points = np.vstack(points + [x] * (-len(points) % batch))
-    costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width)) for i in range(0, len(points), batch)])
+    if batch is None:
+        costs = [float(jnp.sum(((_fit_and_jacobian(fit, jnp.asarray(p), width)[1] - fit.measured) / UNIT) ** 2)) for p in points]
+    else:
+        points = np.vstack(points + [x] * (-len(points) % batch))
+        costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width))
+                                for i in range(0, len(points), batch)])
     for (j, side, m, k), c in zip(where, costs[1:]):
         ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
     return ratio
@@ -357,7 +363,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or 1 + 2 * len(PROFILE_STEPS) * len(parameters))
+    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None)
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
