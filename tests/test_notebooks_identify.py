@@ -22,6 +22,8 @@ def test_identify_unit_notebook_executes(monkeypatch, tmp_path):
     assert "small {" in outputs and "unit7.csv: 141 samples over 0.35 s" in outputs
     assert "refused:" in outputs and "repeats the time of the sample before" in outputs
     assert "azimuth.ring_backlash: truth 60.00 µm, inside its 95 % interval" in outputs
+    # ... and the interval checked along its profile: the lost motion's cost is quadratic there.
+    assert "-> the interval holds" in outputs and "DOES NOT HOLD" not in outputs
     # The lost motion at the reversal sees the backlash directly: an interval a few tenths of a µm wide.
     lo = _number(r"\| azimuth.ring_backlash \| [\d.]+ µm \| ([\d.]+) µm – [\d.]+ µm \| [\d.e+-]+ \| determined \|", outputs)
     hi = _number(r"\| azimuth.ring_backlash \| [\d.]+ µm \| [\d.]+ µm – ([\d.]+) µm \| [\d.e+-]+ \| determined \|", outputs)
