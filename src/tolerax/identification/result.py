@@ -189,23 +189,30 @@ class Identification:
                  f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
                  f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
-        if self.noise and self.sigma > MISFIT * self.noise:
-            lines[1:1] = ["", f"**The residual ({1e6 * self.sigma:.3g} µrad) is {self.sigma / self.noise:.2g}x the recording's stated "
-                          f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
-                          "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
-                          "count that bias: the estimates can be off by more than they say."]
+        notes = []
+        misfit = bool(self.noise and self.sigma > MISFIT * self.noise)
+        if misfit:
+            notes += ["", f"**The residual ({1e6 * self.sigma:.3g} µrad) is {self.sigma / self.noise:.2g}x the recording's stated "
+                      f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
+                      "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
+                      "count that bias: the estimates can be off by more than they say."]
         rugged = [j for j, held in enumerate(self.holds()) if held is False]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
-            lines[1:1] = ["", f"**The interval{'s' * (len(rugged) > 1)} of {', '.join(self.names[j] for j in rugged)} {'do' if len(rugged) > 1 else 'does'} not hold**: along them the "
-                          f"residual's cost rose {np.nanmin(near):.2g} to {np.nanmax(near):.2g} times what the linearised model "
-                          f"predicts at 1.96 and 10 standard errors (1 where it holds) and {np.nanmin(far):.2g} to "
-                          f"{np.nanmax(far):.2g} times at 100. The residual is rugged at the interval's scale: its "
-                          "derivative is not the recording's sensitivity to the parameter (on the full planetary stage the "
-                          "rattle scrambles the trajectory's derivative), so the estimate is where the search stopped, not a "
-                          "minimum the recording determines, and it is not written into the identified scene. What would "
-                          "change it: identify with a joint whose response the parameter moves smoothly (the lumped joint, "
-                          "with its bias against the full stage in mind), or a recording without rattle."]
+            many = len(rugged) > 1
+            notes += ["", f"**The interval{'s' * many} of {', '.join(self.names[j] for j in rugged)} {'do' if many else 'does'} "
+                      f"not hold**: along {'them' if many else 'it'} the residual's cost rose {np.nanmin(near):.2g} to "
+                      f"{np.nanmax(near):.2g} times what the linearised model predicts at 1.96 and 10 standard errors (1 where "
+                      f"it holds) and {np.nanmin(far):.2g} to {np.nanmax(far):.2g} times at 100: the residual is not "
+                      "quadratic over the interval, so the estimate is where the search stopped, not a minimum the recording "
+                      "determines to that precision, and it is not written into the identified scene. "
+                      + ("With the misfit above, free the parameter the model leaves at the scene's value (or model the unit "
+                         "at its own fidelity). " if misfit else "")
+                      + "Where the residual is rugged at the interval's scale (on the full planetary stage the rattle "
+                      "scrambles the trajectory's derivative), identify with a joint whose response the parameter moves "
+                      "smoothly (the lumped joint, with its bias against the full stage in mind), or from a recording "
+                      "without rattle."]
+        lines[1:1] = notes
         for se, vector in self.directions:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
