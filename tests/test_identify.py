@@ -160,6 +160,41 @@ def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, caps
     assert not (tmp_path / "plan").exists()
 
 
+def test_the_command_line_says_an_interval_that_does_not_hold_and_exits_3(tmp_path, monkeypatch, capsys):
+    """Where an identification's interval does not hold (its profile not quadratic: the full
+    stage's, as measured), `tolerax identify` writes the report with it said, keeps the drawing's
+    zone in identified.toml and exits 3. The identification itself is the hand-made one (a real
+    full-stage one is `-m slow`: test_the_full_stage_s_interval_is_said_not_to_hold); the
+    command's reading of it is what this tests."""
+    import json
+
+    from tolerax import cli
+    from tolerax.identification import identify as I
+    from tolerax.identification.result import Identification
+
+    rec = Recording(np.linspace(0.0, 0.35, 36), np.zeros(36)).write_csv(tmp_path / "unit.csv")
+    scene = tx.load_scene("scan-azimuth").build()
+
+    def rugged(scene_, recording, parameters, **_):
+        return Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([60.65e-6]),
+                              covariance=np.array([[1e-20]]), sigma=3.8e-6, n=36, cost=1.0, times=recording.time,
+                              measured=recording.measured, fitted=recording.measured, directions=((1e-4, np.ones(1)),), steps=2,
+                              converged=True, starts=(1.0,), screened=33, scene=scene,
+                              profile=np.array([[[-0.003, -0.009, -1e-4], [0.045, 0.0015, -5.5e-4]]]))
+
+    monkeypatch.setattr(I, "identify", rugged)
+    out = tmp_path / "id"
+    assert cli.main(["identify", "scan-azimuth", str(rec), "--parameters", "azimuth.ring_backlash", "--out", str(out),
+                     "--quiet"]) == 3
+    report = (out / "identification.md").read_text()
+    assert "**The interval of azimuth.ring_backlash does not hold**" in report and "interval does not hold |" in report
+    assert "Kept at the scene's values and zones: azimuth.ring_backlash" in report
+    assert json.loads((out / "identification.json").read_text())["interval_holds"] == [False]
+    drawn, kept = tx.load_scene("scan-azimuth").tolerances(), tx.load_scene(str(out / "identified.toml")).tolerances()
+    k = drawn.names.index("azimuth.ring_backlash")
+    assert (float(kept.nominal[k]), float(kept.band[k])) == (float(drawn.nominal[k]), float(drawn.band[k]))
+
+
 @pytest.mark.slow
 def test_the_command_line_plans_a_test_and_identifies_the_unit_from_its_recording(tmp_path, capsys):
     """`tolerax plan-test` writes the proposed test as a scene file, and `tolerax identify` on

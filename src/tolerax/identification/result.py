@@ -10,11 +10,11 @@ DETERMINED = 0.25  # a relative standard error below this (95 % interval within 
 LOADING = 0.3  # a parameter takes part in a direction whose eigenvector component exceeds this
 # A residual this many times the recording's stated noise is a model misfit, said in the table.
 MISFIT = 1.5
-# The interval's check (`identify`'s `_profile`): the cost along each parameter's profile direction at these
-# many standard errors either side of the estimate, against the linearised model's rise. The
-# interval holds where the rise at the first two is within this factor of the linearised one
-# either way (the profile interval's ends then within ~1.4x of the linearised ones); the third
-# says whether the curvature is the basin's or only the estimate's neighbourhood's.
+# The interval's check (`identify`'s `_profile`): the cost along each parameter's profile
+# direction at these many standard errors either side of the estimate, against the linearised
+# model's rise. The interval holds where the rise at the first two is within this factor of the
+# linearised one either way (the profile interval's ends then within ~1.4x of the linearised
+# ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
 
@@ -43,11 +43,12 @@ class Identification:
       from (0: the starts were given). `noise` (rad): the recording's stated noise, or None.
     - `wall` (s): where the call's wall time went, by phase: `"check"` (the recording's command
       against the scene's), `"screen"` (the starts' costs), `"fit"` (Levenberg-Marquardt from each
-      start through each width), `"assess"` (the Jacobian at the estimate, the covariance, and the
-      polish where one ran); tracing and compiling included where a program was new.
+      start through each width), `"assess"` (the Jacobian at the estimate, the covariance, the
+      polish where one ran, and the intervals' check); tracing and compiling included where a
+      program was new.
     - `scene`: the identified unit (the scene with the estimates).
     - `profile` ((parameters, 2, 3)): the intervals checked against the residual itself
-      (`_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
+      (`identify`'s `_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
       estimate along each parameter's profile path, over the rise the linearised model predicts
       there; 1 where the residual is quadratic out to there. `holds` reads it.
     """
