@@ -609,6 +609,8 @@ def test_tradeoff_writes_the_curve_and_one_proposal_per_requirement(tmp_path, ca
                      "--check", "0", "--outer", "2", "--allow-unconverged", "--out", str(out)]) == 0
     points = json.loads((out / "tradeoff.json").read_text())["points"]
     assert [p["requirement"] for p in points] == [380.0, 450.0]
+    said = capsys.readouterr().out  # the pace: each point's time and, before the last, the time left
+    assert "tolerax tradeoff: 380 arcsec" in said and "1 of 2 points, about" in said and "2 of 2 points\n" in said
     assert points[1]["cost"] <= points[0]["cost"] * (1 + 1e-9)
     from tolerax.design.propose import feature_sizes
 

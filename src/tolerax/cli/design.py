@@ -407,11 +407,15 @@ def tradeoff_command(parser, args) -> int:
           f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
     claim_out(out, "tradeoff", fresh=args.force)
     points, rows = [], []
-    for requirement in requirements:
+    for k, requirement in enumerate(requirements):
         proposed = _propose(pointing, requirement, values, "tradeoff")
         if isinstance(proposed, int):
             return proposed
         report, wall = proposed
+        if not args.quiet:  # the pace so far: each point is one design
+            spent, left = sum(p["wall_s"] for p in points) + wall, len(requirements) - k - 1
+            print(f"tolerax tradeoff: {requirement:g} arcsec {report.status} in {human_seconds(wall)}; {k + 1} of "
+                  f"{len(requirements)} points" + (f", about {human_seconds(spent / (k + 1) * left)} left" if left else ""), flush=True)
         path = F.save_scene(scene_file.with_proposal(report),
                             out / f"{'proposal' if report.accepted or args.allow_unconverged else 'best_reached'}-{requirement:g}.toml")
         # The proposal is the zones as drawn (whole grades) and their own check, where there are some.
