@@ -134,6 +134,8 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None) -> np.ndar
     assessment already: no program compiled for the check)."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
+    if not (math.isfinite(s2) and s2 > 0):  # a residual of exactly zero: no scale to check against
+        return ratio
     points, where = [x], []
     for j in range(x.size):
         if not (np.isfinite(se[j]) and se[j] > 0):
