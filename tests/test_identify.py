@@ -308,7 +308,7 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     # interval does not hold, the table says why and what would change it, and the estimate is
     # not written: the drawing's zone stays. The backlash's ratios here are the full planetary
     # stage's as measured (a rattle: the cost falls below the estimate's 100 standard errors
-    # away); the drag's and stiffness's those of a quadratic residual.
+    # away); the drag's those of a quadratic residual; the stiffness's not checked (NaN: None).
     quadratic = np.array([[0.99, 1.0, 1.04], [1.0, 0.98, 0.82]])
     rugged = dataclasses.replace(got, profile=np.stack([np.array([[-0.18, -0.014, -5.8e-5], [0.27, 0.017, -1.3e-5]]),
                                                         quadratic, np.full((2, 3), np.nan)]))
