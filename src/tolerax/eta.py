@@ -35,3 +35,10 @@ def human_seconds(seconds: float) -> str:
             value = seconds / size
             return f"{value:.2g} {unit}" if value < 1e4 else f"{value:.1e} {unit}"
     return f"{seconds:.0f} s"
+
+
+def time_left(spent: float, done: int, total: int) -> str:
+    """`", about 7 min left"` at the pace so far (`spent` s over `done` of `total` items), or `""`
+    once all are done."""
+    left = total - done
+    return f", about {human_seconds(spent / done * left)} left" if left > 0 and done > 0 else ""

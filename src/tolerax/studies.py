@@ -230,7 +230,7 @@ def run(
     - `progress`: before the study, how many scenes and roughly how long (`tolerax.eta`, before
       compilation); after each scene a line with its wall time and the time left at the pace so far.
     """
-    from .eta import human_seconds, rough_wall
+    from .eta import human_seconds, rough_wall, time_left
 
     spec = size_spec(size, duration, settle)
     rows, todo = [], []
@@ -262,7 +262,6 @@ def run(
             on_row(rows)
         ran, spent = ran + 1, spent + wall
         if progress:
-            left = len(fresh) - ran
             print(f"{study} {labels}: {wall:.1f} s wall, {row['steps']} steps; {ran} of {len(fresh)} run"
-                  + (f", about {human_seconds(spent / ran * left)} left" if left else ""), flush=True)
+                  + time_left(spent, ran, len(fresh)), flush=True)
     return rows

@@ -395,6 +395,7 @@ def tradeoff_command(parser, args) -> int:
 
     import numpy as np
 
+    from ..eta import time_left
     from ..io import scenefile as F
 
     setup = _design_setup(parser, args, "tradeoff")
@@ -413,9 +414,9 @@ def tradeoff_command(parser, args) -> int:
             return proposed
         report, wall = proposed
         if not args.quiet:  # the pace so far: each point is one design
-            spent, left = sum(p["wall_s"] for p in points) + wall, len(requirements) - k - 1
+            spent = sum(p["wall_s"] for p in points) + wall
             print(f"tolerax tradeoff: {requirement:g} arcsec {report.status} in {human_seconds(wall)}; {k + 1} of "
-                  f"{len(requirements)} points" + (f", about {human_seconds(spent / (k + 1) * left)} left" if left else ""), flush=True)
+                  f"{len(requirements)} points" + time_left(spent, k + 1, len(requirements)), flush=True)
         path = F.save_scene(scene_file.with_proposal(report),
                             out / f"{'proposal' if report.accepted or args.allow_unconverged else 'best_reached'}-{requirement:g}.toml")
         # The proposal is the zones as drawn (whole grades) and their own check, where there are some.

@@ -123,7 +123,7 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
 
 
-def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None) -> np.ndarray:
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: float) -> np.ndarray:
     """The linearised intervals checked against the residual itself: for each parameter $j$ the
     cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the linearised profile path: the other parameters
     at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
@@ -131,7 +131,8 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None) -> np.ndar
     `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
     is not finite. Costed in batches of `batch` (the screen's: its compiled program), or where
     no screen ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
-    assessment already: no program compiled for the check)."""
+    assessment already: no program compiled for the check), against `cost`, the assessment's own
+    at `x` from that program (µrad²)."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
     if not (math.isfinite(s2) and s2 > 0):  # a residual of exactly zero: no scale to check against
@@ -147,7 +148,8 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None) -> np.ndar
                     points.append(point)
                     where.append((j, side, m, k))
     if batch is None:
-        costs = [float(jnp.sum(((_fit_and_jacobian(fit, jnp.asarray(p), width)[1] - fit.measured) / UNIT) ** 2)) for p in points]
+        costs = [cost] + [float(jnp.sum(((_fit_and_jacobian(fit, jnp.asarray(p), width)[1] - fit.measured) / UNIT) ** 2))
+                          for p in points[1:]]
     else:
         points = np.vstack(points + [x] * (-len(points) % batch))
         costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width))
@@ -365,7 +367,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None)
+    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)))
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
