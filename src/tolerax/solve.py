@@ -7,6 +7,7 @@ call `tolerax.simulate`, which builds the scene's result with `SolverReport.from
 """
 
 import contextlib
+import functools
 from typing import ClassVar
 import diffrax
 import equinox as eqx
@@ -237,6 +238,16 @@ def _checks_without_host_callbacks():
         errors.EQX_ON_ERROR = "raise"
 
 
+@eqx.filter_jit
+def _vector_field(scene, t, y, args):
+    """`scene.vector_field` as one jitted call: diffrax traces a solve's step three or four times
+    (its term check, the shape of its loop's body, the loop itself), and the trace of a nested jit
+    is kept by JAX for the next trace with the same structure and shapes, so the vector field (most
+    of a step's tracing) is traced once or twice instead; its lowering is emitted once. The results
+    are those of the plain call (bitwise, on the planetary scan measured: `tests/README.md`)."""
+    return scene.vector_field(t, y, args)
+
+
 def _solve(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid):
     with _checks_without_host_callbacks():
         return _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_steps, progress, fixed, adjoint, pid)
@@ -257,7 +268,7 @@ def _solve_traced(scene, y0, t1, ts, solver, rtol, atol, dt0, dtmin, dtmax, max_
         )
     saveat = diffrax.SaveAt(subs=(diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)))
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(scene.vector_field),
+        diffrax.ODETerm(functools.partial(_vector_field, scene)),
         solver,
         t0=0.0,
         t1=t1,

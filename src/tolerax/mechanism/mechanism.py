@@ -390,7 +390,13 @@ class Mechanism(AbstractScene):
         return self.each_joint(lambda joint, qj, uj, vj: joint.forces(qj, uj, vj, t), ("q", q), ("u", u), ("v", v))
 
     def accelerations(self, t, q, u, v):
-        """`(udot, (azimuth contact forces, pitch contact forces))`."""
+        """`(udot, (azimuth contact forces, pitch contact forces))`. One jitted call (XLA inlines
+        it where it is traced into a program): a solve traces it in the vector field and again in
+        `observe`, the loaded state's and identification's Jacobians several times, and JAX keeps
+        a nested jit's trace for the next call with the same structure and shapes."""
+        return _accelerations(self, t, q, u, v)
+
+    def _accelerations(self, t, q, u, v):
         lay = self.layout
         (qa, ca), (qp, cp) = self.joint_forces(q, u, v, t)
         return self._solve(q, u, t, jnp.concatenate([jnp.zeros(lay.base_u), qa, qp])), (ca, cp)
@@ -488,3 +494,8 @@ class Mechanism(AbstractScene):
             azimuth_contact_names=self.azimuth.contact_names,
             pitch_contact_names=self.pitch.contact_names,
         )
+
+
+@eqx.filter_jit
+def _accelerations(mechanism, t, q, u, v):
+    return mechanism._accelerations(t, q, u, v)
