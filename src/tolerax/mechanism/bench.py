@@ -105,7 +105,11 @@ class TestBench(AbstractScene):
         return q, qd, v
 
     def accelerations(self, t, q, qd, v):
-        """$\\ddot q$ and the `StageForces` at one instant."""
+        """$\\ddot q$ and the `StageForces` at one instant (one jitted call, traced once for the
+        vector field and `observe`: `Mechanism.accelerations`)."""
+        return _accelerations(self, t, q, qd, v)
+
+    def _accelerations(self, t, q, qd, v):
         stage = self.stage
         lay = stage.layout
         forces = _planetary.stage_forces(stage, q, qd, v)
@@ -172,3 +176,8 @@ class BenchResult(SolverReport):
     ring_mesh_force: Array
     states: tuple
     contact_names: tuple[str, ...] = eqx.field(static=True)
+
+
+@eqx.filter_jit
+def _accelerations(bench, t, q, qd, v):
+    return bench._accelerations(t, q, qd, v)
