@@ -46,10 +46,11 @@ def pytest_configure(config):
 # program). A stale order costs only time, never a result. Last of all: the identification
 # notebook, whose programs test_identify.py and the mission-life notebook compile.
 _LAST = ("test_notebooks_identify.py",)
-_LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_mechanism.py", "test_life.py", "test_hard_cases.py",
-                  "test_notebooks.py", "test_notebooks_physics.py", "test_montecarlo.py", "test_scenefile.py", "test_loaded.py",
-                  "test_gradients.py", "test_design.py", "test_identify.py", "test_cache.py", "test_bench.py", "test_joint.py",
-                  "test_requirements.py", "test_planetary.py")
+_LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_life.py", "test_gradients.py", "test_scenefile.py",
+                  "test_notebooks.py", "test_montecarlo.py", "test_mechanism.py", "test_loaded.py", "test_hard_cases.py",
+                  "test_notebooks_physics.py", "test_cache.py", "test_identify.py", "test_bench.py", "test_joint.py",
+                  "test_design.py", "test_planetary.py", "test_contact.py", "test_outcome.py", "test_requirements.py",
+                  "test_extending.py", "test_jitter.py", "test_optimise.py")
 
 
 def pytest_collection_modifyitems(config, items):

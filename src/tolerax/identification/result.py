@@ -202,9 +202,9 @@ class Identification:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
             many = len(rugged) > 1
             notes += ["", f"**The interval{'s' * many} of {', '.join(self.names[j] for j in rugged)} {'do' if many else 'does'} "
-                      f"not hold**: along {'them' if many else 'it'} the residual's cost rose {np.nanmin(near):.2g} to "
-                      f"{np.nanmax(near):.2g} times what the linearised model predicts at 1.96 and 10 standard errors (1 where "
-                      f"it holds) and {np.nanmin(far):.2g} to {np.nanmax(far):.2g} times at 100: the residual is not "
+                      f"not hold**: along {'them' if many else 'it'} the residual's cost rose {_span(near)} "
+                      f"times what the linearised model predicts at 1.96 and 10 standard errors (1 where "
+                      f"it holds) and {_span(far)} times at 100: the residual is not "
                       "quadratic over the interval, so the estimate is where the search stopped, not a minimum the recording "
                       "determines to that precision, and it is not written into the identified scene. "
                       + ("With the misfit above, free the parameter the model leaves at the scene's value (or model the unit "
@@ -218,3 +218,10 @@ class Identification:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
         return "\n".join(lines)
+
+
+def _span(ratios) -> str:
+    """"a to b" of the finite ratios (one value where they agree to two digits, "not measured"
+    where none is finite: a side not checked is NaN)."""
+    lo, hi = (f"{f(ratios):.2g}" if np.isfinite(ratios).any() else None for f in (np.nanmin, np.nanmax))
+    return "not measured" if lo is None else lo if lo == hi else f"{lo} to {hi}"
