@@ -14,10 +14,7 @@ distinct shapes (each a program of its own). The figures are the ratios classic 
 same run, and each workload's largest relative difference in its numbers between the two.
 """
 
-import json
 import os
-import subprocess
-import sys
 
 import harness
 
@@ -66,11 +63,7 @@ CONFIGS = {"classic (tolerax default)": {}, "MLIR fusion emitters (jaxlib defaul
 def child(work: str, extra: dict) -> dict:
     env = dict(os.environ, TOLERAX_CACHE="off", **extra)
     env.pop("XLA_FLAGS", None)
-    done = subprocess.run([sys.executable, "-c", CHILD, work], env=env, capture_output=True, text=True)
-    line = [x for x in done.stdout.splitlines() if x.startswith("RESULT ")]
-    if done.returncode or not line:
-        raise RuntimeError(f"{work} {extra} exited {done.returncode}:\n{done.stderr[-3000:]}")
-    return json.loads(line[-1][len("RESULT "):])
+    return harness.child_result(CHILD, [work], env)
 
 
 def main():
@@ -78,16 +71,7 @@ def main():
     parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds (the fastest of each kept)")
     parser.add_argument("--workloads", nargs="+", default=list(WORKLOADS), choices=WORKLOADS)
     args = harness.parse_args(parser)
-    best = {}
-    for _ in range(args.rounds):
-        for work in args.workloads:
-            for name, extra in CONFIGS.items():
-                r = child(work, extra)
-                print(work, name, {k: v for k, v in r.items() if k != "numbers"}, flush=True)
-                keep = best.setdefault((work, name), r)
-                for k in ("first", "run"):
-                    if r[k] is not None and r[k] < keep[k]:
-                        keep[k] = r[k]
+    best = harness.interleaved_best(args.rounds, args.workloads, list(CONFIGS), lambda work, name: child(work, CONFIGS[name]), ("first", "run"))
     classic, mlir = CONFIGS
     rows = []
     for work in args.workloads:

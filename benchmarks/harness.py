@@ -118,6 +118,35 @@ def cli(argv: Sequence[str], out, cache, quiet_stderr: bool = True) -> float:
     return time.perf_counter() - start
 
 
+def child_result(code: str, argv: Sequence[str], env: dict) -> dict:
+    """Run `python -c CODE ARGV` in a fresh process with the environment `env` and return the JSON
+    of its last line starting `RESULT ` (a workload measured where nothing compiled before it)."""
+    import json
+
+    done = subprocess.run([sys.executable, "-c", code, *argv], env=env, capture_output=True, text=True)
+    line = [x for x in done.stdout.splitlines() if x.startswith("RESULT ")]
+    if done.returncode or not line:
+        raise RuntimeError(f"{' '.join(argv)} exited {done.returncode}:\n{done.stderr[-3000:]}")
+    return json.loads(line[-1][len("RESULT "):])
+
+
+def interleaved_best(rounds: int, works: Sequence[str], configs: Sequence[str], run: Callable, parts: Sequence[str]) -> dict:
+    """`{(work, config): result}` of `run(work, config)` (a dict of seconds under `parts`, `None`
+    where not measured, and anything else), over `rounds` rounds interleaving the configurations,
+    keeping per part the fastest (these machines are noisy); each run printed as it ends."""
+    best = {}
+    for _ in range(rounds):
+        for work in works:
+            for config in configs:
+                r = run(work, config)
+                print(work, config, {k: r[k] for k in parts}, flush=True)
+                keep = best.setdefault((work, config), r)
+                for k in parts:
+                    if r[k] is not None and r[k] < keep[k]:
+                        keep[k] = r[k]
+    return best
+
+
 def argument_parser(doc: str | None) -> argparse.ArgumentParser:
     """A script's parser: its docstring as the help text, and `--results DIR`."""
     parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)

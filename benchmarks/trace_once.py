@@ -17,10 +17,7 @@ lumped scan's over 0.3 s, and the planetary bench's start-up (8 ms). `trace+lowe
 plain in the same run, and each workload's largest relative difference in its numbers.
 """
 
-import json
 import os
-import subprocess
-import sys
 
 import harness
 
@@ -64,12 +61,7 @@ PARTS = ("trace+lower", "compile", "run")
 
 
 def child(work: str, mode: str) -> dict:
-    env = dict(os.environ, TOLERAX_CACHE="off")
-    done = subprocess.run([sys.executable, "-c", CHILD, work, mode], env=env, capture_output=True, text=True)
-    line = [x for x in done.stdout.splitlines() if x.startswith("RESULT ")]
-    if done.returncode or not line:
-        raise RuntimeError(f"{work} {mode} exited {done.returncode}:\n{done.stderr[-3000:]}")
-    return json.loads(line[-1][len("RESULT "):])
+    return harness.child_result(CHILD, [work, mode], dict(os.environ, TOLERAX_CACHE="off"))
 
 
 def main():
@@ -77,15 +69,7 @@ def main():
     parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds (the fastest of each kept)")
     parser.add_argument("--workloads", nargs="+", default=list(WORKLOADS), choices=WORKLOADS)
     args = harness.parse_args(parser)
-    best = {}
-    for _ in range(args.rounds):
-        for work in args.workloads:
-            for mode in MODES:
-                r = child(work, mode)
-                print(work, mode, {k: round(v, 2) for k, v in r.items() if k != "numbers"}, flush=True)
-                keep = best.setdefault((work, mode), r)
-                for k in PARTS:
-                    keep[k] = min(keep[k], r[k])
+    best = harness.interleaved_best(args.rounds, args.workloads, MODES, child, PARTS)
     rows = []
     for work in args.workloads:
         a, b = best[(work, "nested")], best[(work, "plain")]
