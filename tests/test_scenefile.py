@@ -550,6 +550,75 @@ def test_design_for_a_life_on_the_command_line(tmp_path, capsys, monkeypatch):
     assert info.value.code == 2 and "--wear-spread needs --life" in capsys.readouterr().err
 
 
+def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypatch):
+    """`[tolerances]` `yield`, `jitter` (with `jitter_cutoff`) and `require` (further
+    requirements by output): what `tolerax design` designs for without the flags, each flag
+    overriding its key (`--require` the limit of its own output only); refused values name the
+    key; a proposal carries the requirements it met (`with_proposal`), which `tolerax montecarlo`
+    then checks by default (the jitter at its cutoff). What reaches `propose_design` is read off
+    (a recorder that then refuses: exit 2), as in test_design_for_a_life_on_the_command_line."""
+    import types
+
+    from tolerax.cli import commands
+    from tolerax.design import propose as _p
+    from tolerax.design.requirements import Requirement
+
+    seen = {}
+
+    def propose(problem, solver=None, **options):
+        seen.update(statistic=problem.statistic, requirements=problem.requirements, cutoff=problem.objective.jitter_cutoff)
+        raise ValueError("recorded by the test")
+
+    monkeypatch.setattr(_p, "propose_design", propose)
+    base = LIFE_SCENE.split("[life]")[0]  # the full planetary stage: it reads the jitter
+    text = base + "[tolerances]\nrequirement = 900.0\nyield = 0.95\njitter = 0.3\njitter_cutoff = 30.0\nrequire = {pointing_peak = 2500.0}\n"
+    path = tmp_path / "drive.toml"
+    path.write_text(text)
+    assert cli.main(["design", str(path), "--out", str(tmp_path / "a")]) == 2 and "recorded by the test" in capsys.readouterr().err
+    assert float(seen["statistic"].level) == 0.95 and seen["cutoff"] == 30.0
+    assert sorted((r.output, r.limit) for r in seen["requirements"]) == [("pointing_jitter", 0.3), ("pointing_peak", 2500.0),
+                                                                         ("pointing_rms", 900.0)]
+    argv = ["design", str(path), "--yield", "0.9", "--jitter", "0.5", "--jitter-cutoff", "25", "--require", "pointing_peak=3000",
+            "--require", "tracking_speed_rms=50", "--out", str(tmp_path / "b")]
+    assert cli.main(argv) == 2
+    assert float(seen["statistic"].level) == 0.9 and seen["cutoff"] == 25.0
+    assert sorted((r.output, r.limit) for r in seen["requirements"]) == [("pointing_jitter", 0.5), ("pointing_peak", 3000.0),
+                                                                         ("pointing_rms", 900.0), ("tracking_speed_rms", 50.0)]
+    capsys.readouterr()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("pointing_peak = 2500.0", "pointing_bogus = 1.0"))
+    with pytest.raises(SystemExit) as info:
+        cli.main(["design", str(bad), "--out", str(tmp_path / "c")])
+    assert info.value.code == 2 and "pointing_bogus" in capsys.readouterr().err
+    for old, new, key, message in [
+        ("yield = 0.95", "yield = 1.5", "yield", "fraction in (0, 1)"),
+        ("yield = 0.95\n", "", "jitter", "needs a yield"),
+        ("jitter_cutoff = 30.0", "jitter_cutoff = -1.0", "jitter_cutoff", "positive number (Hz)"),
+        ("pointing_peak = 2500.0", "pointing_jitter = 1.0", "pointing_jitter", "has its own key"),
+        ("pointing_peak = 2500.0", "pointing_peak = -1.0", "pointing_peak", "limit must be finite and > 0"),
+    ]:
+        with pytest.raises(tx.SceneFileError, match=re.escape(message)) as err:
+            tx.parse_scene(text.replace(old, new))
+        assert err.value.key == key
+    # A proposal carries what it met, in place of the scene's own keys.
+    sf = tx.parse_scene(text)
+    names = tx.design_names(sf.build())
+    zones = tx.Tolerances(names, np.full(len(names), 20e-6), np.full(len(names), 5e-6))
+    report = types.SimpleNamespace(tolerances=zones, requirement=800.0, yield_=0.99, drawable=None, cost=1.0, baseline=(0, 0, 2.0),
+                                   status="converged", accepted=True,
+                                   outcomes=[types.SimpleNamespace(requirement=r) for r in (
+                                       Requirement("pointing_rms", 800.0), Requirement("pointing_jitter", 0.2),
+                                       Requirement("tracking_speed_rms", 40.0))])
+    written = tx.parse_scene(tx.save_scene(sf.with_proposal(report, 22.0), tmp_path / "proposal.toml").read_text())
+    tol = written.data["tolerances"]
+    assert (tol["requirement"], tol["yield"], tol["jitter"], tol["jitter_cutoff"]) == (800.0, 0.99, 0.2, 22.0)
+    assert tol["require"] == {"tracking_speed_rms": 40.0}  # the scene's pointing_peak was not designed for: gone
+    mc = {}
+    monkeypatch.setattr(commands, "run_monte_carlo", lambda parser, scene_file, out, **kw: mc.update(kw))
+    assert cli.main(["montecarlo", str(tmp_path / "proposal.toml"), "--n", "4", "--out", str(tmp_path / "mc")]) == 2
+    assert (mc["requirement"], mc["jitter_requirement"], mc["jitter_cutoff"]) == (800.0, 0.2, 22.0)
+
+
 def test_life_comparison_shows_the_wear_allowance(tmp_path):
     """`tolerax.design.life.life_comparison` (what `tolerax design --life` adds to design.md):
     per feature both designs' zones and the growth by wear at the first's middles, equal to

@@ -17,6 +17,7 @@ from .._files import atomic_write
 from ..eta import FAST_STAGE_COST, ROUGH_COST, human_seconds, rough_wall  # noqa: F401 (the commands take them from here)
 
 DEFAULT_SCENE = "scan-azimuth"
+JITTER_CUTOFF = 20.0  # Hz: `--jitter-cutoff`'s default (design, montecarlo), and a scene file's `[tolerances] jitter_cutoff`'s
 
 
 def command_line(args) -> str:

@@ -10,7 +10,7 @@ import time
 
 from .._files import atomic_write, save_figure
 from .commands import run_monte_carlo
-from .common import (check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file,
+from .common import (JITTER_CUTOFF, check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file,
                      rough_wall, scene_and_settings, settings, versions)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
@@ -32,6 +32,8 @@ def _design_setup(parser, args, command):
     if not has_features(scene_file, command):
         return None
     tol = scene_file.data.get("tolerances", {})
+    if args.yield_ is None and tol.get("yield") is not None:
+        args.yield_ = tol["yield"]  # the scene's [tolerances] yield; --yield overrides it
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
     if args.yield_ is not None and args.method != "sequential":
@@ -116,12 +118,15 @@ class DesignValues:
         return ToleranceProblem(pointing, found, self.statistic, self.zones, self.cost, self.allow_proxy)
 
 
-def _more_requirements(parser, args):
-    """The `--require OUTPUT=LIMIT` requirements (`Requirement`s), refused (exit 2) where one does
-    not parse or repeats an output."""
+def _more_requirements(parser, args, scene_file):
+    """The further requirements (`Requirement`s): the scene's `[tolerances] require` table, each
+    output's limit replaced by `--require OUTPUT=LIMIT` where given, and the `--require` ones it
+    does not name; refused (exit 2) where one does not parse or repeats an output."""
     from ..design.requirements import Requirement
 
-    found = []
+    given = {text.replace("<=", "=").partition("=")[0].strip() for text in args.require or []}
+    scene = scene_file.data.get("tolerances", {}).get("require", {})
+    found = [Requirement(output, float(limit)) for output, limit in scene.items() if output not in given]
     for text in args.require or []:
         name, _, limit = text.replace("<=", "=").partition("=")
         try:
@@ -207,6 +212,11 @@ def design_command(parser, args) -> int:
     if args.verify_fidelity is not None and not args.verify:
         parser.error("--verify-fidelity needs --verify N (the units to simulate)")
     cutoff = None
+    tol = scene_file.data.get("tolerances", {})
+    if args.jitter is None and tol.get("jitter") is not None:  # the scene's [tolerances] jitter; --jitter overrides it
+        args.jitter = tol["jitter"]
+        if args.jitter_cutoff == JITTER_CUTOFF:
+            args.jitter_cutoff = tol.get("jitter_cutoff", JITTER_CUTOFF)
     if args.jitter is not None:
         if args.yield_ is None:
             parser.error("--jitter needs --yield Y (both requirements are met by a fraction Y of the units)")
@@ -227,7 +237,7 @@ def design_command(parser, args) -> int:
         parser.error("--wear-spread needs --life YEARS (the life whose wear rate it draws)")
     if args.wear_spread and args.yield_ is None:
         parser.error("--wear-spread needs --yield Y (the design meets a yield over units whose wear rates are drawn)")
-    more = _more_requirements(parser, args)
+    more = _more_requirements(parser, args, scene_file)
     if args.life is not None and not any(r.output == "pointing_rms_eol" for r in more):
         more.append(Requirement("pointing_rms_eol", requirement))  # one pointing budget over the whole life
     # A [life] costs its points + 1 runs per unit: carried only where a requirement reads the end of life.
@@ -236,6 +246,10 @@ def design_command(parser, args) -> int:
     if scene_file.life is not None and not eol:
         print("tolerax design: the scene has a [life]; this design is for the beginning of life only (add --require "
               "pointing_rms_eol=LIMIT to meet a limit at the end of life too).")
+    unknown = [r.output for r in more if r.output not in pointing.outputs]
+    if unknown:
+        parser.error(f"a further requirement on {', '.join(unknown)} (--require or the scene's [tolerances] require): not an output "
+                     f"of this scene's objective; its outputs: {', '.join(pointing.outputs)}")
     if eol and scene_file.life is None:
         parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
                      "(docs/scene_files.md)")
@@ -266,7 +280,7 @@ def design_command(parser, args) -> int:
     # A design that is not a proposal (not converged, infeasible, noise-limited, its check missed) is
     # never written as the answer unless the user allows it.
     as_answer = report.accepted or args.allow_unconverged
-    written = scene_file.with_proposal(report)
+    written = scene_file.with_proposal(report, cutoff)
     proposal = F.save_scene(written, out / ("proposal.toml" if as_answer else "best_reached.toml"))  # the zones as drawn
     text = "\n".join([report.table(), "", *([life_text, ""] if life_text else []),
                       f"{wall:.1f} s of wall time (compilation included); {load_average()}.", "",
@@ -406,6 +420,10 @@ def tradeoff_command(parser, args) -> int:
     pointing = scene_file.objective(life=None)  # the requirements are the beginning of life's
     print(f"tolerax tradeoff: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirements {', '.join(f'{r:g}' for r in requirements)} arcsec (RMS pointing, {_statistic(args)}).")
+    others = [k for k in ("jitter", "require") if k in scene_file.data.get("tolerances", {})]
+    if others:
+        print(f"tolerax tradeoff: the curve is the RMS requirement's alone; the scene's [tolerances] {' and '.join(others)} "
+              "are not designed for here (tolerax design meets them at one requirement).")
     claim_out(out, "tradeoff", fresh=args.force)
     points, rows = [], []
     for k, requirement in enumerate(requirements):

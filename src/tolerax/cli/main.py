@@ -45,7 +45,7 @@ import warnings
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
-from .common import (DEFAULT_SCENE, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
+from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
                      scene_options)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
@@ -74,7 +74,8 @@ def optimiser_options(parser):
                         "1e-6 1e-7; propose_design's widths)")
     parser.add_argument("--yield", dest="yield_", type=float, default=None, metavar="Y",
                         help="a yield requirement: P(RMS pointing <= requirement) >= Y, e.g. 0.99 (linearised at the zone "
-                        "middles, checked on --check fresh units); default: mean + 1 std over --draws units")
+                        "middles, checked on --check fresh units); default: the scene's [tolerances] yield, else mean + 1 std "
+                        "over --draws units")
     parser.add_argument("--check", type=count(0), default=None,
                         help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
     parser.add_argument("--allow-unconverged", action="store_true",
@@ -170,11 +171,13 @@ def main(argv=None) -> int:
                         "minimum to 100 um, the jitter's line on its logarithm, refitted over the design's zones up to six "
                         "times; --secant-units K: plain secants through K units). The jitter is "
                         "read on the full stage only: a scene with lumped or planetary-scaled joints is refused (give "
-                        "--fidelity planetary, or --allow-proxy to design on the proxy knowingly)")
+                        "--fidelity planetary, or --allow-proxy to design on the proxy knowingly). Default: the scene's "
+                        "[tolerances] jitter")
     design.add_argument("--require", action="append", metavar="OUTPUT=LIMIT",
                         help="a further requirement on another output of the pointing objective, met at the same statistic "
                         "or yield, e.g. --require pointing_peak=2500 (arcsec; outputs: pointing_peak, pointing_smooth_peak, "
-                        "tracking_speed_rms in arcsec/s); repeat for more")
+                        "tracking_speed_rms in arcsec/s); repeat for more. The scene's [tolerances] require table gives "
+                        "further requirements too; --require replaces its limit for the same output")
     design.add_argument("--life", type=positive, default=None, metavar="YEARS",
                         help="design for the end of a mission of YEARS years as well: the RMS requirement met at the end of "
                         "life too (one budget over the life; --require pointing_rms_eol=LIMIT sets another), the clearances "
@@ -186,8 +189,9 @@ def main(argv=None) -> int:
     design.add_argument("--wear-spread", action="store_true",
                         help="with --life: each unit's wear rate drawn over the lubricant's published band ([life] spread = "
                         "true), so the design meets its yield over the band, not at one rate (needs --yield)")
-    design.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ",
-                        help="with --jitter: the start of the stability band, Hz (default 20)")
+    design.add_argument("--jitter-cutoff", type=positive, default=JITTER_CUTOFF, metavar="HZ",
+                        help="with --jitter: the start of the stability band, Hz (default: the scene's [tolerances] "
+                        "jitter_cutoff, else 20)")
     design.add_argument("--verify", type=count(0), default=0, metavar="N",
                         help="then simulate N units of the written proposal.toml (as `tolerax montecarlo OUT/proposal.toml --n N`, "
                         "into OUT/verify) and report its yield with a 95 %% Wilson interval (default 0: none)")
@@ -225,8 +229,10 @@ def main(argv=None) -> int:
                     help="RMS pointing requirement for the yield, arcsec (default: the scene's [tolerances] requirement)")
     mc.add_argument("--jitter", type=positive, default=None, metavar="J",
                     help="a stability requirement too: each unit's jitter (RMS pointing error above --jitter-cutoff Hz over the "
-                    "window), arcsec, and its yield at <= J (what a design with --jitter is verified against)")
-    mc.add_argument("--jitter-cutoff", type=positive, default=20.0, metavar="HZ", help="with --jitter: the stability band's start, Hz (default 20)")
+                    "window), arcsec, and its yield at <= J (what a design with --jitter is verified against; default: the "
+                    "scene's [tolerances] jitter, which a proposal carries)")
+    mc.add_argument("--jitter-cutoff", type=positive, default=JITTER_CUTOFF, metavar="HZ",
+                    help="with --jitter: the stability band's start, Hz (default: the scene's [tolerances] jitter_cutoff, else 20)")
     mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
     mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
     mc.add_argument("--seed", type=int, default=0)

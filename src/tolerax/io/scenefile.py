@@ -154,16 +154,32 @@ class SceneFile:
         tol["distribution"] = tolerances.distribution
         return data
 
-    def with_proposal(self, report) -> "SceneFile":
+    def with_proposal(self, report, jitter_cutoff: float | None = None) -> "SceneFile":
         """This scene with a tolerance proposal (`tolerax.propose_design`'s `DesignReport`)
         filled in: its zones (`report.tolerances`: on whole ISO grades where the report has a
         drawable design, the zones it says to draw) as the nominal clearances and backlash under
         `[design]` and the half-widths under `[tolerances.bands]`, the requirement, uniform
         manufacturing (what the design assumed), and a description with the cost and each
         zone's callout (grade, journal fit). `tolerax design` writes it as `proposal.toml`;
-        `tolerax run`, `montecarlo` and `design` read it back as any scene file."""
+        `tolerax run`, `montecarlo` and `design` read it back as any scene file. The requirements
+        it met go with it: the yield, the jitter (at `jitter_cutoff`, Hz: the objective's) and the
+        further ones (`require`), replacing the scene's own (`tolerax montecarlo` checks them)."""
         data = self._data_with(report.tolerances)
-        data["tolerances"]["requirement"] = float(report.requirement)
+        tol = data["tolerances"]
+        for key in ("yield", "jitter", "jitter_cutoff", "require"):
+            tol.pop(key, None)
+        tol["requirement"] = float(report.requirement)
+        if report.yield_ is not None:
+            tol["yield"] = float(report.yield_)
+        further = [o.requirement for o in getattr(report, "outcomes", ())[1:]]
+        for r in further:
+            if r.output == "pointing_jitter" and report.yield_ is not None:
+                tol["jitter"] = float(r.limit)
+                if jitter_cutoff is not None:
+                    tol["jitter_cutoff"] = float(jitter_cutoff)
+        others = {r.output: float(r.limit) for r in further if r.output != "pointing_jitter"}
+        if others:
+            tol["require"] = others
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
         d = getattr(report, "drawable", None)
         cost = report.cost if d is None else d.cost

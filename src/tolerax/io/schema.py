@@ -74,7 +74,8 @@ OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error"
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6)),
-                  "model": (str, "auto")}
+                  "model": (str, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, 20.0),
+                  "require": (dict, {})}
 # [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`).
 MODELS = ("auto", "tangents", "secants", "surface")
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
@@ -260,6 +261,24 @@ def _check_tolerances(chk: Checker, tol: dict, model):
         raise chk.error(f"distribution={tol['distribution']!r} is unknown; use one of {DISTRIBUTIONS}.", table, "distribution")
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
         raise chk.error(f"must be a positive number of arcsec, got {tol['requirement']!r}.", table, "requirement")
+    if "yield" in tol and not 0.0 < tol["yield"] < 1.0:
+        raise chk.error(f"must be a fraction in (0, 1), e.g. 0.99, got {tol['yield']!r}.", table, "yield")
+    for key in ("jitter", "jitter_cutoff"):
+        if key in tol and not (math.isfinite(tol[key]) and tol[key] > 0):
+            raise chk.error(f"must be a positive number ({'arcsec' if key == 'jitter' else 'Hz'}), got {tol[key]!r}.", table, key)
+    if "jitter" in tol and "yield" not in tol:
+        raise chk.error("a jitter requirement needs a yield (both are met by the same fraction of units): add yield = 0.9, say.",
+                        table, "jitter")
+    from ..design.requirements import Requirement
+
+    for output, limit in tol.get("require", {}).items():
+        if output in ("pointing_rms", "pointing_jitter"):
+            raise chk.error(f"{output} has its own key ({'requirement' if output == 'pointing_rms' else 'jitter'} = ...); "
+                            "require holds the further requirements (pointing_peak, pointing_rms_eol, ...).", table + ("require",), output)
+        try:
+            Requirement(output, float(limit) if isinstance(limit, (int, float)) and not isinstance(limit, bool) else math.nan)
+        except ValueError as err:
+            raise chk.error(str(err), table + ("require",), output) from None
     names = _design.design_names(model)
     minima = tol.get("min_clearance", 5e-6)
     for name, value in (minima.items() if isinstance(minima, dict) else [(None, minima)]):
