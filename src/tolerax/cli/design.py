@@ -246,13 +246,13 @@ def design_command(parser, args) -> int:
     if scene_file.life is not None and not eol:
         print("tolerax design: the scene has a [life]; this design is for the beginning of life only (add --require "
               "pointing_rms_eol=LIMIT to meet a limit at the end of life too).")
+    if eol and scene_file.life is None:
+        parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
+                     "(docs/scene_files.md)")
     unknown = [r.output for r in more if r.output not in pointing.outputs]
     if unknown:
         parser.error(f"a further requirement on {', '.join(unknown)} (--require or the scene's [tolerances] require): not an output "
                      f"of this scene's objective; its outputs: {', '.join(pointing.outputs)}")
-    if eol and scene_file.life is None:
-        parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
-                     "(docs/scene_files.md)")
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
