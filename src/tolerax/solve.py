@@ -244,7 +244,7 @@ def _vector_field(scene, t, y, args):
     (its term check, the shape of its loop's body, the loop itself), and the trace of a nested jit
     is kept by JAX for the next trace with the same structure and shapes, so the vector field (most
     of a step's tracing) is traced once or twice instead; its lowering is emitted once. The results
-    are those of the plain call (bitwise where measured: `benchmarks/results/trace_once.md`)."""
+    are those of the plain call (`benchmarks/trace_once.py` compares the two)."""
     return scene.vector_field(t, y, args)
 
 
