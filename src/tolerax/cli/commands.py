@@ -6,8 +6,8 @@ import sys
 import time
 
 from .._files import atomic_write, save_figure
-from .common import (JITTER_CUTOFF, check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
-                     read_scene_file, rough_wall, scene_and_settings, with_tolerances)
+from .common import (check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
+                     read_scene_file, rough_wall, scene_and_settings, scene_jitter, with_tolerances)
 
 
 def studies_command(parser, args) -> int:
@@ -50,11 +50,7 @@ def montecarlo_command(parser, args) -> int:
     if not has_features(scene_file, "montecarlo"):
         return 2
     requirement = args.requirement if args.requirement is not None else scene_file.requirement
-    tol = scene_file.data.get("tolerances", {})
-    if args.jitter is None and tol.get("jitter") is not None:  # the scene's [tolerances] jitter (a proposal's): --jitter overrides it
-        args.jitter = tol["jitter"]
-        if args.jitter_cutoff == JITTER_CUTOFF:
-            args.jitter_cutoff = tol.get("jitter_cutoff", JITTER_CUTOFF)
+    scene_jitter(args, scene_file)
     cutoff = None if args.jitter is None else args.jitter_cutoff
     summary = run_monte_carlo(parser, scene_file, out, n=args.n, seed=args.seed, backend=args.backend, chunk=args.chunk,
                               requirement=requirement, allow_clip=args.allow_clip, command="montecarlo", jitter_cutoff=cutoff,

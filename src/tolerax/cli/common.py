@@ -20,6 +20,17 @@ DEFAULT_SCENE = "scan-azimuth"
 JITTER_CUTOFF = 20.0  # Hz: `--jitter-cutoff`'s default (design, montecarlo), and a scene file's `[tolerances] jitter_cutoff`'s
 
 
+def scene_jitter(args, scene_file) -> None:
+    """`--jitter` and `--jitter-cutoff` from the scene's `[tolerances] jitter` and `jitter_cutoff`
+    where the command line left them at their defaults (`design`, `montecarlo`: a proposal carries
+    the jitter it met)."""
+    tol = scene_file.data.get("tolerances", {})
+    if args.jitter is None and tol.get("jitter") is not None:
+        args.jitter = tol["jitter"]
+        if args.jitter_cutoff == JITTER_CUTOFF:
+            args.jitter_cutoff = tol.get("jitter_cutoff", JITTER_CUTOFF)
+
+
 def command_line(args) -> str:
     """The command line that reproduces this run."""
     return shlex.join(["tolerax", *(sys.argv[1:] if args.argv is None else args.argv)])

@@ -10,7 +10,7 @@ import time
 
 from .._files import atomic_write, save_figure
 from .commands import run_monte_carlo
-from .common import (JITTER_CUTOFF, check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file,
+from .common import (check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file, scene_jitter,
                      rough_wall, scene_and_settings, settings, versions)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
@@ -212,11 +212,7 @@ def design_command(parser, args) -> int:
     if args.verify_fidelity is not None and not args.verify:
         parser.error("--verify-fidelity needs --verify N (the units to simulate)")
     cutoff = None
-    tol = scene_file.data.get("tolerances", {})
-    if args.jitter is None and tol.get("jitter") is not None:  # the scene's [tolerances] jitter; --jitter overrides it
-        args.jitter = tol["jitter"]
-        if args.jitter_cutoff == JITTER_CUTOFF:
-            args.jitter_cutoff = tol.get("jitter_cutoff", JITTER_CUTOFF)
+    scene_jitter(args, scene_file)
     if args.jitter is not None:
         if args.yield_ is None:
             parser.error("--jitter needs --yield Y (both requirements are met by a fraction Y of the units)")
