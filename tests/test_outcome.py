@@ -254,6 +254,41 @@ def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grad
     assert np.array_equal(np.asarray(report.tolerances.band), drawn.band)
 
 
+def test_the_check_is_a_monte_carlo_run_chunked_and_kept(tmp_path):
+    """A design's check is one `tolerax.monte_carlo` run (`Check(chunk_size=, out=)`): its
+    units are those `monte_carlo` draws from the design's zones (`unit_tolerances`), in chunks of
+    `chunk_size`, each kept under `out` in a folder of the design's own; the same design asked
+    again reads those chunks back (the model is never evaluated) and answers the same."""
+    import _responses as R
+    import tolerax as tx
+    from tolerax.design import check as chk
+    from tolerax.design import propose as P
+    from tolerax.design.features import lost_motion_weights
+
+    scene = R.scan_scene()
+    slopes = 0.5 * np.asarray(lost_motion_weights(scene))
+    line = R.Line(scene, 600.0, slopes, 60e-6, sigma=[5.0])  # a scatter: the units' own values matter
+    requirement = 0.8 * float(P.design_problem(line, yield_=0.9).value(width=1e-6))
+    problem = tx.ToleranceProblem(line, requirement, tx.Yield(0.9))
+    check = tx.Check(units=20, rounds=1, chunk_size=8, out=tmp_path)
+    first = tx.propose_design(problem, tx.Sequential(widths=(1e-6,)), check=check)
+    folders = sorted(tmp_path.glob("units-*"))
+    assert len(folders) == 2  # the continuous design's check and the drawn design's, each its own
+    for folder in folders:
+        assert sorted(p.name for p in folder.glob("chunk-*.nc")) == [f"chunk-0000{k}.nc" for k in range(3)]  # 8 + 8 + 4
+    # The drawn design's check is the Monte Carlo of its zones, unit for unit.
+    d = first.drawable
+    zones = chk.unit_tolerances(line, Design(jnp.asarray(d.nominal), jnp.asarray(d.band)))
+    mc = tx.monte_carlo(chk.AtWidth(line, jnp.asarray(1e-6)), zones, 20, check.key_for(drawn=True), progress=False)
+    np.testing.assert_array_equal(d.checks[0].simulated, mc.dataset["pointing_rms"].values)
+
+    stamps = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("chunk-*.nc")}
+    again = tx.propose_design(problem, tx.Sequential(widths=(1e-6,)), check=check)
+    assert {p: p.stat().st_mtime_ns for p in tmp_path.rglob("chunk-*.nc")} == stamps  # read back, not written again
+    np.testing.assert_array_equal(again.drawable.checks[0].simulated, d.checks[0].simulated)
+    assert again.cost == first.cost and np.array_equal(np.asarray(again.band), np.asarray(first.band))
+
+
 def test_a_tangent_model_the_check_finds_off_is_finished_on_secants():
     """`Auto()`'s second measurement: tangents at the zone middles cannot see a kink in the
     response above them (2e9 arcsec/m above 95 um on the pin clearance, the zone starting at

@@ -2,23 +2,29 @@
 linearised model on the same units (`yield_check`, `YieldCheck`); the difference of their
 quantiles is the shift by which the requirement is tightened and the design solved again (the
 SORA idea, `tolerax.design.reliability`): `Check`, a value `propose_design` takes, runs that
-loop through whichever solver the design has.
+loop through whichever solver the design has. The units are a `tolerax.monte_carlo` run, so its
+backends (one process, a process pool, a Dask cluster), chunks, checkpoints, devices and
+progress bar serve the design's checks as they serve any Monte Carlo.
 """
 
 import dataclasses
+import hashlib
+import json
 import math
+import os
+import pathlib
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import scipy.stats
 
-from .reliability import LinearisedYield, _uncertain_columns, _uncertain_count, _unfitted, _with_uncertain
-from .surface import _simulate_units
+from .reliability import LinearisedYield, _uncertain_columns, _uncertain_count, _unfitted
 from .outcome import MODEL_OFF
-from .types import Design, chain_results, realise
+from .types import Design, chain_results
+from ..uncertainty.montecarlo import BACKENDS, _fingerprint, key_settings, monte_carlo
 from ..uncertainty.results import wilson_interval
-from ..uncertainty.sampling import unit_draws
+from ..uncertainty.sampling import Tolerances
 
 
 @dataclasses.dataclass(frozen=True)
@@ -73,17 +79,33 @@ class Check:
 
     The proposal is the cheapest checked design whose simulated quantile met the requirement
     (to the solver's tolerance), else the last one.
+
+    How the units run (each check is one `tolerax.monte_carlo` run; its arguments of the same
+    names): `chunk_size` units per compiled batch (default 50); `backend` `"vmap"` (this
+    process, the default), `"processes"` (with `workers`) or `"dask"` (with `client`); `out`, a
+    folder where each check keeps its chunks (in a subfolder named by the design, the units, the
+    key and the model, so a design run again with the same arguments reads its finished checks back
+    instead of simulating them again; default none).
     """
 
     units: int = 200
     rounds: int = 3
     key: object = None
+    chunk_size: int = 50
+    backend: str = "vmap"
+    workers: int | None = None
+    client: object = None
+    out: str | os.PathLike | None = None
 
     def __post_init__(self):
         if int(self.units) < 2:
             raise ValueError(f"Check: units must be >= 2 simulated units, got {self.units!r} (no check: check=None).")
         if int(self.rounds) < 1:
             raise ValueError(f"Check: rounds must be >= 1 (checks at most), got {self.rounds!r}.")
+        if int(self.chunk_size) < 1:
+            raise ValueError(f"Check: chunk_size must be >= 1 unit per batch, got {self.chunk_size!r}.")
+        if self.backend not in BACKENDS:
+            raise ValueError(f"Check: backend must be one of {BACKENDS}, got {self.backend!r}.")
 
     def key_for(self, drawn: bool = False):
         """The units' key: `key` (default `jax.random.key(1)`); for the drawn design's check the
@@ -94,6 +116,15 @@ class Check:
             return jax.random.key(2 if drawn else 1)
         return jax.random.fold_in(self.key, 1) if drawn else self.key
 
+    def simulate(self, objective: LinearisedYield, x: Design, requirements, width=None, *, drawn: bool = False,
+                 progress: bool = False):
+        """`yield_check` of design `x` (`Design(middle, half-width)`, m) against `requirements`
+        (one per output of `objective`) on this check's units (`key_for(drawn)`), run as it says
+        (chunks, backend, checkpoints), at smoothing `width` (m)."""
+        return yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
+                           int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
+                           progress=progress)
+
     def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None, say=None):
         """Check `result` (an `OptimisationResult` of `problem`, a `DesignProblem` whose
         objective is a `LinearisedYield`) against `requirements` (m,) and re-solve through
@@ -102,14 +133,14 @@ class Check:
         requirement), requirements solved for)` per check, the last the returned design's. A
         design that misses what it was solved for is not checked."""
         m = requirements.shape[0]
-        target, checked, key = requirements.copy(), [], self.key_for()
+        target, checked = requirements.copy(), []
         for _ in range(int(self.rounds)):
             if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
                 break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
             middle = Design(result.x.nominal + result.x.band, result.x.band)
             if say is not None:
                 say(f"Monte Carlo check {len(checked) + 1} (of at most {int(self.rounds)}): {int(self.units)} fresh units ...")
-            got = yield_check(problem.objective.objective, middle, as_requirement(requirements), int(self.units), key, solver.width)
+            got = self.simulate(problem.objective.objective, middle, requirements, solver.width, progress=progress)
             got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
             shift = np.array([c.shift for c in got])
@@ -163,23 +194,66 @@ def _model(objective, x, width):
     return objective.model(x, width)
 
 
-def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50):
-    """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m; draws from
-    `unit_draws(key, ...)`) with `objective`'s pointing model, and compare them with its
-    linearised model on the same units (see `YieldCheck`); each unit draws the objective's
-    uncertain inputs too (a life's wear rate: `LinearisedYield`). `width`: smoothing width (m);
-    `chunk`: units per compiled batch. A tuple `output` (two requirements, e.g. RMS and
-    jitter): `requirement` one per output, and one `YieldCheck` per output from the same units."""
+class AtWidth(eqx.Module):
+    """An objective (`AbstractObjective`) as a Monte Carlo model at one smoothing width:
+    `AtWidth(objective, width)(values)` is `objective(values, width)` (`width` in m; `None`: the
+    scene's own), what `monte_carlo` evaluates on each unit."""
+
+    objective: object
+    width: object = None
+
+    def __call__(self, values):
+        return self.objective(values, self.width)
+
+
+def unit_tolerances(pointing, x: Design) -> Tolerances:
+    """The zones a check draws its units from: the design `x` (`Design(middle, half-width)`,
+    m) over `pointing`'s design features, uniform and floored at zero (a clearance cannot be
+    negative: `realise`), then `pointing`'s uncertain inputs (a life's wear-rate factor) over
+    their band (`uncertain_box`), not floored. Sample $i$ of `monte_carlo` on these is the unit
+    `realise(x, unit_draws(key, n, ...)[i])` with its uncertain inputs appended."""
+    from .features import design_names
+
+    names = design_names(pointing.scene)
+    nominal, band, lower = np.asarray(x.nominal, dtype=float), np.asarray(x.band, dtype=float), np.zeros(len(names))
+    if _uncertain_count(pointing):
+        middle, half = (np.asarray(v, dtype=float) for v in pointing.uncertain_box())
+        names = (*names, *pointing.uncertain_inputs)
+        nominal, band = np.concatenate([nominal, middle]), np.concatenate([band, half])
+        lower = np.concatenate([lower, np.full(middle.shape, -np.inf)])
+    return Tolerances(names, nominal, band, "uniform", lower=lower)
+
+
+def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50, *,
+                backend: str = "vmap", workers=None, client=None, out=None, progress: bool = False):
+    """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m) with
+    `objective`'s pointing model and compare them with its linearised model on the same units
+    (see `YieldCheck`); each unit draws the objective's uncertain inputs too (a life's wear
+    rate: `LinearisedYield`). The units are one `tolerax.monte_carlo` run (`unit_tolerances`,
+    `key`; at smoothing `width`, m) in chunks of `chunk` units on `backend` (`workers`,
+    `client`, a progress bar with `progress`, as `monte_carlo`'s), its chunks kept under `out`
+    where given (a subfolder per design, units, key and model). A tuple `output` (two
+    requirements, e.g. RMS and jitter): `requirement` one per output, and one `YieldCheck` per
+    output from the same units."""
     if int(n) < 2:
         raise ValueError(f"yield_check: n must be >= 2 units, got {n!r}.")
     outputs = objective.output if isinstance(objective.output, tuple) else (objective.output,)
     requirements = np.broadcast_to(np.asarray(requirement, dtype=float), (len(outputs),))
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
-    width = None if width is None else jnp.asarray(width, dtype=float)
-    draws = unit_draws(key, int(n), x.nominal.shape[0] + _uncertain_count(objective.pointing))
-    values = realise(x, draws[:, : x.nominal.shape[0]])
-    drawn = _with_uncertain(objective.pointing, values, draws)  # each unit's wear rate drawn too (a life's spread)
-    f, s, sigma, t = _model(objective, x, width)
+    tolerances = unit_tolerances(objective.pointing, x)
+    model = AtWidth(objective.pointing, None if width is None else jnp.asarray(width, dtype=float))
+    folder = None
+    if out is not None:  # one subfolder per design, units, key and model: another never meets these chunks
+        said = json.dumps([tolerances.to_json(), key_settings(key), int(n), _fingerprint(model)], sort_keys=True)
+        folder = pathlib.Path(out) / f"units-{hashlib.sha256(said.encode()).hexdigest()[:16]}"
+    run = monte_carlo(model, tolerances, int(n), key, backend=backend, chunk_size=min(int(chunk), int(n)), out=folder,
+                      progress=progress, workers=workers, client=client)
+    ds = run.dataset
+    drawn = jnp.asarray(np.stack([ds[name].values for name in tolerances.names], axis=1))
+    values = drawn[:, : x.nominal.shape[0]]
+    success = np.asarray(ds["success"].values, dtype=bool)
+    simulated = np.stack([np.where(success, ds[name].values, np.nan) for name in outputs], axis=1)
+    f, s, sigma, t = _model(objective, x, None if width is None else jnp.asarray(width, dtype=float))
     linear = jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T
     if t is not None:  # each unit's own drawn inputs (a wear rate) through the line
         linear = linear + _uncertain_columns(objective.pointing, drawn[:, x.nominal.shape[0] :]) @ jnp.atleast_2d(t).T
@@ -190,10 +264,6 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
         # one the optimiser met.
         linear = linear + np.atleast_1d(np.asarray(sigma)) * np.random.default_rng(0).standard_normal((int(n), len(outputs)))
     linear = np.asarray(_unfitted(jnp.asarray(linear), objective.log))  # from the log scale for `log_outputs`
-    simulated = np.concatenate([
-        np.asarray(_simulate_units(objective.pointing, objective.output, drawn[i : i + chunk], width)).reshape(-1, len(outputs))
-        for i in range(0, int(n), chunk)
-    ])
     ok = np.all(np.isfinite(simulated), axis=1)
     checks = tuple(_yield_check(simulated[:, k], linear[:, k], ok, objective.q, float(requirements[k])) for k in range(len(outputs)))
     return checks if isinstance(objective.output, tuple) else checks[0]

@@ -16,7 +16,7 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
-from .check import Check, as_requirement, model_off, yield_check
+from .check import Check, as_requirement, model_off
 from .cost import grade_of
 from .drawable import round_to_grades
 from .features import design_names, lost_motion_weights
@@ -81,9 +81,12 @@ def propose_design(
       step: `Sequential()` (default) or `AugmentedLagrangian()` (`tolerax.design.solvers`; one
       requirement on tangents), or one's own `AbstractDesignMethod`.
     - `check`: the Monte Carlo check of a yield design and its re-solves (`Check(units=200,
-      rounds=3)`, the default; `None`: no check). A `MeanPlusKStd` problem has no check.
-    - `progress`: a progress bar over the solver's iterations, and one line per phase (surface
-      fit, solve, checks, twin, drawn design) with the time since the start, on stderr
+      rounds=3)`, the default; `None`: no check). A `MeanPlusKStd` problem has no check. Its
+      units are a `monte_carlo` run: `Check(backend=..., chunk_size=..., out=...)` runs them on
+      a process pool or a Dask cluster, and keeps them to be read back by a design run again.
+    - `progress`: a progress bar over the solver's iterations and the checks' units, and one
+      line per phase (surface fit, solve, checks, twin, drawn design) with the time since the
+      start, on stderr
       (`tolerax.design.phases`).
     - `callback`: `callback(gradients, x, cost, objective)` after every gradient evaluation
       (`Sequential`; `x.nominal` holds the lower limits).
@@ -189,7 +192,7 @@ def propose_design(
     if solver.drawable:
         drawn_check = None if check is None or status != "converged" else check
         say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units" if drawn_check else "") + " ...")
-        drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width)
+        drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width, progress)
         if status == "converged" and not drawable.met:
             # One proposal: what the drawing carries is the answer, so a continuous optimum whose
             # whole grades miss is not a proposal.
@@ -259,7 +262,7 @@ def _tightest_first(evaluate, problem, slopes, requirements, tol):
 TIGHTER_GRADES = 2  # how many grades below the continuous ones the drawable design is rounded from, at most
 
 
-def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check, width):
+def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check, width, progress=False):
     """The proposal as drawn: the continuous design on whole ISO grades (`round_to_grades`,
     from its grades `grade`, with its linear model against what it was solved for), checked on
     `check`'s units (`Check.key_for(drawn=True)`, at smoothing `width`, m) against the
@@ -280,8 +283,8 @@ def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, c
                             pressure_angle=problem.features.pressure_angle)
         d = dataclasses.replace(d, tightened=shift)
         if yield_ is not None and check is not None:
-            got = yield_check(problem.objective.objective, Design(d.nominal, d.band), as_requirement(requirements), int(check.units),
-                              check.key_for(drawn=True), width)
+            got = check.simulate(problem.objective.objective, Design(d.nominal, d.band), requirements, width, drawn=True,
+                                 progress=progress)
             d = dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
         if d.met:
             return d
