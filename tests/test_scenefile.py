@@ -566,7 +566,8 @@ def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypat
     seen = {}
 
     def propose(problem, solver=None, **options):
-        seen.update(statistic=problem.statistic, requirements=problem.requirements, cutoff=problem.objective.jitter_cutoff)
+        seen.update(statistic=problem.statistic, requirements=problem.requirements, cutoff=problem.objective.jitter_cutoff,
+                    problem=problem)
         raise ValueError("recorded by the test")
 
     monkeypatch.setattr(_p, "propose_design", propose)
@@ -578,6 +579,34 @@ def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypat
     assert float(seen["statistic"].level) == 0.95 and seen["cutoff"] == 30.0
     assert sorted((r.output, r.limit) for r in seen["requirements"]) == [("pointing_jitter", 0.3), ("pointing_peak", 2500.0),
                                                                          ("pointing_rms", 900.0)]
+    # In Python the file states the same problem in one call (`SceneFile.problem()`): the same
+    # requirements, statistic, zones, cost and objective as the command line's with no option,
+    # here with every [tolerances] key a design reads.
+    every = text + ('model = "surface"\nfixed = ["azimuth.carrier_clearance"]\nband_range = [2e-6, 40e-6]\n'
+                    'min_clearance = {"azimuth.sun_clearance" = 8e-6}\ncost = {grades = [6, 7, 8], costs = [2.0, 1.0, 0.8]}\n')
+    path.write_text(every)
+    assert cli.main(["design", str(path), "--out", str(tmp_path / "e")]) == 2
+    mine, theirs = tx.parse_scene(every).problem(), seen["problem"]
+    assert mine.requirements == tuple(theirs.requirements) and mine.statistic == theirs.statistic and mine.cost == theirs.cost
+    assert all(isinstance(r.model, tx.Surface) for r in mine.requirements) and isinstance(mine.cost, tx.GradeTable)
+    for key, value in mine.zones.options().items():
+        if key == "start":
+            assert value.names == theirs.zones.start.names and np.array_equal(value.nominal, theirs.zones.start.nominal)
+            assert np.array_equal(value.band, theirs.zones.start.band)
+        else:
+            assert value == theirs.zones.options()[key], key
+    names = tx.design_names(mine.objective.scene)
+    assert mine.zones.min_clearance == [8e-6 if n == "azimuth.sun_clearance" else 5e-6 for n in names]
+    assert mine.zones.fixed == ("azimuth.carrier_clearance",) and mine.zones.band_range == (2e-6, 40e-6)
+    assert mine.objective.jitter_cutoff == theirs.objective.jitter_cutoff == 30.0 and mine.objective.life is None
+    assert (mine.objective.duration, mine.objective.integrator) == (theirs.objective.duration, theirs.objective.integrator)
+    with pytest.raises(tx.SceneFileError, match="sets no RMS pointing requirement"):
+        tx.parse_scene(base).problem()
+    with pytest.raises(tx.SceneFileError, match=re.escape("needs a [life] table")):
+        tx.parse_scene(base + "[tolerances]\nrequirement = 900.0\nrequire = {pointing_rms_eol = 900.0}\n").problem()
+    assert tx.parse_scene(LIFE_SCENE + "[tolerances]\nrequirement = 900.0\nrequire = {pointing_rms_eol = 900.0}\n"
+                          ).problem().objective.life is not None  # an end-of-life requirement carries the [life]
+    path.write_text(text)
     argv = ["design", str(path), "--yield", "0.9", "--jitter", "0.5", "--jitter-cutoff", "25", "--require", "pointing_peak=3000",
             "--require", "tracking_speed_rms=50", "--out", str(tmp_path / "b")]
     assert cli.main(argv) == 2

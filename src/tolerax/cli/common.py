@@ -13,11 +13,11 @@ import shutil
 import sys
 import tempfile
 
+from .._defaults import JITTER_CUTOFF  # noqa: F401 (the commands take it from here)
 from .._files import atomic_write
 from ..eta import FAST_STAGE_COST, ROUGH_COST, human_seconds, rough_wall  # noqa: F401 (the commands take them from here)
 
 DEFAULT_SCENE = "scan-azimuth"
-JITTER_CUTOFF = 20.0  # Hz: `--jitter-cutoff`'s default (design, montecarlo), and a scene file's `[tolerances] jitter_cutoff`'s
 
 
 def scene_jitter(args, scene_file) -> None:

@@ -21,8 +21,6 @@ def _design_setup(parser, args, command):
     output folder checked; `values` a `DesignValues`: the zones from the scene's [tolerances], the
     statistic, the solver, the check and the constraint model the flags name), or `None` after
     printing why (exit 2)."""
-    from ..io import scenefile as F
-
     out = check_out(parser, args.out, args.command, force=args.force)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
@@ -45,13 +43,6 @@ def _design_setup(parser, args, command):
     names = _feature_names(scene_file)
     if args.secant_units is not None and args.secant_units <= len(names):
         parser.error(f"--secant-units must exceed the scene's {len(names)} design features (a line through K units), got {args.secant_units}")
-    # The scene's zones (its design +- `bands`, else `band`) start the design; the fixed
-    # features are held at theirs.
-    start = scene_file.tolerances()
-    fixed = tuple(tol.get("fixed", []))
-    minima = tol.get("min_clearance", F.TOLERANCE_KEYS["min_clearance"][1])  # the functional minimum of each zone
-    if isinstance(minima, dict):
-        minima = [minima.get(name, F.TOLERANCE_KEYS["min_clearance"][1]) for name in names]
     widths = (1e-6, 1e-7)
     if args.widths is not None:
         if any(a <= b for a, b in zip(args.widths, args.widths[1:])):
@@ -64,21 +55,19 @@ def _design_setup(parser, args, command):
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
     from ..design import solvers, spec
     from ..design.check import Check
+    from ..io.problem import cost_of, model_of, zones_of
 
-    cost = None
-    if tol.get("cost"):  # a shop's price per grade instead of the ISO 286 reciprocal law
-        from ..io.schema import cost_model
-
-        cost = cost_model(None, tol["cost"])
     solver = (solvers.Sequential(widths, 20 if args.outer is None else args.outer) if args.method == "sequential" else
               solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner))
-    units = {} if args.secant_units is None else {"units": args.secant_units}
-    model = {"auto": None, "tangents": spec.Tangents(), "secants": spec.Secants(**units), "surface": spec.Surface(**units)}[model_name]
+    model = model_of(model_name)
+    if args.secant_units is not None and model is not None:
+        model = dataclasses.replace(model, units=args.secant_units)
+    # The scene's zones (its design +- `bands`, else `band`) start the design, the fixed features
+    # held at theirs; its functional minima, band range and cost: as `SceneFile.problem()` reads them.
     values = DesignValues(
         statistic=spec.MeanPlusKStd(units=args.draws) if args.yield_ is None else spec.Yield(args.yield_),
-        zones=spec.Zones(start=start, min_clearance=minima, band_range=tuple(tol.get("band_range", F.TOLERANCE_KEYS["band_range"][1])),
-                         fixed=fixed),
-        cost=cost, allow_proxy=args.allow_proxy, solver=solver, model=model, secant_units=args.secant_units,
+        zones=zones_of(scene_file), cost=cost_of(scene_file), allow_proxy=args.allow_proxy, solver=solver, model=model,
+        secant_units=args.secant_units,
         check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check),
         progress=not args.quiet)
     return out, scene_file, values
@@ -123,10 +112,10 @@ def _more_requirements(parser, args, scene_file):
     output's limit replaced by `--require OUTPUT=LIMIT` where given, and the `--require` ones it
     does not name; refused (exit 2) where one does not parse or repeats an output."""
     from ..design.requirements import Requirement
+    from ..io.problem import further_requirements
 
     given = {text.replace("<=", "=").partition("=")[0].strip() for text in args.require or []}
-    scene = scene_file.data.get("tolerances", {}).get("require", {})
-    found = [Requirement(output, float(limit)) for output, limit in scene.items() if output not in given]
+    found = [r for r in further_requirements(scene_file) if r.output not in given]
     for text in args.require or []:
         name, _, limit = text.replace("<=", "=").partition("=")
         try:
@@ -222,8 +211,6 @@ def design_command(parser, args) -> int:
             print(f"tolerax design: --verify simulates the units at planetary fidelity: {scene_file.name} has lumped or "
                   "planetary-scaled joints, which do not read the jitter as the full stage does.")
     if args.life is not None:
-        from ..io import scenefile as F
-
         try:
             scene_file = with_life(scene_file, args.life, args.wear_spread)
         except F.SceneFileError as err:

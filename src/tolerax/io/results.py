@@ -7,6 +7,7 @@ import pathlib
 
 import numpy as np
 
+from .._defaults import JITTER_CUTOFF
 from .._files import atomic_write, save_figure
 from .schema import SERIES
 from ..design import features as _design
@@ -54,7 +55,6 @@ def timeseries(scene_file: SceneFile, result, series=None):
     return ds
 
 
-JITTER_CUTOFF = 20.0  # Hz: the usual start of a pointing budget's stability band (PointingObjective's)
 
 def _window_stats(scene_file: SceneFile, result) -> dict:
     """Summary numbers over the window `t >= settle` (units in the key names)."""

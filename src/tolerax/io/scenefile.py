@@ -9,7 +9,8 @@ by `tolerax.io.results`.
 - `load_scene(name_or_path)`: a built-in scene (`builtin_scenes()`) or a `.toml` file.
 - `parse_scene(text)`: the same from a string.
 - `save_scene(scene_file, path)` / `SceneFile.to_toml()`: write it back (comments are not kept).
-- `SceneFile.build()`: the `Mechanism`; `simulate()`, `objective()`, `tolerances()` for the runs.
+- `SceneFile.build()`: the `Mechanism`; `simulate()`, `objective()`, `tolerances()` for the runs;
+  `problem()`: the design problem the file states (`tolerax.io.problem`).
 """
 
 import copy
@@ -117,6 +118,15 @@ class SceneFile:
         # checks it), so the whole table passes through and a new key cannot be dropped here.
         opts = dict(self.run, life=self.life)
         return PointingObjective(self.build(), **{**opts, **kwargs})
+
+    def problem(self):
+        """The design problem this file states (`tolerax.io.problem`): a `ToleranceProblem` of
+        `objective()` with the `[tolerances]` requirement, `require`, `jitter` and `yield`, the
+        constraint `model`, the zones and the cost: what `tolerax design` on this file solves
+        with no option. Give it to `tolerax.propose_design`."""
+        from .problem import problem_of
+
+        return problem_of(self)
 
     @property
     def life(self):

@@ -12,6 +12,7 @@ import math
 
 import jax.numpy as jnp
 
+from .._defaults import JITTER_CUTOFF
 from ..physics import contact as _contact
 from ..design import cost as _cost, features as _design
 from ..physics import gears as _gears
@@ -74,7 +75,7 @@ OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error"
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6)),
-                  "model": (str, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, 20.0),
+                  "model": (str, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, JITTER_CUTOFF),
                   "require": (dict, {})}
 # [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`).
 MODELS = ("auto", "tangents", "secants", "surface")
