@@ -20,10 +20,10 @@ Methods, each timed from its first call with every program already compiled (a w
 the forward objective, its value-and-gradient and the sequential subproblem first; the table
 reports those compile times apart):
 
-- `sequential`: `propose_design(method="sequential")` from each starting band of `--starts` (its
+- `sequential`: `propose_design(problem, Sequential(...))` from each starting band of `--starts` (its
   "seeds": the method is deterministic), at `--widths` in turn (default 1 um then 0.1 um); only
   its proposal counts (judged at the last width: the 1 um iterates are not designs at 0.1 um).
-- `augmented-lagrangian`: `propose_design(method="augmented-lagrangian")`, 4 x 6 steps (the
+- `augmented-lagrangian`: `propose_design(problem, AugmentedLagrangian(...))`, 4 x 6 steps (the
   previous default), widths 1 um then the last of `--widths`, from the 10 um start.
 - `slsqp`: SciPy's SLSQP on the same exact JAX value and gradient (forward mode), at the same
   widths, from the 10 um start: the reference the issue asks for (cyipopt is not
@@ -94,6 +94,12 @@ class Race:
         self.rows, self.start = [], None
         self.current_width = args.widths[-1]  # the width of the evaluations being logged
 
+    def spec(self, zones=None):
+        """The race's `ToleranceProblem`: the requirement on mean + 1 std over `--draws` units,
+        from `zones` (default `Zones()`: 10 um everywhere)."""
+        return tx.ToleranceProblem(self.pointing, self.args.requirement, tx.MeanPlusKStd(units=self.args.draws),
+                                   tx.Zones() if zones is None else zones)
+
     # --- coordinates and cost
     def to_x(self, z):
         v = self.lo + (self.hi - self.lo) * np.clip(np.asarray(z, dtype=float), 0.0, 1.0)
@@ -150,11 +156,9 @@ def warm_up(race):
     forward = harness.timed(race.forward, x, p.draws, race.width, repeats=3)
     gradient = harness.timed(race.value_and_grad, x, race.width, repeats=3)
     start = time.perf_counter()  # the sequential method's own programs (value and gradient, subproblem)
-    tx.propose_design(race.pointing, race.args.requirement, method="sequential", max_outer=1, widths=(race.args.widths[-1],),
-                      n_draws=race.args.draws)
+    tx.propose_design(race.spec(), tx.Sequential(widths=(race.args.widths[-1],), max_gradients=1))
     start_al = time.perf_counter()  # the augmented Lagrangian's program
-    tx.propose_design(race.pointing, race.args.requirement, method="augmented-lagrangian", max_outer=1, inner_steps=1, widths=(race.args.widths[-1],),
-                      n_draws=race.args.draws)
+    tx.propose_design(race.spec(), tx.AugmentedLagrangian(widths=(race.args.widths[-1],), max_outer=1, inner_steps=1))
     return dict(
         augmented_lagrangian_warmup=time.perf_counter() - start_al,
         forward_compile=forward.compile_s, forward_run=forward.run_s, gradient_compile=gradient.compile_s,
@@ -165,8 +169,8 @@ def warm_up(race):
 def run_sequential(race, band):
     race.begin()
     report = tx.propose_design(
-        race.pointing, race.args.requirement, method="sequential", max_outer=race.args.max_iterations, widths=tuple(race.args.widths),
-        band=band * 1e-6, n_draws=race.args.draws, callback=lambda i, x, cost, value: race.log(x, value, "gradient"),
+        race.spec(tx.Zones(band=band * 1e-6)), tx.Sequential(widths=tuple(race.args.widths), max_gradients=race.args.max_iterations),
+        callback=lambda i, x, cost, value: race.log(x, value, "gradient"),
     )
     if len(race.args.widths) > 1:  # the callback cannot tell the widths apart: judge the proposal itself
         race.rows = []
@@ -179,8 +183,7 @@ def run_sequential(race, band):
 
 def run_augmented_lagrangian(race):
     race.begin()
-    report = tx.propose_design(race.pointing, race.args.requirement, method="augmented-lagrangian", max_outer=4, inner_steps=6,
-                               widths=(1e-6, race.args.widths[-1]), n_draws=race.args.draws)
+    report = tx.propose_design(race.spec(), tx.AugmentedLagrangian(widths=(1e-6, race.args.widths[-1]), max_outer=4, inner_steps=6))
     x = tx.Design(report.result.x.nominal, report.result.x.band)
     race.log(x, report.objective, "final")  # the optimiser's iterates are not observable one by one
     return race.end(converged=bool(report.result.converged), gradients=28, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
