@@ -157,8 +157,22 @@ def test_montecarlo_writes_netcdf_and_resumes(tmp_path, capsys):
 
 
 def test_demo_at_a_tiny_size(tmp_path, capsys):
-    """`tolerax demo` without the proposal (`--steps 0`) on 50 ms of the scan scene."""
-    assert cli.main(["demo", "--duration", "0.05", "--steps", "0", "--out", str(tmp_path)]) == 0
+    """`tolerax demo` without the proposal (`--steps 0`) on 50 ms of the scan scene; called in
+    a Python session (as from a notebook), it leaves the session's matplotlib backend as it was
+    (its own figures drawn on Agg, `cli.common.figures_to_files`)."""
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    seen = []
+    plt.switch_backend("svg")  # a session's own backend, not the commands' Agg
+    try:
+        real = plt.subplots
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(plt, "subplots", lambda *a, **k: (seen.append(matplotlib.get_backend()), real(*a, **k))[1])
+            assert cli.main(["demo", "--duration", "0.05", "--steps", "0", "--out", str(tmp_path)]) == 0
+        assert seen and {b.lower() for b in seen} == {"agg"} and matplotlib.get_backend().lower() == "svg"
+    finally:
+        plt.switch_backend("agg")
     assert "RMS pointing error" in capsys.readouterr().out
     assert (tmp_path / "demo.png").stat().st_size > 10_000
     summary = json.loads((tmp_path / "scan" / "summary.json").read_text())

@@ -73,9 +73,6 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     `jitter_cutoff` (Hz) the units' jitter too, its yield against `jitter_requirement`; and
     the yield of each output against its limit in `more_requirements`, {output: limit})."""
     import jax
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from ..uncertainty import montecarlo as MC

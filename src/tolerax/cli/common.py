@@ -2,6 +2,7 @@
 its overrides, and the argument types."""
 
 import argparse
+import contextlib
 import copy
 import decimal
 import math
@@ -29,6 +30,24 @@ def scene_jitter(args, scene_file) -> None:
         args.jitter = tol["jitter"]
         if args.jitter_cutoff == JITTER_CUTOFF:
             args.jitter_cutoff = tol.get("jitter_cutoff", JITTER_CUTOFF)
+
+
+@contextlib.contextmanager
+def figures_to_files():
+    """A command's figures drawn on Agg (written to files, never shown) for its duration, the
+    caller's backend restored after: `tolerax.cli.main([...])` called from a notebook or a script
+    leaves that session's backend (inline, a window) as it was."""
+    import matplotlib
+
+    before = dict.__getitem__(matplotlib.rcParams, "backend")  # as set: the automatic choice stays unresolved
+    matplotlib.use("Agg")
+    try:
+        yield
+    finally:
+        if str(before).lower() != "agg":
+            import matplotlib.pyplot as plt
+
+            plt.switch_backend(before)
 
 
 def command_line(args) -> str:

@@ -18,9 +18,6 @@ def demo_command(parser, args) -> int:
     given = [f"--{n}" for n in ("rate", "clearance", "backlash") if getattr(args, n) is not None]
     if given:
         parser.error(f"{', '.join(given)} only apply with --bench (the joint on its test bench)")
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     from ..design import propose as _propose
@@ -129,9 +126,6 @@ def _demo_figure(result, scene_file, report):
 
 
 def _demo_bench(parser, args) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 

@@ -181,13 +181,10 @@ def _life_allowance(pointing, report, requirements, values, args, scene_file, cu
 
 
 def design_command(parser, args) -> int:
-    import matplotlib
+    import matplotlib.pyplot as plt
 
     from ..design.fidelity import check_fidelity
     from ..design.requirements import Requirement
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     from ..io import scenefile as F
 
@@ -385,9 +382,6 @@ def with_fidelity(scene_file, fidelity):
 def tradeoff_command(parser, args) -> int:
     """One proposal per requirement: the cost-against-requirement curve (tradeoff.md, .json,
     .png) and each proposal as a scene file (proposal-R.toml)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     import numpy as np

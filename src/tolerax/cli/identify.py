@@ -31,9 +31,6 @@ def _run_settings(scene_file) -> dict:
 
 
 def identify_command(parser, args) -> int:
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 

@@ -45,7 +45,7 @@ import warnings
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
-from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, length_in, non_negative, out_options, positive, positive_length,
+from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
                      scene_options)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
@@ -278,7 +278,7 @@ def main(argv=None) -> int:
 
     enable_compilation_cache()  # a later command on the same scene structure skips its compilation (TOLERAX_CACHE=off: not)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), figures_to_files():
             warnings.simplefilter("always", SceneFileNote)
             shown = warnings.showwarning
             # A scene file's note (a valid but unlikely value) as a line of its own, not a Python warning.

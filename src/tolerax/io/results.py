@@ -136,9 +136,6 @@ def write_results(scene_file: SceneFile, result, out: str | os.PathLike, *, wall
     """Write a run's results into the folder `out`: `scene.toml` (the scene as run),
     `timeseries.nc` (netCDF, h5netcdf engine; `timeseries`), one PNG per `[outputs] plots`,
     `summary.json` and `summary.md`. Returns the summary dict."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     out = pathlib.Path(out)
