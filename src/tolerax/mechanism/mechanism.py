@@ -115,8 +115,7 @@ class Mechanism(AbstractScene):
         stiff = [name for name, joint in self.named_joints() if joint.stiff_contact_modes]
         if stiff:
             joints = f"the {stiff[0]} joint" if len(stiff) == 1 else f"the {' and '.join(stiff)} joints"
-            # Measured, and fallen back: FAST_STAGE is faster here but reads the outputs less
-            # closely than ACCURATE (tolerax.solve.FAST_STAGE says by how much).
+            # Measured and fallen back: FAST_STAGE is faster but reads less closely (tolerax.solve).
             return ACCURATE, (f"the full planetary stage of {joints}: FAST_STAGE (SRK53 at rtol 1e-4) runs it faster but "
                               "reads its pointing, jitter and bearing forces less closely than this on most scenes measured "
                               "(benchmarks/auto_integrator.py); name it, integrator=tolerax.solve.FAST_STAGE, where "
