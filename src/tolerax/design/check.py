@@ -214,14 +214,10 @@ def unit_tolerances(pointing, x: Design) -> Tolerances:
     `realise(x, unit_draws(key, n, ...)[i])` with its uncertain inputs appended."""
     from .features import design_names
 
-    names = design_names(pointing.scene)
-    nominal, band, lower = np.asarray(x.nominal, dtype=float), np.asarray(x.band, dtype=float), np.zeros(len(names))
-    if _uncertain_count(pointing):
-        middle, half = (np.asarray(v, dtype=float) for v in pointing.uncertain_box())
-        names = (*names, *pointing.uncertain_inputs)
-        nominal, band = np.concatenate([nominal, middle]), np.concatenate([band, half])
-        lower = np.concatenate([lower, np.full(middle.shape, -np.inf)])
-    return Tolerances(names, nominal, band, "uniform", lower=lower)
+    zones = Tolerances(design_names(pointing.scene), np.asarray(x.nominal, dtype=float), np.asarray(x.band, dtype=float), "uniform")
+    if not _uncertain_count(pointing):
+        return zones
+    return zones.joined(Tolerances(pointing.uncertain_inputs, *pointing.uncertain_box(), "uniform", lower=None))
 
 
 def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50, *,
@@ -240,8 +236,9 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     outputs = objective.output if isinstance(objective.output, tuple) else (objective.output,)
     requirements = np.broadcast_to(np.asarray(requirement, dtype=float), (len(outputs),))
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
+    width = None if width is None else jnp.asarray(width, dtype=float)
     tolerances = unit_tolerances(objective.pointing, x)
-    model = AtWidth(objective.pointing, None if width is None else jnp.asarray(width, dtype=float))
+    model = AtWidth(objective.pointing, width)
     folder = None
     if out is not None:  # one subfolder per design, units, key and model: another never meets these chunks
         said = json.dumps([tolerances.to_json(), key_settings(key), int(n), _fingerprint(model)], sort_keys=True)
@@ -253,7 +250,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     values = drawn[:, : x.nominal.shape[0]]
     success = np.asarray(ds["success"].values, dtype=bool)
     simulated = np.stack([np.where(success, ds[name].values, np.nan) for name in outputs], axis=1)
-    f, s, sigma, t = _model(objective, x, None if width is None else jnp.asarray(width, dtype=float))
+    f, s, sigma, t = _model(objective, x, width)
     linear = jnp.atleast_1d(f) + (values - x.nominal) @ jnp.atleast_2d(s).T
     if t is not None:  # each unit's own drawn inputs (a wear rate) through the line
         linear = linear + _uncertain_columns(objective.pointing, drawn[:, x.nominal.shape[0] :]) @ jnp.atleast_2d(t).T

@@ -55,7 +55,6 @@ def timeseries(scene_file: SceneFile, result, series=None):
     return ds
 
 
-
 def _window_stats(scene_file: SceneFile, result) -> dict:
     """Summary numbers over the window `t >= settle` (units in the key names)."""
     from ..mechanism.outputs import pointing_metrics
