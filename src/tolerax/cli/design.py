@@ -187,6 +187,7 @@ def design_command(parser, args) -> int:
     from ..design.requirements import Requirement
 
     from ..io import scenefile as F
+    from ..io.problem import problem_of
 
     setup = _design_setup(parser, args, "design")
     if setup is None:
@@ -220,15 +221,22 @@ def design_command(parser, args) -> int:
     more = _more_requirements(parser, args, scene_file)
     if args.life is not None and not any(r.output == "pointing_rms_eol" for r in more):
         more.append(Requirement("pointing_rms_eol", requirement))  # one pointing budget over the whole life
-    # A [life] costs its points + 1 runs per unit: carried only where a requirement reads the end of life.
+    # The flags written into the scene's [tolerances]: its problem is then what `SceneFile.problem()`
+    # reads (the requirements in order, the objective with the [life] only where an _eol one reads it).
+    try:
+        problem = problem_of(with_problem(scene_file, requirement, more, args.yield_, args.jitter if cutoff else None, cutoff,
+                                          args.model))
+    except F.SceneFileError as err:
+        if "[life]" in err.message:
+            parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
+                         "(docs/scene_files.md)")
+        print(f"tolerax design: {err}", file=sys.stderr)
+        return 2
+    pointing = problem.objective
     eol = any(r.output.endswith("_eol") for r in more)
-    pointing = scene_file.objective(jitter_cutoff=cutoff, **({} if eol else {"life": None}))
     if scene_file.life is not None and not eol:
         print("tolerax design: the scene has a [life]; this design is for the beginning of life only (add --require "
               "pointing_rms_eol=LIMIT to meet a limit at the end of life too).")
-    if eol and scene_file.life is None:
-        parser.error("an end-of-life requirement (--require ..._eol=LIMIT) needs a [life] table in the scene file "
-                     "(docs/scene_files.md)")
     unknown = [r.output for r in more if r.output not in pointing.outputs]
     if unknown:
         parser.error(f"a further requirement on {', '.join(unknown)} (--require or the scene's [tolerances] require): not an output "
@@ -243,7 +251,7 @@ def design_command(parser, args) -> int:
               + ("" if unit is None else f"; one unit roughly {human_seconds(max(unit, 1.0))} on one core plus compilation (a design "
                  "simulates hundreds of units and their gradients: each phase is said below as it starts, with the time so far)")
               + ". --quiet silences these lines.", flush=True)
-    requirements = [Requirement("pointing_rms", requirement), *more, *([Requirement("pointing_jitter", args.jitter)] if cutoff else [])]
+    requirements = list(problem.requirements)  # RMS, the further ones, the jitter
     try:  # before any work: a requirement the scene's joints do not read (tolerax.design.fidelity), with this command's remedy
         check_fidelity(pointing.scene, requirements, allow_proxy=args.allow_proxy, who="tolerax design",
                        remedy="--fidelity planetary (or the scene file's [scene] fidelity)")
@@ -344,6 +352,27 @@ def _fidelities(scene_file) -> list[str]:
     scene = scene_file.data["scene"]
     current = scene.get("fidelity", inspect.signature(BUILDERS[scene["kind"]]).parameters["fidelity"].default)
     return [current, current] if isinstance(current, str) else list(current)
+
+
+def with_problem(scene_file, requirement, more=(), yield_=None, jitter=None, cutoff=None, model=None):
+    """`scene_file` with its `[tolerances]` stating a design problem (its other keys kept): the RMS
+    `requirement` (arcsec), the further `more` (`Requirement`s: `require`), a `yield_`, a `jitter`
+    (arcsec) above `cutoff` (Hz) and a constraint `model` name where given (`None` drops a yield
+    or a jitter, keeps the scene's model): what `tolerax design`'s flags ask, read back by
+    `SceneFile.problem()` as a scene file's own keys are. `SceneFileError` as for a file."""
+    from ..io import scenefile as F
+
+    data = copy.deepcopy(scene_file.data)
+    tol = data.setdefault("tolerances", {})
+    tol |= {"requirement": float(requirement), "require": {r.output: float(r.limit) for r in more}}
+    for key, value in (("yield", yield_), ("jitter", jitter), ("jitter_cutoff", cutoff)):
+        if value is None:
+            tol.pop(key, None)
+        else:
+            tol[key] = float(value)
+    if model is not None:
+        tol["model"] = model
+    return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
 
 
 def with_life(scene_file, years, spread=False):
