@@ -567,7 +567,7 @@ def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypat
 
     def propose(problem, solver=None, **options):
         seen.update(statistic=problem.statistic, requirements=problem.requirements, cutoff=problem.objective.jitter_cutoff,
-                    problem=problem)
+                    problem=problem, check=options["check"])
         raise ValueError("recorded by the test")
 
     monkeypatch.setattr(_p, "propose_design", propose)
@@ -608,9 +608,10 @@ def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypat
                           ).problem().objective.life is not None  # an end-of-life requirement carries the [life]
     path.write_text(text)
     argv = ["design", str(path), "--yield", "0.9", "--jitter", "0.5", "--jitter-cutoff", "25", "--require", "pointing_peak=3000",
-            "--require", "tracking_speed_rms=50", "--out", str(tmp_path / "b")]
+            "--require", "tracking_speed_rms=50", "--backend", "processes", "--out", str(tmp_path / "b")]
     assert cli.main(argv) == 2
     assert float(seen["statistic"].level) == 0.9 and seen["cutoff"] == 25.0
+    assert seen["check"].backend == "processes" and seen["check"].units == 200  # --backend: how the check's units run
     assert sorted((r.output, r.limit) for r in seen["requirements"]) == [("pointing_jitter", 0.5), ("pointing_peak", 3000.0),
                                                                          ("pointing_rms", 900.0), ("tracking_speed_rms", 50.0)]
     capsys.readouterr()

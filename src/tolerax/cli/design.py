@@ -68,7 +68,7 @@ def _design_setup(parser, args, command):
         statistic=spec.MeanPlusKStd(units=args.draws) if args.yield_ is None else spec.Yield(args.yield_),
         zones=zones_of(scene_file), cost=cost_of(scene_file), allow_proxy=args.allow_proxy, solver=solver, model=model,
         secant_units=args.secant_units,
-        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check),
+        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check, backend=args.backend),
         progress=not args.quiet)
     return out, scene_file, values
 
@@ -306,7 +306,7 @@ def design_command(parser, args) -> int:
     verify = F.load_scene(proposal)
     if args.verify_fidelity is not None:
         verify = with_fidelity(verify, args.verify_fidelity)
-    summary = run_monte_carlo(parser, verify, out / "verify", n=args.verify, seed=args.seed, backend="vmap", chunk=args.chunk,
+    summary = run_monte_carlo(parser, verify, out / "verify", n=args.verify, seed=args.seed, backend=args.backend, chunk=args.chunk,
                               requirement=requirement, allow_clip=False, command="design --verify", jitter_cutoff=cutoff,
                               jitter_requirement=args.jitter, more_requirements={r.output: r.limit for r in more}, quiet=args.quiet)
     if summary is None:

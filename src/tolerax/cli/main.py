@@ -78,6 +78,10 @@ def optimiser_options(parser):
                         "over --draws units")
     parser.add_argument("--check", type=count(0), default=None,
                         help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
+    parser.add_argument("--backend", default="vmap", choices=("vmap", "processes"),
+                        help="how the Monte Carlo checks' units (and design's --verify) are simulated: vmap, batched in this "
+                        "process (default), or processes, a pool of one worker per core (each compiles the unit once: worth it "
+                        "on a machine with more cores than the check's chunks take to compile)")
     parser.add_argument("--allow-unconverged", action="store_true",
                         help="write the best design reached as proposal.toml (and exit 0) even where it is not a proposal: "
                         "not converged, infeasible, noise-limited, or its Monte Carlo check missed (otherwise it is written as "
