@@ -259,7 +259,7 @@ def test_the_command_line_identifies_a_unit_and_writes_it_as_a_scene(tmp_path, c
     assert float(zones.band[zones.names.index("azimuth.sun_backlash")]) == pytest.approx(10e-6)
 
 
-def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
+def test_physical_parameters_are_named_read_and_written_beside_the_clearances(tmp_path):
     """The joints' drag, mesh stiffness and damping are parameters of a modelled joint only (the
     ideal pitch has none), read and written by name; unknown or repeated names are refused with
     the ones that exist; an identified unit is written as a scene file with what its schema
@@ -284,8 +284,9 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
     # The identified unit as a scene file: the backlash in [design] with its zone (the file's
     # uniform distribution, the standard error its standard deviation: sqrt(3) of them), the drag as the file's drag_torque (the pitch is ideal: no other drag
-    # acts), the stiffness named as not written; with both joints modelled the file's one drag
-    # would set both, so it is not written either.
+    # acts), the sun mesh's stiffness in the azimuth stage's table (the ring mesh keeps the
+    # shared one); with both joints modelled the file's one drag would set both, so it is not
+    # written: named as such.
     from tolerax.identification.result import Identification
 
     se = np.array([0.2e-6, 1e-3, 1e6])
@@ -300,9 +301,18 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances():
     built = written.build()
     assert float(built.azimuth.drag_torque) == pytest.approx(0.07)
     assert float(design_of(built)[design_names(built).index("azimuth.ring_backlash")]) == pytest.approx(61e-6)
-    assert got.unwritten() == ("azimuth.sun_mesh_stiffness",) and "unit7.csv" in written.data["description"]
+    assert written.data["scene"]["azimuth_stage"] == {"sun_mesh_stiffness": 9e7}
+    assert float(built.azimuth.stage.sun_mesh.stiffness) == 9e7
+    assert float(built.azimuth.stage.ring_mesh.stiffness) == float(scene.azimuth.stage.ring_mesh.stiffness)
+    assert tx.parse_scene(tx.save_scene(written, tmp_path / "unit7.toml").read_text()).data["scene"]["azimuth_stage"] == {
+        "sun_mesh_stiffness": 9e7}  # the file round-trips
+    assert got.unwritten() == () and "unit7.csv" in written.data["description"]
+    import equinox as eqx  # the per-family keys at the shared values: the default stage itself
+
+    same = tx.default_stage(sun_mesh_stiffness=1e8, ring_mesh_stiffness=1e8, sun_mesh_damping_ratio=0.06, ring_mesh_damping_ratio=0.06)
+    assert bool(eqx.tree_equal(same, tx.default_stage()))
     dual = dataclasses.replace(got, scene=tx.scan("azimuth", fidelity=("lumped", "lumped")))
-    assert dual.unwritten() == ("azimuth.drag_torque", "azimuth.sun_mesh_stiffness")
+    assert dual.unwritten() == ("azimuth.drag_torque",)
     # Where the residual is not quadratic along an interval (`Identification.profile`: its cost
     # rise over the linearised one at 1.96, 10 and 100 standard errors), the status says the
     # interval does not hold, the table says why and what would change it, and the estimate is

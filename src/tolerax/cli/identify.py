@@ -70,7 +70,7 @@ def identify_command(parser, args) -> int:
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
-    # (Identification.scene_file), the drag where the file can hold it.
+    # (Identification.scene_file), the drag where the file can hold it, the meshes' stiffness and damping.
     physical = got.unwritten()
     rugged = [n for n, held in zip(got.names, got.holds()) if held is False]
     from ..io import scenefile as F
@@ -79,10 +79,10 @@ def identify_command(parser, args) -> int:
     text = "\n".join([
         f"# Identified unit: {scene_file.title}", "", f"Recording `{recording.source}`; {wall:.1f} s of wall time (compilation "
         f"included); {load_average()}.", "", got.table(), "",
-        f"The unit as a scene file: `{path}` (its values under [design], each identified zone's standard deviation the standard error, in the file's distribution; an identified drag as its drag_torque where one joint's drag acts): "
+        f"The unit as a scene file: `{path}` (its values under [design], each identified zone's standard deviation the standard error, in the file's distribution; an identified drag as its drag_torque where one joint's drag acts, a mesh family's stiffness or damping in its joint's stage table): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
-        "recording leaves open." + (f" Not in it: {', '.join(physical)} (a scene file has no key for them yet: their estimates "
-                                    "are in identification.json)." if physical else "")
+        "recording leaves open." + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
+                                    "drag too: the estimates are in identification.json)." if physical else "")
         + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold)." if rugged else ""),
         "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])

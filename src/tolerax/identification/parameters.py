@@ -9,8 +9,9 @@ ideal joint) has none: its parameters do not reach its output.
 unit, `parameter_values(scene, names)` reads them and `with_parameters(scene, names, values)`
 writes them back (traceable: `values` may be a tracer under `jacfwd`). Of the physical
 parameters, a scene file holds the drag (its `drag_torque`, one for both joints: written where
-one joint's drag acts, `Identification.scene_file`); the mesh stiffness and damping of each mesh
-family have no key of their own there: `tolerax identify` reports them beside `identified.toml`.
+one joint's drag acts, `Identification.scene_file`) and each joint's mesh families' stiffness
+and damping (its stage table's `sun_mesh_stiffness`, ..., `default_stage`'s keys of the same
+names).
 """
 
 import equinox as eqx

@@ -17,6 +17,8 @@ MISFIT = 1.5
 # ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
+# The physical parameters a scene file's stage table holds (`default_stage`'s keys of the same names).
+MESH_KEYS = ("sun_mesh_stiffness", "ring_mesh_stiffness", "sun_mesh_damping_ratio", "ring_mesh_damping_ratio")
 
 
 def show(value: float, unit: str) -> str:
@@ -129,8 +131,9 @@ class Identification:
           identified stay as drawn): normal, band = 3 standard errors; uniform, band = sqrt(3);
         - the identified drag as the scene's `drag_torque` where one modelled joint's drag was
           identified and no other joint's drag acts (the scene file's key holds one drag for
-          both joints); other physical parameters have no key of their own in a scene file
-          (`unwritten`);
+          both joints; else `unwritten`); a mesh family's stiffness or damping ratio in that
+          joint's stage table (`[scene.azimuth_stage] sun_mesh_stiffness = ...`, its other keys
+          kept);
         - every estimate, its 95 % interval and status in its title and description
           (`source`: what the recording was).
 
@@ -148,9 +151,12 @@ class Identification:
             out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
                                                         per_sigma * self.standard_error[features], distribution))
         scene, writable = dict(out.data["scene"]), self._drag_writable()
-        for name, value in zip(self.names, self.estimate):
+        for name, value, held in zip(self.names, self.estimate, self.holds()):
             if name in writable:
                 scene["drag_torque"] = float(value)
+            joint, _, key = name.partition(".")
+            if key in MESH_KEYS and held is not False:
+                scene[f"{joint}_stage"] = dict(scene.get(f"{joint}_stage", {})) | {key: float(value)}
         lo, hi = self.interval()
         data = out.data | {"scene": scene, "title": f"Identified unit: {scene_file.title}",
                            "description": f"Written by tolerax identify from {source}: " + "; ".join(
@@ -162,7 +168,7 @@ class Identification:
         """The identified parameters `scene_file` cannot write (no scene-file key holds them; those
         whose interval does not hold are not written either, and not listed here)."""
         return tuple(n for n, u, held in zip(self.names, self.units, self.holds())
-                     if u != "m" and held is not False and n not in self._drag_writable())
+                     if u != "m" and held is not False and n not in self._drag_writable() and n.partition(".")[2] not in MESH_KEYS)
 
     def _drag_writable(self) -> tuple[str, ...]:
         """`("joint.drag_torque",)` where that joint's drag was identified and no other joint's

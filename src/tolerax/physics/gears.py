@@ -24,6 +24,10 @@ _GEAR_RULES = dict(
     mesh_stiffness=V.POSITIVE("N/m"),
     contact_ratio=V.CONTACT_RATIO,
     mesh_damping_ratio=V.NONNEGATIVE("-"),
+    sun_mesh_stiffness=V.Rule("N/m", low=0.0, low_open=True, optional=True),
+    ring_mesh_stiffness=V.Rule("N/m", low=0.0, low_open=True, optional=True),
+    sun_mesh_damping_ratio=V.Rule("-", low=0.0, optional=True),
+    ring_mesh_damping_ratio=V.Rule("-", low=0.0, optional=True),
     backlash=V.NONNEGATIVE("m"),
     profile_error=V.FINITE("m"),
     sun_clearance=V.NONNEGATIVE("m"),
@@ -91,6 +95,10 @@ def default_stage(
     mesh_stiffness: float = 1e8,
     contact_ratio: float = 1.6,
     mesh_damping_ratio: float = 0.06,
+    sun_mesh_stiffness: float | None = None,
+    ring_mesh_stiffness: float | None = None,
+    sun_mesh_damping_ratio: float | None = None,
+    ring_mesh_damping_ratio: float | None = None,
     backlash: float = 100e-6,
     profile_error: float = 0.0,
     mesh: str = "nonlinear",
@@ -136,6 +144,11 @@ def default_stage(
     is *not* assemblable equally spaced ((20 + 80)/3 is not an integer): the default keeps the
     paper's idealisation, in which each planet's mesh phases are $z_s\\psi_n$ and $-z_r\\psi_n$.
 
+    `sun_mesh_stiffness`, `ring_mesh_stiffness` (N/m), `sun_mesh_damping_ratio`,
+    `ring_mesh_damping_ratio`: one mesh family's own mean stiffness or damping ratio (default
+    `None`: the shared `mesh_stiffness`, `mesh_damping_ratio`), e.g. a unit whose sun and ring
+    meshes were identified apart (`tolerax.identify`).
+
     `distinct_planets`: design each planet's pin clearance and sun/ring backlash as features of
     their own (`azimuth.planet_clearance[0]`, ...; `tolerax.design.features`) instead of one
     value for all planets: for a tolerance design that sorts or matches planets. Design them at
@@ -172,12 +185,12 @@ def default_stage(
         bearing = _contact.JournalBearing(journal, clearance, bearing_length, e_star)
         return Support(kind, bearing_stiffness, bearing_damping, bearing if kind == "clearance" else None)
 
-    def family():
+    def family(stiffness, damping_ratio):
         return Mesh(
             kind=mesh,
-            stiffness=mesh_stiffness,
+            stiffness=mesh_stiffness if stiffness is None else stiffness,
             contact_ratio=contact_ratio,
-            damping_ratio=mesh_damping_ratio,
+            damping_ratio=mesh_damping_ratio if damping_ratio is None else damping_ratio,
             backlash=backlash,
             profile_error=profile_error,
             dynamic_backlash=dynamic_backlash,
@@ -185,8 +198,8 @@ def default_stage(
         )
 
     psi = 2 * np.pi * np.arange(n_planets) / n_planets
-    sun_mesh = family()
-    ring_mesh = family()
+    sun_mesh = family(sun_mesh_stiffness, sun_mesh_damping_ratio)
+    ring_mesh = family(ring_mesh_stiffness, ring_mesh_damping_ratio)
     # Each planet meets the sun and ring teeth at its own phase: z * psi_n.
     sun_mesh = eqx.tree_at(lambda m: m.stiffness_phase, sun_mesh, as_float(sun_teeth * psi))
     ring_mesh = eqx.tree_at(lambda m: m.stiffness_phase, ring_mesh, as_float(-ring_teeth * psi))
