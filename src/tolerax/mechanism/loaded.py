@@ -60,6 +60,6 @@ def _polish_loaded(mech, q, u, x0, max_steps: int):
     solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
     # The Jacobian by reverse mode, materialised once per step (`jac="bwd"`): forward mode hands
     # Levenberg-Marquardt a linearised function that its damped solve materialises again inside
-    # the loop, a program XLA took 1.8x as long to compile for the same steps.
+    # the loop, a larger program to compile for the same steps.
     sol = optx.least_squares(fn, solver, x0, options=dict(jac="bwd"), max_steps=max_steps, throw=False)
     return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))
