@@ -1,0 +1,79 @@
+"""`start="loaded"`'s Levenberg-Marquardt polish (`tolerax.mechanism.loaded._polish_loaded`):
+its Jacobian by forward mode (optimistix's default, `jac="fwd"`) against reverse mode
+(`jac="bwd"`, what tolerax uses): trace, compile and running time, and the solution.
+
+    taskset -c 0 python benchmarks/loaded_state_compile.py [--rounds 2] [--results DIR]
+
+Each workload runs in a fresh process with the compilation cache off: the polish of the loaded
+state of `tolerax.antenna("azimuth", fidelity=FIDELITY, rate=0.98 deg/s)` from its joints'
+closed forms, exactly `_polish_loaded`'s program with only `options=dict(jac=...)` changed;
+`trace` is tracing and lowering, `compile` XLA's compilation, `run` the fastest of three calls of
+the compiled program. With forward mode optimistix hands Levenberg-Marquardt a linearised
+function, which its damped solve (QR of [J; sqrt(lambda) I]) materialises again inside the loop;
+with reverse mode the Jacobian is a matrix materialised once per step. The figures are ratios
+reverse / forward in one run, the largest relative difference between the two solutions, and
+the steps each took.
+"""
+
+import harness
+
+CHILD = r"""
+import json, math, sys, time
+import jax, jax.numpy as jnp, optimistix as optx
+import tolerax as tx
+from tolerax.mechanism import loaded as L
+fidelity, jac = sys.argv[1], sys.argv[2]
+mech = tx.antenna("azimuth", fidelity=fidelity, rate=math.radians(0.98))
+q, u, _ = mech.initial_state("steady")
+guess = q
+for joint, sq, _, _ in mech.joints():
+    guess = guess.at[sq].set(joint.loaded_coordinates())
+x0 = guess[mech.layout.base_q:]
+residual = lambda x: L._loaded_residual(mech, q, u, x)
+def polish(x0):  # _polish_loaded's program, the Jacobian's mode a choice
+    fn = lambda x, _: jnp.concatenate([residual(x), L.LOADED_ANCHOR * (x - x0)])
+    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14), x0, options=dict(jac=jac), max_steps=200,
+                             throw=False)
+    return sol.value, jnp.linalg.norm(residual(sol.value)), sol.stats["num_steps"]
+t0 = time.perf_counter(); lowered = jax.jit(polish).lower(x0); t1 = time.perf_counter()
+compiled = lowered.compile(); t2 = time.perf_counter()
+x, norm, steps = jax.block_until_ready(compiled(x0))
+runs = []
+for _ in range(3):
+    t = time.perf_counter(); jax.block_until_ready(compiled(x0)); runs.append(time.perf_counter() - t)
+print("RESULT " + json.dumps(dict(trace=t1 - t0, compile=t2 - t1, run=min(runs), steps=int(steps), norm=float(norm),
+                                  x=[float(v) for v in x])))
+"""
+
+WORKLOADS = ("lumped", "planetary")
+CONFIGS = ("fwd", "bwd")
+
+
+def main():
+    import os
+
+    parser = harness.argument_parser(__doc__)
+    parser.add_argument("--rounds", type=int, default=2, help="interleaved rounds (the fastest of each kept)")
+    parser.add_argument("--workloads", nargs="+", default=list(WORKLOADS), choices=WORKLOADS)
+    args = harness.parse_args(parser)
+    env = dict(os.environ, TOLERAX_CACHE="off")
+    best = harness.interleaved_best(args.rounds, args.workloads, list(CONFIGS),
+                                    lambda work, jac: harness.child_result(CHILD, [work, jac], env), ("trace", "compile", "run"))
+    rows = []
+    for work in args.workloads:
+        f, b = best[(work, "fwd")], best[(work, "bwd")]
+        diff = max(abs(x - y) / max(abs(y), 1e-300) for x, y in zip(b["x"], f["x"], strict=True) if abs(y) > 1e-12)
+        rows.append((work, *(f"{f[k]:.2f} / {b[k]:.2f} ({b[k] / f[k]:.2f})" for k in ("trace", "compile", "run")),
+                     f"{f['steps']} / {b['steps']}", f"{f['norm']:.3e} / {b['norm']:.3e}", f"{diff:.1e}"))
+    harness.write_table(
+        "loaded_state_compile", "The loaded state's polish: the Jacobian by forward against reverse mode", harness.command(args),
+        ["azimuth joint fidelity", "trace s: fwd / bwd (ratio)", "compile s: fwd / bwd (ratio)", "run s: fwd / bwd (ratio)",
+         "steps: fwd / bwd", "residual norm: fwd / bwd", "largest relative difference in the solution (entries over 1e-12)"],
+        rows,
+        about=f"Fresh process per workload and mode, compilation cache off; the fastest of {args.rounds} interleaved rounds. "
+              "`trace`: tracing and lowering; `compile`: XLA; `run`: the fastest of three calls of the compiled program.",
+    )
+
+
+if __name__ == "__main__":
+    main()
