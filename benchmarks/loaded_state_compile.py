@@ -1,6 +1,6 @@
 """`start="loaded"`'s Levenberg-Marquardt polish (`tolerax.mechanism.loaded._polish_loaded`):
-its Jacobian by forward mode (optimistix's default, `jac="fwd"`) against reverse mode
-(`jac="bwd"`, what tolerax uses): trace, compile and running time, and the solution.
+its Jacobian by forward mode (optimistix's default, `jac="fwd"`, what tolerax uses) against
+reverse mode (`jac="bwd"`): trace, compile and running time, and the solution.
 
     taskset -c 0 python benchmarks/loaded_state_compile.py [--rounds 2] [--results DIR]
 

@@ -58,8 +58,8 @@ def _polish_loaded(mech, q, u, x0, max_steps: int):
     residual = lambda x: _loaded_residual(mech, q, u, x)  # noqa: E731
     fn = lambda x, _: jnp.concatenate([residual(x), LOADED_ANCHOR * (x - x0)])  # noqa: E731
     solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
-    # The Jacobian by reverse mode, materialised once per step (`jac="bwd"`): forward mode hands
-    # Levenberg-Marquardt a linearised function that its damped solve materialises again inside
-    # the loop, a larger program to compile for the same steps.
-    sol = optx.least_squares(fn, solver, x0, options=dict(jac="bwd"), max_steps=max_steps, throw=False)
+    # The Jacobian by forward mode (optimistix's default). Reverse mode (`jac="bwd"`) makes a
+    # smaller program to compile but a slower one to run on the full stage, where a Monte Carlo
+    # of loaded starts runs it once per unit (benchmarks/loaded_state_compile.py).
+    sol = optx.least_squares(fn, solver, x0, max_steps=max_steps, throw=False)
     return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))
