@@ -112,37 +112,12 @@ class _Fit(eqx.Module):
         return self.outputs(x, width)[0]
 
 
-def _residual_of_w(fit: "_Fit", width, centre, reach):
-    """The residual (µrad) as a function of the optimiser's variable `w` (`_bounded`), whose
-    derivative is its Jacobian taken once, by forward mode (`jax.jacfwd`: one solve carrying a
-    tangent per parameter), where the function is linearised. The solvers below linearise it once
-    per step and then only multiply by that matrix: without this, optimistix's Gauss-Newton
-    solvers get `jax.linearize` of the adaptive solve, whose loop cannot keep its primal for the
-    tangents, so every product with the linearised function (materialising it for the damped
-    least squares, again after each rejected step) ran the whole solve again."""
-    def residual(w):
-        return fit.residual(_bounded(w, centre, reach), width)
-
-    @jax.custom_jvp
-    def fn(w):
-        return residual(w)
-
-    @fn.defjvp
-    def _jvp(primals, tangents):
-        (w,), (dw,) = primals, tangents
-        jac, r = jax.jacfwd(lambda v: (lambda out: (out, out))(residual(v)), has_aux=True)(w)
-        return r, jac @ dw
-
-    return fn
-
-
 @eqx.filter_jit
 def _polish(fit: "_Fit", w0, width, centre, reach):
     """A few Gauss-Newton steps (optimistix) at a tolerance finer than `LM_TOL` from
     Levenberg-Marquardt's estimate `w0`: LM stops within its tolerance of the minimum, about
     half a standard error for a parameter the recording determines to 1e-4. (solution, cost)."""
-    residual = _residual_of_w(fit, width, centre, reach)
-    fn = lambda w, _: residual(w)  # noqa: E731
+    fn = lambda w, width: fit.residual(_bounded(w, centre, reach), width)  # noqa: E731
     sol = optx.least_squares(fn, optx.GaussNewton(rtol=POLISH_TOL, atol=POLISH_TOL), w0, args=width, max_steps=POLISH_STEPS,
                              throw=False)
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
@@ -236,8 +211,7 @@ def _termination_norm(tree):
 @eqx.filter_jit
 def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
     """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
-    residual = _residual_of_w(fit, width, centre, reach)
-    fn = lambda w, _: {"residual": residual(w)}  # noqa: E731
+    fn = lambda w, width: {"residual": fit.residual(_bounded(w, centre, reach), width)}  # noqa: E731
     solver = optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm)
     sol = optx.least_squares(fn, solver, w0, args=width, max_steps=max_steps, throw=False)
     return sol.value, jnp.sum(fn(sol.value, width)["residual"] ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
