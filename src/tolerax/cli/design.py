@@ -233,8 +233,7 @@ def design_command(parser, args) -> int:
         print(f"tolerax design: {err}", file=sys.stderr)
         return 2
     pointing = problem.objective
-    eol = any(r.output.endswith("_eol") for r in more)
-    if scene_file.life is not None and not eol:
+    if scene_file.life is not None and pointing.life is None:  # no requirement reads the end of life
         print("tolerax design: the scene has a [life]; this design is for the beginning of life only (add --require "
               "pointing_rms_eol=LIMIT to meet a limit at the end of life too).")
     unknown = [r.output for r in more if r.output not in pointing.outputs]

@@ -27,6 +27,8 @@ PHYSICAL = {
     "sun_mesh_damping_ratio": ("1", lambda scene, joint: getattr(scene, joint).stage.sun_mesh.damping_ratio),
     "ring_mesh_damping_ratio": ("1", lambda scene, joint: getattr(scene, joint).stage.ring_mesh.damping_ratio),
 }
+# Those a scene file's stage table holds, under the same names (`default_stage`'s keywords).
+MESH_KEYS = tuple(name for name in PHYSICAL if name != "drag_torque")
 
 
 def _physical(scene) -> dict:

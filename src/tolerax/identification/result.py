@@ -17,8 +17,6 @@ MISFIT = 1.5
 # ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
-# The physical parameters a scene file's stage table holds (`default_stage`'s keys of the same names).
-MESH_KEYS = ("sun_mesh_stiffness", "ring_mesh_stiffness", "sun_mesh_damping_ratio", "ring_mesh_damping_ratio")
 
 
 def show(value: float, unit: str) -> str:
@@ -142,6 +140,7 @@ class Identification:
         """
         from ..io import scenefile as F
         from ..uncertainty.sampling import Tolerances
+        from .parameters import MESH_KEYS
 
         features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False]
         out = scene_file
@@ -167,6 +166,8 @@ class Identification:
     def unwritten(self) -> tuple[str, ...]:
         """The identified parameters `scene_file` cannot write (no scene-file key holds them; those
         whose interval does not hold are not written either, and not listed here)."""
+        from .parameters import MESH_KEYS
+
         return tuple(n for n, u, held in zip(self.names, self.units, self.holds())
                      if u != "m" and held is not False and n not in self._drag_writable() and n.partition(".")[2] not in MESH_KEYS)
 
