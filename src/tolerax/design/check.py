@@ -74,8 +74,9 @@ class Check:
     - `rounds`: at most this many checks. Where a check finds the linear model under- or
       over-reading the yield's quantile by more than 1 % of the requirement and twice the
       check's standard error (and by less than `MODEL_OFF` of it: beyond that the model does not
-      hold and no shift would help), the requirement the solver sees is shifted by the
-      difference and the design solved again from where it was, then checked again.
+      hold and no shift would help), or its units miss the yield beyond their noise (`shifted`),
+      the requirement the solver sees is shifted by the difference and the design solved again
+      from where it was, then checked again.
 
     The proposal is the cheapest checked design whose simulated quantile met the requirement
     (to the solver's tolerance), else the last one.
@@ -143,13 +144,9 @@ class Check:
             got = self.simulate(problem.objective.objective, middle, requirements, solver.width, progress=progress)
             got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
-            shift = np.array([c.shift for c in got])
             if model_off(got, requirements):
                 break  # the linear model does not hold here: no shift of it would (`diagnose` says so)
-            corrected = requirements - shift
-            # a shift within the check's own noise (or the method's tolerance) is not one
-            noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in got]))
-            moved = np.abs(corrected - target) > noise
+            corrected, moved = shifted(got, requirements, target, tol)
             if not np.all(np.isfinite(corrected)) or not np.any(moved) or len(checked) == int(self.rounds):
                 break
             target = np.where(moved, corrected, target)
@@ -158,11 +155,27 @@ class Check:
             again = solver.solve(trusted, as_requirement(target), tol, x0=result.x, progress=progress, callback=callback)
             result = chain_results([result, again])  # its history (gradients) continues the one before
         k = cheapest_accepted([float(r.cost) for r, _, _ in checked],
-                              [[c.quantile_simulated for c in got] for _, got, _ in checked], requirements, tol)
+                              [[c.quantile_simulated for c in got] for _, got, _ in checked], requirements, tol,
+                              missed=[any(c.interval[1] < c.q for c in got) for _, got, _ in checked])
         if k is not None:
             checked = checked[: k + 1]
             result = checked[-1][0]
         return result, checked
+
+
+def shifted(checks, requirements, target, tol):
+    """`(corrected, moved)`: the requirements (m,) less each check's shift (`YieldCheck.shift`,
+    the units' quantile over the linear model's), and which of them the next solve takes instead
+    of `target` (the ones the design was solved for). A shift within the check's own noise (twice
+    its standard error) or the method's relative tolerance `tol` is not one, unless the check
+    missed its yield beyond its noise (its Wilson interval below the yield asked) with the model
+    under-reading: a fitted output's tolerance is twice its fit's standard error (up to 50 %,
+    `propose._tolerances`), wide enough to hide a shift that leaves a fifth of the units out."""
+    shift = np.array([c.shift for c in checks])
+    corrected = np.asarray(requirements, dtype=float) - shift
+    noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in checks]))
+    missed = np.array([c.interval[1] < c.q for c in checks]) & (shift > 0)
+    return corrected, (np.abs(corrected - target) > noise) | (missed & (corrected < target))
 
 
 def model_off(checks, requirements) -> bool:
@@ -179,12 +192,15 @@ def as_requirement(requirements):
     return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
 
 
-def cheapest_accepted(costs, quantiles, requirement, tol=0.01):
+def cheapest_accepted(costs, quantiles, requirement, tol=0.01, missed=None):
     """Index of the cheapest design whose simulated quantile met `requirement` to `tol` (each
-    of them, with several requirements: `quantiles` one array per design), or `None` where none
-    did: a re-solve that did not land is not kept over a cheaper design the simulation already
-    accepted."""
-    ok = [k for k, q in enumerate(quantiles) if np.all(np.asarray(q) <= np.asarray(requirement) * (1 + np.asarray(tol)))]
+    of them, with several requirements: `quantiles` one array per design) and whose check did not
+    miss its yield beyond its noise (`missed`, one bool per design; default none did), or `None`
+    where none did: a re-solve that did not land is not kept over a cheaper design the simulation
+    already accepted, nor one the units rejected kept for a quantile inside a wide tolerance."""
+    missed = [False] * len(costs) if missed is None else missed
+    ok = [k for k, q in enumerate(quantiles)
+          if not missed[k] and np.all(np.asarray(q) <= np.asarray(requirement) * (1 + np.asarray(tol)))]
     return min(ok, key=lambda k: costs[k]) if ok else None
 
 
