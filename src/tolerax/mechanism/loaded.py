@@ -4,6 +4,7 @@ which the joints, turning at their steady speeds, are in equilibrium, by Levenbe
 """
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import optimistix as optx
 
@@ -51,15 +52,41 @@ def _loaded_residual(mech, q, u, x):
 LOADED_ANCHOR = 1.0  # sqrt(kg)/s^2: weight of (x - x0) beside the residual (see `Mechanism.loaded_state`)
 
 
+def _loaded_equations(x, mech, q, u, x0):
+    """What Levenberg-Marquardt zeroes in the least-squares sense: the residual and the anchor."""
+    return jnp.concatenate([_loaded_residual(mech, q, u, x), LOADED_ANCHOR * (x - x0)])
+
+
+@eqx.filter_custom_jvp
+def _loaded_equations_once(x, mech, q, u, x0):
+    """`_loaded_equations` whose derivative in `x` is its Jacobian, taken once by forward mode
+    where the function is linearised (`_loaded_equations_jvp`)."""
+    return _loaded_equations(x, mech, q, u, x0)
+
+
+@_loaded_equations_once.def_jvp
+def _loaded_equations_jvp(primals, tangents):
+    # Levenberg-Marquardt (optimistix) linearises its function once per step and then multiplies
+    # by the linearisation and by its transpose. Given the plain function, the transpose is the
+    # reverse-mode program of the accelerations, compiled beside the forward one; here the
+    # linearisation is the matrix `jac` (one forward-mode pass carrying a tangent per joint
+    # coordinate), whose transpose is its transpose: the same steps, about half the program to
+    # compile (benchmarks/loaded_state_compile.py). A tangent in the other inputs (a derivative
+    # through the loaded start, by the implicit function theorem) is their own forward-mode one.
+    (x, *rest), (dx, *drest) = primals, tangents
+    jac, y = jax.jacfwd(lambda v: (lambda out: (out, out))(_loaded_equations(v, *rest)), has_aux=True)(x)
+    dy = jnp.zeros_like(y) if dx is None else jac @ dx
+    if jax.tree.leaves(drest):
+        dy = dy + eqx.filter_jvp(lambda r: _loaded_equations(x, *r), (tuple(rest),), (tuple(drest),))[1]
+    return y, dy
+
+
 @eqx.filter_jit
 def _polish_loaded(mech, q, u, x0, max_steps: int):
     """Levenberg-Marquardt from `x0`; returns (residual norm at `"steady"`, solution, its norm)."""
     lay = mech.layout
-    residual = lambda x: _loaded_residual(mech, q, u, x)  # noqa: E731
-    fn = lambda x, _: jnp.concatenate([residual(x), LOADED_ANCHOR * (x - x0)])  # noqa: E731
+    fn = lambda x, _: _loaded_equations_once(x, mech, q, u, x0)  # noqa: E731
     solver = optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14)
-    # The Jacobian by forward mode (optimistix's default). Reverse mode (`jac="bwd"`) makes a
-    # smaller program to compile but a slower one to run on the full stage, where a Monte Carlo
-    # of loaded starts runs it once per unit (benchmarks/loaded_state_compile.py).
     sol = optx.least_squares(fn, solver, x0, max_steps=max_steps, throw=False)
+    residual = lambda x: _loaded_residual(mech, q, u, x)  # noqa: E731
     return jnp.linalg.norm(residual(q[lay.base_q :])), sol.value, jnp.linalg.norm(residual(sol.value))
