@@ -4,11 +4,11 @@ which the joints, turning at their steady speeds, are in equilibrium, by Levenbe
 """
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import optimistix as optx
 
 from .. import _validate as V
+from .._linearise import jacobian_once
 from .drives import SpeedServo
 
 
@@ -57,28 +57,10 @@ def _loaded_equations(x, mech, q, u, x0):
     return jnp.concatenate([_loaded_residual(mech, q, u, x), LOADED_ANCHOR * (x - x0)])
 
 
-@eqx.filter_custom_jvp
-def _loaded_equations_once(x, mech, q, u, x0):
-    """`_loaded_equations` whose derivative in `x` is its Jacobian, taken once by forward mode
-    where the function is linearised (`_loaded_equations_jvp`)."""
-    return _loaded_equations(x, mech, q, u, x0)
-
-
-@_loaded_equations_once.def_jvp
-def _loaded_equations_jvp(primals, tangents):
-    # Levenberg-Marquardt (optimistix) linearises its function once per step and then multiplies
-    # by the linearisation and by its transpose. Given the plain function, the transpose is the
-    # reverse-mode program of the accelerations, compiled beside the forward one; here the
-    # linearisation is the matrix `jac` (one forward-mode pass carrying a tangent per joint
-    # coordinate), whose transpose is its transpose: the same steps, about half the program to
-    # compile (benchmarks/loaded_state_compile.py). A tangent in the other inputs (a derivative
-    # through the loaded start, by the implicit function theorem) is their own forward-mode one.
-    (x, *rest), (dx, *drest) = primals, tangents
-    jac, y = jax.jacfwd(lambda v: (lambda out: (out, out))(_loaded_equations(v, *rest)), has_aux=True)(x)
-    dy = jnp.zeros_like(y) if dx is None else jac @ dx
-    if jax.tree.leaves(drest):
-        dy = dy + eqx.filter_jvp(lambda r: _loaded_equations(x, *r), (tuple(rest),), (tuple(drest),))[1]
-    return y, dy
+# Levenberg-Marquardt's linearisation is the Jacobian of one forward-mode pass (`jacobian_once`):
+# no reverse-mode program of the accelerations for its transpose, about half the program to
+# compile (benchmarks/loaded_state_compile.py).
+_loaded_equations_once = jacobian_once(_loaded_equations)
 
 
 @eqx.filter_jit

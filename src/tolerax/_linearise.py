@@ -1,0 +1,36 @@
+"""A least-squares function linearised once per step (`jacobian_once`).
+
+optimistix's Gauss-Newton solvers (Levenberg-Marquardt, Gauss-Newton) linearise their function
+once per step (`jax.linearize`) and then multiply by the linearisation and by its transpose. Given
+a plain function of a simulation, the transpose is the reverse-mode program of the whole
+computation, compiled beside the forward one, and where the computation is an adaptive solve
+(a while loop that keeps no primal for the tangents) every product runs the solve again. With
+`jacobian_once(fn)` the linearisation is the matrix of one forward-mode pass (`jax.jacfwd`, a
+tangent per unknown), whose transpose is its transpose.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+
+def jacobian_once(fn):
+    """`fn(x, *rest) -> array` (x a 1-D array) with the same values and a custom JVP: in `x`,
+    its Jacobian from one forward-mode pass times the tangent; in `rest` (any pytrees: a scene,
+    states, widths), their own forward-mode tangent, so a derivative through the solver
+    (optimistix's implicit function theorem) stays exact."""
+
+    @eqx.filter_custom_jvp
+    def once(x, *rest):
+        return fn(x, *rest)
+
+    @once.def_jvp
+    def _jvp(primals, tangents):
+        (x, *rest), (dx, *drest) = primals, tangents
+        jac, y = jax.jacfwd(lambda v: (lambda out: (out, out))(fn(v, *rest)), has_aux=True)(x)
+        dy = jnp.zeros_like(y) if dx is None else jac @ dx
+        if jax.tree.leaves(drest):
+            dy = dy + eqx.filter_jvp(lambda r: fn(x, *r), (tuple(rest),), (tuple(drest),))[1]
+        return y, dy
+
+    return once
