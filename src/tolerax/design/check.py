@@ -79,7 +79,8 @@ class Check:
       from where it was, then checked again.
 
     The proposal is the cheapest checked design whose simulated quantile met the requirement
-    (to the solver's tolerance), else the last one.
+    (to the solver's tolerance) and whose units did not miss the yield beyond their noise, else
+    the last one.
 
     How the units run (each check is one `tolerax.monte_carlo` run; its arguments of the same
     names): `chunk_size` units per compiled batch (default 50); `backend` `"vmap"` (this
