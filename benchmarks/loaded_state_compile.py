@@ -34,10 +34,8 @@ for joint, sq, _, _ in mech.joints():
 x0 = guess[mech.layout.base_q:]
 residual = lambda x: L._loaded_residual(mech, q, u, x)
 def polish(x0):  # _polish_loaded's program, the Jacobian's mode a choice
-    if jac == "once":
-        fn = lambda x, _: L._loaded_equations_once(x, mech, q, u, x0)
-    else:
-        fn = lambda x, _: jnp.concatenate([residual(x), L.LOADED_ANCHOR * (x - x0)])
+    equations = L._loaded_equations_once if jac == "once" else L._loaded_equations
+    fn = lambda x, _: equations(x, mech, q, u, x0)
     sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=1e-12, atol=1e-14), x0,
                              options=dict(jac="fwd" if jac == "once" else jac), max_steps=200, throw=False)
     return sol.value, jnp.linalg.norm(residual(sol.value)), sol.stats["num_steps"]
