@@ -40,6 +40,8 @@ class YieldCheck:
       `shift` = their difference: how much the linear model under-reads the tail; `shift_se`
       (arcsec): its standard error (bootstrap over the units, 400 resamples): a shift smaller
       than twice this is not distinguishable from the check's own sampling noise.
+    - `missed` (property): the units miss the yield beyond their own noise (the Wilson
+      interval's upper end below `q`).
     """
 
     n: int
@@ -55,6 +57,12 @@ class YieldCheck:
     quantile_linear: float
     shift: float
     shift_se: float
+
+    @property
+    def missed(self) -> bool:
+        """The units miss the yield `q` beyond their sampling noise: the Wilson interval's upper
+        end is below it."""
+        return self.interval[1] < self.q
 
     def text(self) -> str:
         return (
@@ -157,7 +165,7 @@ class Check:
             result = chain_results([result, again])  # its history (gradients) continues the one before
         k = cheapest_accepted([float(r.cost) for r, _, _ in checked],
                               [[c.quantile_simulated for c in got] for _, got, _ in checked], requirements, tol,
-                              missed=[any(c.interval[1] < c.q for c in got) for _, got, _ in checked])
+                              missed=[any(c.missed for c in got) for _, got, _ in checked])
         if k is not None:
             checked = checked[: k + 1]
             result = checked[-1][0]
@@ -175,7 +183,7 @@ def shifted(checks, requirements, target, tol):
     shift = np.array([c.shift for c in checks])
     corrected = np.asarray(requirements, dtype=float) - shift
     noise = np.maximum(tol * requirements, 2.0 * np.array([c.shift_se for c in checks]))
-    missed = np.array([c.interval[1] < c.q for c in checks]) & (shift > 0)
+    missed = np.array([c.missed for c in checks]) & (shift > 0)
     return corrected, (np.abs(corrected - target) > noise) | (missed & (corrected < target))
 
 

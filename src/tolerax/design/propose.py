@@ -294,7 +294,7 @@ def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, c
 def _drawable_missed(d, yield_) -> str:
     """The diagnosis of a converged design whose drawable twin (whole grades) misses: by a check
     short of the yield where one is, else by its linear model."""
-    missed = [c for c in d.checks if c.interval[1] < c.q]
+    missed = [c for c in d.checks if c.missed]
     if not missed:
         return ("The continuous optimum meets the requirements, but on whole ISO grades (what a drawing carries) the linear "
                 "model says it misses: " + ", ".join(f"{float(o):.4g} against {float(r):.4g}" for o, r in zip(d.objective, d.limit))
