@@ -48,6 +48,35 @@ class PenaltyMethod(tx.AbstractDesignMethod):
         return solve_design(constrained, PenaltyAdam(), problem.x0 if x0 is None else x0, max_steps=self.steps, progress=progress)
 
 
+def test_scipy_slsqp_is_a_solver_value_and_finds_the_same_optimum():
+    """`tx.SLSQP` (SciPy's SLSQP with the exact gradients, the reference a method is raced
+    against) through `propose_design`: on closed-form units whose RMS and peak are linear in the
+    zones, one requirement and two at once, the same cost as the sequential method's to 1 %
+    (two methods, one optimum), each constraint met within its tolerance by the objective
+    evaluated again, and SciPy's multiplier on a binding requirement the shadow price the
+    sequential method reports (to 5 %)."""
+    scene = R.scan_scene()
+    weights = 0.5 * np.asarray(tx.lost_motion_weights(scene))
+    line = R.Line(scene, 1000.0, weights, 100e-6)
+    built = _propose.design_problem(line, n_draws=2)
+    requirement = 0.5 * float(built.value(width=1e-6))
+    problem = tx.ToleranceProblem(line, requirement, tx.MeanPlusKStd(units=2))
+    ref = tx.propose_design(problem, tx.SLSQP(widths=(1e-6,)))
+    ours = tx.propose_design(problem, tx.Sequential(widths=(1e-6,)))
+    assert ref.status == ours.status == "converged", ref.diagnosis
+    assert ref.cost == pytest.approx(ours.cost, rel=0.01)
+    assert float(built.value(ref.result.x, 1e-6)) <= requirement * 1.01
+    assert float(ref.result.multiplier) == pytest.approx(float(ours.result.multiplier), rel=0.05)
+    two = R.Line(scene, [900.0, 2000.0], [weights, 2 * weights], 100e-6, names=("pointing_rms", "pointing_peak"))
+    both = tx.ToleranceProblem(two, [tx.Requirement("pointing_rms", 600.0), tx.Requirement("pointing_peak", 1500.0)],
+                               tx.MeanPlusKStd(units=2))
+    ref, ours = tx.propose_design(both, tx.SLSQP(widths=(1e-6,))), tx.propose_design(both, tx.Sequential(widths=(1e-6,)))
+    assert ref.cost == pytest.approx(ours.cost, rel=0.01) and ref.status == "converged", ref.diagnosis
+    assert all(o.objective <= o.requirement.limit * 1.01 for o in ref.outcomes)
+    with pytest.raises(ValueError, match="max_iterations must be >= 1"):
+        tx.SLSQP(max_iterations=0)
+
+
 def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     """`PenaltyMethod` (above) through `propose_design`, unchanged: on a closed-form unit whose
     RMS is linear in the zones, the proposal meets a requirement half the baseline's (to the
@@ -173,6 +202,17 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
         problem, solver = seen[-1]
         assert [r.model for r in problem.requirements] == [expected] and solver == tx.Sequential()
         assert problem.statistic == tx.Yield(0.99) and "stopped here by the test" in capsys.readouterr().err
+    # --secant-units alone (no --model): the jitter keeps the automatic recipe on K units (what a
+    # noise-limited answer asks for), the RMS is fitted by lines through K units.
+    scene.write_text(text.replace('model = "surface"\n', ""))
+    assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.9", "--jitter", "0.3", "--allow-proxy",
+                     "--secant-units", "9", "--out", str(tmp_path / "o")]) == 2
+    problem, _ = seen[-1]
+    assert [r.model for r in problem.requirements] == [tx.Secants(units=9, scatter=False, twin=False), tx.Auto(units=9)]
+    assert [r.model.resolve(r) for r in problem.requirements][1] == tx.Surface(units=9)
+    capsys.readouterr()
+    with pytest.raises(ValueError, match="units must be >= 2"):
+        tx.Auto(units=1)
     with pytest.raises(SystemExit, match="2"):
         cli.main(["design", "scan-azimuth", "--requirement", "500", "--model", "surface", "--out", str(tmp_path / "o")])
     assert "--model surface needs --yield" in capsys.readouterr().err

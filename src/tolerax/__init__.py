@@ -45,7 +45,7 @@ _FACE = {
     "design.objectives": ("AbstractMetric", "AbstractObjective", "PointingObjective"),
     "design.propose": ("DesignReport", "JitterRequirement", "propose_design"),
     "design.spec": ("Auto", "MeanPlusKStd", "Secants", "Surface", "Tangents", "ToleranceProblem", "Yield", "Zones"),
-    "design.solvers": ("AbstractDesignMethod", "AugmentedLagrangian", "Sequential"),
+    "design.solvers": ("AbstractDesignMethod", "AugmentedLagrangian", "SLSQP", "Sequential"),
     "design.report": ("RequirementOutcome",),
     "design.outcome": ("DesignStatus",),
     "design.requirements": ("Requirement",),

@@ -78,8 +78,9 @@ class DesignValues:
     """What `design` and `tradeoff` hand `propose_design`, from the scene file and the flags:
     the `ToleranceProblem`'s parts beside its objective and requirements, the solver, the check,
     and the constraint model every requirement takes (`None`: each its default, `Auto()`; with
-    `secant_units` alone, `--secant-units` as it always meant: lines through that many units,
-    with their scatter and a twin solve only for a scattering output, the jitter)."""
+    `secant_units` alone (`--secant-units K`, no `--model`): a scattering output, the jitter,
+    keeps the automatic recipe on K units, `Auto(units=K)`; every other output is fitted by
+    lines through K units, without scatter or twin)."""
 
     statistic: object
     zones: object
@@ -94,13 +95,13 @@ class DesignValues:
     def problem(self, pointing, requirements):
         """The `ToleranceProblem` of `pointing` (an objective) and `requirements`."""
         from ..design.requirements import SCATTERING_OUTPUTS, as_requirements
-        from ..design.spec import Secants, ToleranceProblem
+        from ..design.spec import Auto, Secants, ToleranceProblem
 
         def model(r):
             if self.model is not None or self.secant_units is None:
                 return self.model
-            if r.output in SCATTERING_OUTPUTS:
-                return Secants(units=self.secant_units)
+            if r.output in SCATTERING_OUTPUTS:  # the automatic recipe kept, on K units (a noise band's remedy)
+                return Auto(units=self.secant_units)
             return Secants(units=self.secant_units, scatter=False, twin=False)
 
         found = tuple(dataclasses.replace(r, model=model(r)) for r in as_requirements(requirements))

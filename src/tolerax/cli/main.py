@@ -99,7 +99,8 @@ def optimiser_options(parser):
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
                         "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
-                        "contacts rattle (alone: Secants(units=K, scatter=False, twin=False); with --model secants or surface, their units)")
+                        "contacts rattle (alone: Secants(units=K, scatter=False, twin=False), but the jitter keeps its response surface, on K "
+                        "units: Auto(units=K); with --model secants or surface, their units)")
 
 
 PATH = __doc__[__doc__.index("The engineer's path"):__doc__.index("SCENE is a built-in")].strip()
@@ -173,7 +174,7 @@ def main(argv=None) -> int:
                         "above --jitter-cutoff Hz over the window), arcsec, met by the same fraction Y of units. Both are "
                         "linearised over units (default, --model auto: a response surface over 64 units from the functional "
                         "minimum to 100 um, the jitter's line on its logarithm, refitted over the design's zones up to six "
-                        "times; --secant-units K: plain secants through K units). The jitter is "
+                        "times; --secant-units K: the same on K units; --model secants: plain secants). The jitter is "
                         "read on the full stage only: a scene with lumped or planetary-scaled joints is refused (give "
                         "--fidelity planetary, or --allow-proxy to design on the proxy knowingly). Default: the scene's "
                         "[tolerances] jitter")

@@ -128,7 +128,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             + ". To change it: "
             + ("" if stalled else "more iterations (Sequential(max_gradients=...), --outer), ")
             + "a wider first smoothing width (Sequential(widths=...), --widths), or slopes fitted over units (model=Secants(units=...), --secant-units"
-            + (", more of them: the slopes are fits over units of a chaotic response" if noisy else "") + ").")
+            + (", more of them: the slopes are fits over units of a chaotic response (the model's units=..., --secant-units, which "
+               "keeps the model)" if noisy else "") + ").")
     for k, check in enumerate(checks):
         if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
             return "check missed", (
@@ -151,10 +152,10 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             "being accepted at the smallest trust region, so the linear model does not predict the response even over tiny "
             "steps (rough at this smoothing width, or noisy); a cheaper design may exist. To change it: a wider smoothing "
             "width first (Sequential(widths=...), --widths), or fit the slopes over units (model=Secants(units=...), --secant-units)"
-            + (", more of them" if noisy else "") + ".")
+            + (", more of them (the model's units=..., --secant-units, which keeps the model)" if noisy else "") + ".")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "
             "design may exist. To change it: more iterations (Sequential(max_gradients=...), --outer)"
-            + (", more secant units (model=Secants(units=...), --secant-units)" if noisy else "") + ".")
+            + (", the same model on more units (its units=..., --secant-units, which keeps the model)" if noisy else "") + ".")
     return "converged", ""

@@ -185,7 +185,8 @@ def propose_design(
         stalled=bool(result.stalled is not None and result.stalled))
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
-        status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged))
+        status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged),
+                                           combined.surface is not None)
     drawable = None
     first, band = outcomes[0], np.asarray(result.x.band)
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
@@ -307,10 +308,11 @@ def _drawable_missed(d, yield_) -> str:
             "looser requirement.")
 
 
-def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
+def _noise_verdict(band, outcomes, units, other_converged, surface: bool = False) -> tuple[str, str]:
     """`(status, diagnosis)` from the costs of the designs found with two independent sets of
     secant units, `band = (this cost, the other's, the other's seed)`: converged where they agree
-    to what the requirements' tolerances resolve, else noise-limited."""
+    to what the requirements' tolerances resolve, else noise-limited. The remedy names the model
+    the units fitted (`surface`: a response surface, else secants) on more units."""
     this, that, seed = band
     resolved = max(0.01 * this, tolerance_worth([o.multiplier for o in outcomes], [o.tol for o in outcomes],
                                                 [o.requirement.limit for o in outcomes]))
@@ -320,7 +322,9 @@ def _noise_verdict(band, outcomes, units, other_converged) -> tuple[str, str]:
         f"Two independent sets of {units} secant units give designs of cost {this:.4g} (this one) and {that:.4g} (secant_seed "
         f"{seed}{'' if other_converged else ', not converged'}): a band of {abs(this - that):.3g}, more than the "
         f"{resolved:.3g} the requirements' tolerances resolve. The fitted slopes' noise, not the mechanism, decides the design. To "
-        "change it: more secant units (model=Secants(units=...), --secant-units), or a looser tolerance on the noisy requirement.")
+        "change it: the same model on more units (" + (f"Auto(units={2 * units}) or Surface(units={2 * units})" if surface else
+                                                        f"Secants(units={2 * units})")
+        + f"; --secant-units {2 * units}, which keeps the model), or a looser tolerance on the noisy requirement.")
 
 
 def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement, ...], Combined]:

@@ -7,24 +7,30 @@ response-surface rounds re-solve through whichever solver was given.
   width's design.
 - `AugmentedLagrangian`: Adam on the augmented Lagrangian (`optimise_design`, on optax), one
   width per outer iteration; one requirement on tangent slopes.
+- `SLSQP`: SciPy's sequential least squares programming on the same problem, with the exact
+  gradients: the off-the-shelf reference a new method is raced against.
 
 A solver of one's own is a frozen dataclass subclassing `AbstractDesignMethod` with
 `solve(problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None)`
-returning an `OptimisationResult` (`tests/test_design_values.py` has one on SciPy's SLSQP).
+returning an `OptimisationResult` (`tests/test_design_values.py` has one: projected Adam on a
+quadratic penalty, run by the one design loop, `solve_design`).
 """
 
 import abc
 import dataclasses
 from typing import ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
+import scipy.optimize
 
+from .loop import ConstrainedDesign, make_result
 from .optimise import optimise_design
 from .problem import DesignProblem
 from .sequential import sequential_design
-from .types import chain_results
+from .types import Design, chain_results
 
 
 class AbstractDesignMethod(abc.ABC):
@@ -123,6 +129,99 @@ class AugmentedLagrangian(AbstractDesignMethod):
             draws=problem.draws, x0=problem.x0 if x0 is None else x0, cost_model=problem.cost_model,
             optimiser=optax.adam(self.learning_rate), continuation=lambda i: widths[jnp.minimum(i, len(widths) - 1)],
             max_outer=int(self.max_outer), inner_steps=int(self.inner_steps), tol=1e-3, progress=progress)
+
+
+@dataclasses.dataclass(frozen=True)
+class SLSQP(AbstractDesignMethod):
+    """SciPy's SLSQP (Kraft's sequential least squares programming, `scipy.optimize.minimize`)
+    on the design problem as posed: $\\min C(b)$ s.t. $f_j(x) \\le R_j$, the box, and each zone's
+    upper edge where a response surface bounds it, with the cost's and the constraints' exact
+    gradients (the same programs `Sequential` differentiates), once per smoothing width, wide to
+    narrow, each from the last one's design. The variables in µm; SciPy's own multipliers are the
+    result's. A reference, not a rival for rough outputs: it trusts every gradient it is given
+    (no trust region), so on a rattling objective or slopes fitted over units it may wander.
+
+    - `widths` (m): smoothing widths, wide to narrow.
+    - `max_iterations`: SLSQP's `maxiter` per width; `ftol`: its `ftol` (on the cost)."""
+
+    widths: tuple = (1e-6, 1e-7)
+    max_iterations: int = 100
+    ftol: float = 1e-9
+    fitted: ClassVar[bool] = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "widths", _widths(self.widths))
+        if int(self.max_iterations) < 1:
+            raise ValueError(f"SLSQP: max_iterations must be >= 1, got {self.max_iterations!r}.")
+
+    def solve(self, problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
+        del step, progress  # no trust region; SciPy reports no progress
+        widths = self.widths if x0 is None else self.widths[-1:]
+        x = problem.x0 if x0 is None else x0
+        rows, evaluations, results = [], 0, []
+        for width in widths:
+            design = ConstrainedDesign(problem.objective, problem.features, requirement, tuple(np.atleast_1d(tol)),
+                                       problem.lower, problem.upper, problem.cost_model, problem.draws, width,
+                                       zone_upper=problem.zone_upper)
+            x, found, evaluations = _slsqp(design, x, int(self.max_iterations), float(self.ftol), callback, evaluations)
+            f, g = _constraints(design, _um(x))
+            lam = np.asarray(found.multipliers, dtype=float)[: design.m]
+            one = (lambda v: float(v[0])) if design.m == 1 else (lambda v: v)  # the history's columns: make_result's
+            rows.append((float(design.cost_model.total(jnp.asarray(x.band), design.features.size_mm)), one(f),
+                         one(f - design.requirements), one(lam), np.nan, width, evaluations))
+            results.append(found)
+        n = len(design.features.names)
+        sensitivity = Design(g[:, :n] / 1e-6, g[:, n:] / 1e-6)  # arcsec per µm -> per m
+        return make_result(design, x, f, sensitivity, lam, converged=all(r.success for r in results), iteration=len(rows) - 1,
+                           rows=rows)
+
+
+def _um(x: Design) -> np.ndarray:
+    return np.concatenate([np.asarray(x.nominal), np.asarray(x.band)]) / 1e-6
+
+
+def _constraints(design: ConstrainedDesign, z):
+    """The constraints' values (m,) and gradients (m, 2n) per µm at `z` (µm)."""
+    from .subproblem import objective_value_and_gradient
+
+    n = len(design.features.names)
+    f, g = objective_value_and_gradient(design.objective, Design(z[:n] * 1e-6, z[n:] * 1e-6), design.draws, design.width)
+    g = np.concatenate([np.atleast_2d(np.asarray(g.nominal)), np.atleast_2d(np.asarray(g.band))], axis=1) * 1e-6
+    return np.atleast_1d(np.asarray(f, dtype=float)), g
+
+
+def _slsqp(design: ConstrainedDesign, x0: Design, max_iterations: int, ftol: float, callback, evaluations: int):
+    """SciPy's SLSQP on `design` from `x0`: `(x, scipy's result, evaluations so far)`."""
+    n, size = len(design.features.names), design.features.size_mm
+    cost = lambda z: float(design.cost_model.total(jnp.asarray(z[n:] * 1e-6), size))  # noqa: E731
+    cost_grad = jax.jit(jax.grad(lambda b: design.cost_model.total(b, size)))
+    memo = {}
+
+    def constraints(z):
+        key = z.tobytes()
+        if key not in memo:
+            nonlocal evaluations
+            memo.clear()
+            memo[key] = _constraints(design, z)
+            evaluations += 1
+            if callback is not None:
+                f = memo[key][0]
+                callback(evaluations, Design(z[:n] * 1e-6, z[n:] * 1e-6), cost(z), float(f[0]) if f.size == 1 else f)
+        return memo[key]
+
+    R = np.asarray(design.requirements, dtype=float)
+    ineq = [{"type": "ineq", "fun": lambda z: R - constraints(z)[0], "jac": lambda z: -constraints(z)[1]}]
+    if design.zone_upper is not None:  # l + 2 b <= zone_upper
+        edge = np.asarray(design.zone_upper, dtype=float) / 1e-6
+        a = np.concatenate([np.eye(n), 2.0 * np.eye(n)], axis=1)
+        ineq.append({"type": "ineq", "fun": lambda z: edge - a @ z, "jac": lambda z: -a})
+    lower, upper = _um(design.lower), _um(design.upper)
+    start = np.clip(_um(x0), lower, upper)
+    found = scipy.optimize.minimize(cost, start, jac=lambda z: np.concatenate([np.zeros(n), np.asarray(cost_grad(jnp.asarray(z[n:] * 1e-6))) * 1e-6]),
+                                    method="SLSQP", bounds=list(zip(lower, upper)), constraints=ineq,
+                                    options={"ftol": ftol, "maxiter": max_iterations})
+    z = np.clip(found.x, lower, upper)
+    return Design(z[:n] * 1e-6, z[n:] * 1e-6), found, evaluations
 
 
 def sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5,

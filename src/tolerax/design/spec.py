@@ -196,10 +196,22 @@ class Auto(AbstractConstraintModel):
     """The default: for an output whose unit-to-unit scatter the features do not carry
     (`SCATTERING_OUTPUTS`: the jitter) the `Surface` recipe; else `Tangents`, finished on
     `Secants` where their slopes stall or the check finds their model off. Cheap first, moved on
-    where the measurement says so."""
+    where the measurement says so.
+
+    `units`: the response surface's units (default `Surface`'s): `Auto(units=128)` is the same
+    recipe on more units, what a noise-limited answer asks for (`tolerax design --secant-units`
+    with no `--model`); the other outputs keep their tangents."""
+
+    units: int | None = None
+
+    def __post_init__(self):
+        if self.units is not None and int(self.units) < 2:
+            raise ValueError(f"Auto: units must be >= 2 (the response surface's units), got {self.units!r}.")
 
     def resolve(self, requirement):
-        return Surface() if requirement.output in SCATTERING_OUTPUTS else Tangents()
+        if requirement.output not in SCATTERING_OUTPUTS:
+            return Tangents()
+        return Surface() if self.units is None else Surface(units=int(self.units))
 
     def options(self, requirement, n_features):
         return self.resolve(requirement).options(requirement, n_features)

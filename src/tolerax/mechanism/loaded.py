@@ -58,8 +58,8 @@ def _loaded_equations(x, mech, q, u, x0):
 
 
 # Levenberg-Marquardt's linearisation is the Jacobian of one forward-mode pass (`jacobian_once`):
-# no reverse-mode program of the accelerations for its transpose, about half the program to
-# compile (benchmarks/loaded_state_compile.py).
+# no reverse-mode program of the accelerations for its transpose (the compile times of both:
+# benchmarks/loaded_state_compile.py).
 _loaded_equations_once = jacobian_once(_loaded_equations)
 
 
