@@ -160,7 +160,7 @@ def plan_test_command(parser, args) -> int:
     start = time.perf_counter()
     try:
         plan = design_test(scene, parameters, duration=args.duration, n_save=args.samples, noise=noise, settle=args.settle,
-                           criterion=args.criterion, **limits, **run)
+                           criterion=args.criterion, progress=not args.quiet, **limits, **run)
     except ValueError as err:
         print(f"tolerax plan-test: {err}", file=sys.stderr)
         return 2
@@ -207,5 +207,7 @@ def add_plan_parser(sub, out_options, positive, non_negative, epilog):
                         help="the highest rate, deg/s (default the scene's scan's peak rate)")
     parser.add_argument("--criterion", default="weakest", choices=("weakest", "D"),
                         help="the weakest parameter's error (default) or the joint region's volume (D-optimal)")
+    parser.add_argument("--quiet", action="store_true", help="no time estimate or line per candidate while it runs (the plan "
+                        "and errors are still printed)")
     out_options(parser, "plan-test")
     return parser

@@ -35,12 +35,15 @@ backlashes of a lumped joint: the output sees their sum).
 
 import dataclasses
 import math
+import sys
+import time
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from ..design.objectives import PointingObjective
+from ..eta import human_seconds, rough_wall, time_left
 from ..mechanism.drives import ScanServo
 from .identify import DETERMINED, UNIT, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
 from .parameters import check_names, parameter_values
@@ -164,7 +167,7 @@ class TestDesign:
 
 def design_test(scene, parameters, *, duration: float, n_save: int, noise: float, settle: float = 0.0,
                 max_amplitude: float | None = None, max_rate: float | None = None, amplitudes=None, periods=None,
-                criterion: str = "weakest", start: str = "steady", **run) -> TestDesign:
+                criterion: str = "weakest", start: str = "steady", progress=False, **run) -> TestDesign:
     """The scan (amplitude, period) that makes `parameters` of `scene` best determined by a
     recording of `duration` s (module docstring).
 
@@ -181,6 +184,10 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
       and times the plain scan's period (candidates beyond the limits dropped). The scene's own
       scan is always a candidate.
     - `criterion`: "weakest" (default) or "D"; `start`, `**run`: the model's run (`identify`'s).
+    - `progress`: True prints to stderr a rough time before the candidates are evaluated (the
+      simulations they need at `tolerax.eta.rough_wall`'s pace, compilation not included) and a
+      line as each is done, with the time left at the pace so far; a callable receives the
+      lines instead.
 
     **Returns:** a `TestDesign`. Raises `ValueError` for a scene with no scanning joint, unknown
     parameters or criterion, or no candidate inside the limits.
@@ -219,7 +226,17 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     middle = int(np.argmin(np.abs(np.log(factors))))
     factors[middle] = 1.0
     errors, logdets, rugged = [], [], []
-    for a, t in grid:  # one compiled program each: the scan's amplitude and period are arrays of the scene
+    say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
+    clock = time.perf_counter()
+    if say is not None:
+        # Per candidate: a forward-mode Jacobian (about a simulation per parameter and one more)
+        # and each parameter's cost profile (PROFILE_POINTS simulations each, one batched run).
+        one = rough_wall(scene, duration, objective.integrator)
+        runs = len(parameters) + 1 + len(parameters) * PROFILE_POINTS
+        say(f"design_test: {len(grid)} candidate scans, each a Jacobian and {len(parameters)} cost profiles of {PROFILE_POINTS} "
+            "points" + ("" if one is None else f": roughly {human_seconds(max(len(grid) * runs * one, 1.0))} on one core") +
+            " plus compilation")
+    for k, (a, t) in enumerate(grid):  # one compiled program for all: the scan's amplitude and period are arrays of the scene
         candidate = eqx.tree_at(lambda o: o.scene, objective, with_scan(scene, a, t))
         fit = _Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured)
         jac, angles, _ = _fit_and_jacobian(fit, jnp.asarray(x), width)
@@ -230,6 +247,10 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
         _, (eigenvalues, _), cov = _information(jac, x, (noise / UNIT) ** 2)
         errors.append(np.sqrt(np.maximum(np.diag(cov), 0.0)) / x)
         logdets.append(float(np.sum(np.log(eigenvalues))))
+        if say is not None:
+            spent = time.perf_counter() - clock
+            say(f"design_test [{int(spent // 60)}:{int(spent % 60):02d}] candidate {k + 1} of {len(grid)} (±"
+                f"{math.degrees(a):.3g}° × {t:.3g} s) done{time_left(spent, k + 1, len(grid))}")
     errors, rugged = np.array(errors), np.array(rugged)
     seen = np.any(errors < DETERMINED, axis=0)
     if criterion == "weakest":
