@@ -59,6 +59,7 @@ import optimistix as optx
 
 from ..design.features import design_of, with_design
 from ..design.objectives import PointingObjective, _widths
+from ..eta import human_seconds, rough_wall
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import AXES, Recording, RecordingError
 from .result import DETERMINED, PROFILE_STEPS, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
@@ -264,7 +265,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
-    - `progress`: True prints a line per phase to stderr as it ends (the screen, each start at
+    - `progress`: True prints a rough time before any work, then a line per phase to stderr as
+      it ends (the screen, each start at
       each width with its steps and cost, the assessment), with its wall time; or a callable
       taking that line (an identification can take minutes where it compiles, or on the full
       stage).
@@ -295,6 +297,19 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     clock = time.perf_counter()
     wall = {}
     say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
+    if say is not None:
+        # The screen's batched costs, then from each kept start per width up to lm_steps
+        # Levenberg-Marquardt steps, each a forward-mode Jacobian (about a simulation per
+        # parameter and one more), at rough_wall's pace: an order of magnitude, not a bound.
+        one = rough_wall(scene, duration, objective.integrator)
+        screen = starts + 1 if isinstance(starts, int) else 0  # given starts are fitted as they are
+        kept = min(STARTS_KEPT, screen) if screen else len(starts)
+        runs = screen + kept * len(widths) * int(lm_steps) * (len(parameters) + 1)
+        if one is not None:
+            say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
+                                f"Levenberg-Marquardt from {kept} given start(s)")
+                + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each: roughly "
+                f"{human_seconds(max(runs * one, 1.0))} on one core plus compilation")
 
     def lap(phase, line=None):
         nonlocal clock
