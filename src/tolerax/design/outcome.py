@@ -128,8 +128,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             + ". To change it: "
             + ("" if stalled else "more iterations (Sequential(max_gradients=...), --outer), ")
             + "a wider first smoothing width (Sequential(widths=...), --widths), or slopes fitted over units (model=Secants(units=...), --secant-units"
-            + (", more of them: the slopes are fits over units of a chaotic response (the model's units=..., --secant-units, which "
-               "keeps the model)" if noisy else "") + ").")
+            + (", more of them: the slopes are fits over units of a chaotic response; --secant-units keeps the model" if noisy
+               else "") + ").")
     for k, check in enumerate(checks):
         if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
             return "check missed", (

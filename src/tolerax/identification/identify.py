@@ -265,11 +265,10 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
-    - `progress`: True prints a rough time before any work, then a line per phase to stderr as
-      it ends (the screen, each start at
-      each width with its steps and cost, the assessment), with its wall time; or a callable
-      taking that line (an identification can take minutes where it compiles, or on the full
-      stage).
+    - `progress`: True prints to stderr a rough time before any work, then a line per phase as
+      it ends (the screen, each start at each width with its steps and cost, the assessment),
+      with its wall time; or a callable taking those lines (an identification can take minutes
+      where it compiles, or on the full stage).
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
