@@ -16,7 +16,7 @@ secant units' Latin hypercube: `LinearisedYield.secant_seed`). (a) and (b) at se
 same problem and must agree to the optimiser's own tolerance; the seeds' spread is the cost's
 noise band, what a "converged" answer on fitted slopes can be trusted to. `--cli`: (c) `tolerax
 design` on the same scene written as a scene file (`--requirement R --jitter 0.2 --yield 0.9
---secant-units 16 --widths 1e-7 --outer 40 --check 0 --allow-proxy`), with its own noise band (secant seeds
+--model secants --secant-units 16 --widths 1e-7 --outer 40 --check 0 --allow-proxy`), with its own noise band (secant seeds
 1 and 2, `propose_design`'s default): the third entry point, and what it says of the band.
 """
 
@@ -129,8 +129,8 @@ def _cli(R, args):
         scene = Path(tmp) / "stability.toml"
         scene.write_text(SCENE)
         cmd = [sys.executable, "-c", "import sys; from tolerax.cli import main; sys.exit(main())", "design", str(scene),
-               "--requirement", repr(float(R[0])), "--jitter", repr(float(R[1])), "--yield", "0.9", "--secant-units",
-               str(args.secant_units), "--widths", "1e-7", "--outer", str(args.max_iterations), "--check", "0",
+               "--requirement", repr(float(R[0])), "--jitter", repr(float(R[1])), "--yield", "0.9", "--model", "secants",
+               "--secant-units", str(args.secant_units), "--widths", "1e-7", "--outer", str(args.max_iterations), "--check", "0",
                "--allow-proxy", "--out", str(Path(tmp) / "out")]
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode not in (0, 4):

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import harness
 import tolerax as tx
-from tolerax.io.scenefile import save_scene
 
 
 def main():
@@ -58,11 +57,11 @@ def main():
                 if report.noise_band else ""),
              f"- design wall time: {design_wall:.0f} s"]
     checks = report.drawable.checks if report.drawable is not None and report.drawable.checks else ()
-    lines += [f"- the drawn design's check ({o}): {c.text()}" for o, c in zip(("RMS", "jitter"), checks)]
+    lines += [f"- the drawn design's check ({o.requirement.name}): {c.text()}" for o, c in zip(report.outcomes, checks)]
     verify = None
     if args.verify:
         with tempfile.TemporaryDirectory() as tmp:
-            proposal = save_scene(scene.with_proposal(report, jitter_cutoff=20.0), Path(tmp) / "proposal.toml")
+            proposal = tx.save_scene(scene.with_proposal(report, jitter_cutoff=20.0), Path(tmp) / "proposal.toml")
             begin = time.perf_counter()
             subprocess.run([sys.executable, "-m", "tolerax.cli.main", "montecarlo", str(proposal), "--n", str(args.verify),
                             "--requirement", str(args.requirement), "--jitter", str(args.jitter), "--jitter-cutoff", "20",

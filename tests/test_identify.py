@@ -101,9 +101,11 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     said = []
     with pytest.raises(RecordingError, match="unit7.csv: the recording's commanded azimuth angle is not the scene's drive"):
         identify(scene, other, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,), progress=said.append)
-    # A rough time is said before any work (the command line prints it): here 20 steps of 2 runs.
-    assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each: "
-                    f"roughly {tx.eta.human_seconds(40 * tx.eta.rough_wall(scene, 0.35))} on one core plus compilation"], said
+    # A rough time is said before any work (the command line prints it): 20 steps of 2 runs, then
+    # the interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate).
+    assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each, then "
+                    f"the intervals checked: roughly {tx.eta.human_seconds(48 * tx.eta.rough_wall(scene, 0.35))} on one core "
+                    "plus compilation"], said
     got = Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([60e-6]), covariance=np.array([[1e-14]]),
                          sigma=rec.noise, n=141, cost=1.0, times=None, measured=None, fitted=None, directions=((0.002, np.ones(1)),),
                          steps=5, converged=True, starts=(1.0,), screened=0, noise=rec.noise, scene=scene)

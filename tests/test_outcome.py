@@ -125,9 +125,10 @@ def test_two_sets_of_secant_units_that_disagree_make_a_noise_limited_answer():
     status, text = _noise_verdict((2.086, 1.219, 2), (jitter,), 16, True)
     assert status == "noise-limited" and "16 secant units give designs of cost 2.086 (this one) and 1.219" in text
     # The remedy keeps the model that was noisy, on more units: a response surface stays one.
-    assert "the same model on more units (Secants(units=32); --secant-units 32, which keeps the model)" in text
+    assert "the same secants on more units (the model's units=32; --secant-units 32, which keeps the model)" in text
     _, text = _noise_verdict((2.086, 1.219, 2), (jitter,), 64, True, surface=True)
-    assert "(Auto(units=128) or Surface(units=128); --secant-units 128, which keeps the model)" in text
+    assert ("the same response surface on more units (the model's units=128, e.g. Auto(units=128) for the default; "
+            "--secant-units 128, which keeps the model)") in text
 
 
 def test_a_stalled_tangent_design_is_finished_on_secant_slopes():

@@ -135,7 +135,7 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
                         help="the encoder's noise, µrad standard deviation: with it (or --encoder-bits) the report says "
                         "where the residual exceeds what the encoder explains (a model that misses part of the unit)")
     parser.add_argument("--encoder-bits", type=int, default=None, help="the encoder's resolution, bits per turn (its rounding)")
-    parser.add_argument("--quiet", action="store_true", help="no phase lines while it runs (the report and errors are still printed)")
+    parser.add_argument("--quiet", action="store_true", help="no time estimate or phase lines while it runs (the report and errors are still printed)")
     out_options(parser, "identify")
     return parser
 

@@ -127,9 +127,9 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"{r[k]:.4g} arcsec)" + (", though the tightest designs in the bounds meet it" if evaluate is not None else "")
             + ". To change it: "
             + ("" if stalled else "more iterations (Sequential(max_gradients=...), --outer), ")
-            + "a wider first smoothing width (Sequential(widths=...), --widths), or slopes fitted over units (model=Secants(units=...), --secant-units"
-            + (", more of them: the slopes are fits over units of a chaotic response; --secant-units keeps the model" if noisy
-               else "") + ").")
+            + "a wider first smoothing width (Sequential(widths=...), --widths), or "
+            + ("more units in the model that fitted the slopes (its units=..., --secant-units, which keeps the model): they are "
+               "fits over units of a chaotic response." if noisy else "slopes fitted over units (model=Secants(units=...), --secant-units)."))
     for k, check in enumerate(checks):
         if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
             return "check missed", (
@@ -151,8 +151,9 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"The design meets the requirements but the optimiser stalled after {iterations} gradients: its steps stopped "
             "being accepted at the smallest trust region, so the linear model does not predict the response even over tiny "
             "steps (rough at this smoothing width, or noisy); a cheaper design may exist. To change it: a wider smoothing "
-            "width first (Sequential(widths=...), --widths), or fit the slopes over units (model=Secants(units=...), --secant-units)"
-            + (", more of them (the model's units=..., --secant-units, which keeps the model)" if noisy else "") + ".")
+            "width first (Sequential(widths=...), --widths), or "
+            + ("more units in the model that fitted the slopes (its units=..., --secant-units, which keeps the model)." if noisy
+               else "fit the slopes over units (model=Secants(units=...), --secant-units)."))
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "

@@ -106,7 +106,8 @@ def propose_design(
                         "are solver=, check=, progress= and callback= (the problem's own parts: ToleranceProblem's fields).")
     solver = Sequential() if solver is None else solver
     if not isinstance(solver, AbstractDesignMethod):
-        raise TypeError(f"propose_design: solver must be a design method, Sequential() or AugmentedLagrangian(), got {solver!r}.")
+        raise TypeError(f"propose_design: solver must be a design method, Sequential(), AugmentedLagrangian() or SLSQP() (or "
+                        f"one's own AbstractDesignMethod), got {solver!r}.")
     yield_ = problem.yield_
     if yield_ is None:
         if check is not None and check is not DEFAULT_CHECK:
@@ -322,8 +323,8 @@ def _noise_verdict(band, outcomes, units, other_converged, surface: bool = False
         f"Two independent sets of {units} secant units give designs of cost {this:.4g} (this one) and {that:.4g} (secant_seed "
         f"{seed}{'' if other_converged else ', not converged'}): a band of {abs(this - that):.3g}, more than the "
         f"{resolved:.3g} the requirements' tolerances resolve. The fitted slopes' noise, not the mechanism, decides the design. To "
-        "change it: the same model on more units (" + (f"Auto(units={2 * units}) or Surface(units={2 * units})" if surface else
-                                                        f"Secants(units={2 * units})")
+        f"change it: the same {'response surface' if surface else 'secants'} on more units (the model's units={2 * units}"
+        + (f", e.g. Auto(units={2 * units}) for the default" if surface else "")
         + f"; --secant-units {2 * units}, which keeps the model), or a looser tolerance on the noisy requirement.")
 
 

@@ -134,12 +134,13 @@ class AugmentedLagrangian(AbstractDesignMethod):
 @dataclasses.dataclass(frozen=True)
 class SLSQP(AbstractDesignMethod):
     """SciPy's SLSQP (Kraft's sequential least squares programming, `scipy.optimize.minimize`)
-    on the design problem as posed: $\\min C(b)$ s.t. $f_j(x) \\le R_j$, the box, and each zone's
-    upper edge where a response surface bounds it, with the cost's and the constraints' exact
-    gradients (the same programs `Sequential` differentiates), once per smoothing width, wide to
-    narrow, each from the last one's design. The variables in µm; SciPy's own multipliers are the
-    result's. A reference, not a rival for rough outputs: it trusts every gradient it is given
-    (no trust region), so on a rattling objective or slopes fitted over units it may wander.
+    on the design problem as posed: $\\min C(b)$ s.t. $f_j(x) \\le R_j$ over the box, with the
+    cost's and the constraints' exact gradients (the same programs `Sequential` differentiates),
+    once per smoothing width, wide to narrow, each from the last one's design, and judged at the
+    last. The variables in µm; SciPy's multipliers are the result's (cost per unit of each
+    output). A reference, not a rival on rough outputs: it trusts every gradient it is given (no
+    trust region), and it takes tangent slopes only (`fitted` is False: no secants or response
+    surfaces).
 
     - `widths` (m): smoothing widths, wide to narrow.
     - `max_iterations`: SLSQP's `maxiter` per width; `ftol`: its `ftol` (on the cost)."""
@@ -156,72 +157,74 @@ class SLSQP(AbstractDesignMethod):
 
     def solve(self, problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
         del step, progress  # no trust region; SciPy reports no progress
+        from .sequential import _row  # the sequential method's history rows: one History for every method
+
         widths = self.widths if x0 is None else self.widths[-1:]
         x = problem.x0 if x0 is None else x0
-        rows, evaluations, results = [], 0, []
+        cost_gradient = jax.jit(jax.grad(lambda b: problem.cost_model.total(b, problem.features.size_mm)))
+        rows, evaluations = [], 0
         for width in widths:
             design = ConstrainedDesign(problem.objective, problem.features, requirement, tuple(np.atleast_1d(tol)),
-                                       problem.lower, problem.upper, problem.cost_model, problem.draws, width,
-                                       zone_upper=problem.zone_upper)
-            x, found, evaluations = _slsqp(design, x, int(self.max_iterations), float(self.ftol), callback, evaluations)
-            f, g = _constraints(design, _um(x))
-            lam = np.asarray(found.multipliers, dtype=float)[: design.m]
-            one = (lambda v: float(v[0])) if design.m == 1 else (lambda v: v)  # the history's columns: make_result's
-            rows.append((float(design.cost_model.total(jnp.asarray(x.band), design.features.size_mm)), one(f),
-                         one(f - design.requirements), one(lam), np.nan, width, evaluations))
-            results.append(found)
-        n = len(design.features.names)
+                                       problem.lower, problem.upper, problem.cost_model, problem.draws, width)
+            x, (f, g), lam, success, evaluations = _slsqp(design, x, cost_gradient, int(self.max_iterations), float(self.ftol),
+                                                         callback, evaluations)
+            rows.append(_row(design, float(problem.cost_model.total(jnp.asarray(x.band), problem.features.size_mm)), f, lam,
+                             evaluations))
+        n = len(problem.features.names)
         sensitivity = Design(g[:, :n] / 1e-6, g[:, n:] / 1e-6)  # arcsec per µm -> per m
-        return make_result(design, x, f, sensitivity, lam, converged=all(r.success for r in results), iteration=len(rows) - 1,
-                           rows=rows)
+        return make_result(design, x, f, sensitivity, lam, converged=success, iteration=len(rows) - 1, rows=rows)
 
 
 def _um(x: Design) -> np.ndarray:
     return np.concatenate([np.asarray(x.nominal), np.asarray(x.band)]) / 1e-6
 
 
-def _constraints(design: ConstrainedDesign, z):
-    """The constraints' values (m,) and gradients (m, 2n) per µm at `z` (µm)."""
+def _slsqp(design: ConstrainedDesign, x0: Design, cost_gradient, max_iterations: int, ftol: float, callback, evaluations: int):
+    """SciPy's SLSQP on `design` from `x0`: `(x, (f, g) there, multipliers, success, evaluations
+    so far)`, `f` the constraints' values (m,) and `g` their gradients per µm (m, 2n)."""
+    # Here, not at the top: subproblem imports this module's neighbours (sequential, problem).
     from .subproblem import objective_value_and_gradient
 
-    n = len(design.features.names)
-    f, g = objective_value_and_gradient(design.objective, Design(z[:n] * 1e-6, z[n:] * 1e-6), design.draws, design.width)
-    g = np.concatenate([np.atleast_2d(np.asarray(g.nominal)), np.atleast_2d(np.asarray(g.band))], axis=1) * 1e-6
-    return np.atleast_1d(np.asarray(f, dtype=float)), g
-
-
-def _slsqp(design: ConstrainedDesign, x0: Design, max_iterations: int, ftol: float, callback, evaluations: int):
-    """SciPy's SLSQP on `design` from `x0`: `(x, scipy's result, evaluations so far)`."""
     n, size = len(design.features.names), design.features.size_mm
-    cost = lambda z: float(design.cost_model.total(jnp.asarray(z[n:] * 1e-6), size))  # noqa: E731
-    cost_grad = jax.jit(jax.grad(lambda b: design.cost_model.total(b, size)))
-    memo = {}
+    as_design = lambda z: Design(z[:n] * 1e-6, z[n:] * 1e-6)  # noqa: E731  (µm -> m)
+    memo = {}  # SciPy asks for the constraints' values and their Jacobian at the same point: one solve
+
+    def cost(z):
+        return float(design.cost_model.total(jnp.asarray(z[n:] * 1e-6), size))
+
+    def cost_jacobian(z):
+        return np.concatenate([np.zeros(n), np.asarray(cost_gradient(jnp.asarray(z[n:] * 1e-6))) * 1e-6])
 
     def constraints(z):
+        nonlocal evaluations
         key = z.tobytes()
         if key not in memo:
-            nonlocal evaluations
             memo.clear()
-            memo[key] = _constraints(design, z)
+            f, g = objective_value_and_gradient(design.objective, as_design(z), design.draws, design.width)
+            g = np.concatenate([np.atleast_2d(np.asarray(g.nominal)), np.atleast_2d(np.asarray(g.band))], axis=1) * 1e-6
+            memo[key] = (np.atleast_1d(np.asarray(f, dtype=float)), g)
             evaluations += 1
             if callback is not None:
                 f = memo[key][0]
-                callback(evaluations, Design(z[:n] * 1e-6, z[n:] * 1e-6), cost(z), float(f[0]) if f.size == 1 else f)
+                callback(evaluations, as_design(z), cost(z), float(f[0]) if f.size == 1 else f)
         return memo[key]
 
     R = np.asarray(design.requirements, dtype=float)
-    ineq = [{"type": "ineq", "fun": lambda z: R - constraints(z)[0], "jac": lambda z: -constraints(z)[1]}]
-    if design.zone_upper is not None:  # l + 2 b <= zone_upper
-        edge = np.asarray(design.zone_upper, dtype=float) / 1e-6
-        a = np.concatenate([np.eye(n), 2.0 * np.eye(n)], axis=1)
-        ineq.append({"type": "ineq", "fun": lambda z: edge - a @ z, "jac": lambda z: -a})
+    margins = {"type": "ineq", "fun": lambda z: R - constraints(z)[0], "jac": lambda z: -constraints(z)[1]}
     lower, upper = _um(design.lower), _um(design.upper)
-    start = np.clip(_um(x0), lower, upper)
-    found = scipy.optimize.minimize(cost, start, jac=lambda z: np.concatenate([np.zeros(n), np.asarray(cost_grad(jnp.asarray(z[n:] * 1e-6))) * 1e-6]),
-                                    method="SLSQP", bounds=list(zip(lower, upper)), constraints=ineq,
+    found = scipy.optimize.minimize(cost, np.clip(_um(x0), lower, upper), jac=cost_jacobian, method="SLSQP",
+                                    bounds=list(zip(lower, upper)), constraints=[margins],
                                     options={"ftol": ftol, "maxiter": max_iterations})
     z = np.clip(found.x, lower, upper)
-    return Design(z[:n] * 1e-6, z[n:] * 1e-6), found, evaluations
+    f, g = constraints(z)  # the memo's where SciPy ended on it (it usually does)
+    lam = getattr(found, "multipliers", None)  # SciPy >= 1.16; else from the stationarity condition
+    if lam is None:  # over the free variables and the constraints met with equality (the others' are 0)
+        free = (z > lower + 1e-9 * (1 + np.abs(lower))) & (z < upper - 1e-9 * (1 + np.abs(upper)))
+        active = f >= R * (1 - 1e-6)
+        lam = np.zeros(design.m)
+        if free.any() and active.any():
+            lam[active] = scipy.optimize.nnls(g[active][:, free].T, -cost_jacobian(z)[free])[0]
+    return as_design(z), (f, g), np.asarray(lam, dtype=float)[: design.m], bool(found.success), evaluations
 
 
 def sequential_continuation(problem: DesignProblem, requirement, widths, max_iterations, progress, callback=None, x0=None, trust=0.5,

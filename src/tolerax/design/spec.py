@@ -199,8 +199,11 @@ class Auto(AbstractConstraintModel):
     where the measurement says so.
 
     `units`: the response surface's units (default `Surface`'s): `Auto(units=128)` is the same
-    recipe on more units, what a noise-limited answer asks for (`tolerax design --secant-units`
-    with no `--model`); the other outputs keep their tangents."""
+    recipe on more units, what a noise-limited answer asks for; the other outputs keep their
+    tangents here (where the jitter's surface is fitted, the units' solves give every output, so
+    the problem's other outputs are fitted on the surface too: `combine`). `tolerax design
+    --secant-units K` with no `--model` gives the jitter `Auto(units=K)` and the other outputs
+    lines through K units."""
 
     units: int | None = None
 

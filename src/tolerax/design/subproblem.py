@@ -106,7 +106,8 @@ def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, req
     linear constraints, a box) and solved by SciPy's SLSQP on the cost's exact gradient (a
     nested bisection over two multipliers was tried: exact but minutes per call on a CPU).
     The multipliers are the non-negative least-squares fit of the bands' stationarity,
-    $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`).
+    $c'(b) + \\lambda^T D = 0$ over the bands inside their boxes (`scipy.optimize.nnls`), over
+    the constraints the design reaches (the others' are 0).
     `zone_upper` (n,) (optional, m): each zone's upper edge $l + 2b$ at most this (linear
     constraints beside the box; the bands held by one count as bound in the multipliers' fit)."""
     n = a.shape[1]
@@ -149,10 +150,14 @@ def _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, req
     free = (b > b_box[0] + 1e-9 * scale) & (b < b_box[1] - 1e-9 * scale)
     if zone_upper is not None:
         free &= l + 2.0 * b < np.asarray(zone_upper, dtype=float) - 1e-7 * scale
-    multipliers = np.zeros(a.shape[0])
-    if np.any(free):
-        multipliers = scipy.optimize.nnls(d[:, free].T, -_cost_gradient(cost_model, size_mm, b)[free])[0]
     predicted = linear(y)
+    # Complementary slackness: a constraint the subproblem's design does not reach carries no
+    # multiplier; the fit is over the others alone (with two nearly parallel constraints, a fit
+    # over both could price the slack one instead).
+    active = predicted >= requirement * (1 - 1e-6)
+    multipliers = np.zeros(a.shape[0])
+    if np.any(free) and np.any(active):
+        multipliers[active] = scipy.optimize.nnls(d[active][:, free].T, -_cost_gradient(cost_model, size_mm, b)[free])[0]
     # A constraint that even this design does not meet: infeasible within the region (as `_subproblem`'s inf).
     multipliers = np.where(predicted > requirement * (1 + 1e-6), np.inf, multipliers)
     return l, b, multipliers, predicted

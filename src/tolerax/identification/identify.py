@@ -299,16 +299,17 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     if say is not None:
         # The screen's batched costs, then from each kept start per width up to lm_steps
         # Levenberg-Marquardt steps, each a forward-mode Jacobian (about a simulation per
-        # parameter and one more), at rough_wall's pace: an order of magnitude, not a bound.
+        # parameter and one more), then the intervals' check (each parameter's profile path at
+        # PROFILE_STEPS both sides), at rough_wall's pace: an order of magnitude, not a bound.
         one = rough_wall(scene, duration, objective.integrator)
         screen = starts + 1 if isinstance(starts, int) else 0  # given starts are fitted as they are
         kept = min(STARTS_KEPT, screen) if screen else len(starts)
-        runs = screen + kept * len(widths) * int(lm_steps) * (len(parameters) + 1)
-        if one is not None:
-            say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
-                                f"Levenberg-Marquardt from {kept} given start(s)")
-                + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each: roughly "
-                f"{human_seconds(max(runs * one, 1.0))} on one core plus compilation")
+        p = len(parameters)
+        runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) + 2 * p * len(PROFILE_STEPS) + p + 1
+        say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
+                            f"Levenberg-Marquardt from {kept} given start(s)")
+            + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each, then the intervals checked"
+            + ("" if one is None else f": roughly {human_seconds(max(runs * one, 1.0))} on one core") + " plus compilation")
 
     def lap(phase, line=None):
         nonlocal clock
