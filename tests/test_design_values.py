@@ -231,6 +231,22 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     capsys.readouterr()
     with pytest.raises(ValueError, match="units must be >= 2"):
         tx.Auto(units=1)
+    # A model per output: a table by output name, the outputs it does not name on Auto(); the
+    # same in Python (the scene's problem) and from the command line (--secant-units: its units).
+    with_yield = text.replace('model = "surface"', 'model = { pointing_rms = "secants" }\nyield = 0.9\nrequirement = 500.0\n'
+                              'require = { pointing_peak = 900.0 }')
+    scene.write_text(with_yield)
+    assert [r.model for r in tx.load_scene(str(scene)).problem().requirements] == [tx.Secants(), None]
+    assert cli.main(["design", str(scene), "--secant-units", "9", "--out", str(tmp_path / "o")]) == 2
+    problem, _ = seen[-1]
+    assert [r.model for r in problem.requirements] == [tx.Secants(units=9), tx.Secants(units=9, scatter=False, twin=False)]
+    capsys.readouterr()
+    for table, where, message in (('{ pointing_rms = "secant" }', "pointing_rms", "model='secant' is unknown"),
+                                  ('{ pointing_jiter = "surface" }', "pointing_jiter", "did you mean 'pointing_jitter'")):
+        scene.write_text(with_yield.replace('{ pointing_rms = "secants" }', table))
+        assert cli.main(["design", str(scene), "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err
+        assert f"{scene}:27: [tolerances.model] {where}: " in err and message in err, err
     with pytest.raises(SystemExit, match="2"):
         cli.main(["design", "scan-azimuth", "--requirement", "500", "--model", "surface", "--out", str(tmp_path / "o")])
     assert "--model surface needs --yield" in capsys.readouterr().err

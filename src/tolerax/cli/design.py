@@ -10,6 +10,7 @@ import time
 
 from .._files import atomic_write, save_figure
 from .commands import run_monte_carlo
+from .values import DesignValues
 from .common import (check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file, scene_jitter,
                      rough_wall, scene_and_settings, settings, versions)
 
@@ -50,7 +51,11 @@ def _design_setup(parser, args, command):
         widths = tuple(args.widths)
     if args.model is not None and args.model != "auto" and args.yield_ is None:
         parser.error(f"--model {args.model} needs --yield (a constraint model linearises the yield)")
-    model_name = args.model or (tol.get("model", "auto") if args.yield_ is not None else "auto")  # a scene's model, for a yield
+    # --model, else the scene's model for a yield: one name, or a table by output (then each
+    # requirement carries its own from the scene's problem: `problem_of`)
+    model_name = args.model or (tol.get("model", "auto") if args.yield_ is not None else "auto")
+    if isinstance(model_name, dict):
+        model_name = "auto"
     if model_name == "tangents" and args.secant_units is not None:
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
     from ..design import solvers, spec
@@ -71,41 +76,6 @@ def _design_setup(parser, args, command):
         check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check, backend=args.backend),
         progress=not args.quiet)
     return out, scene_file, values
-
-
-@dataclasses.dataclass(frozen=True)
-class DesignValues:
-    """What `design` and `tradeoff` hand `propose_design`, from the scene file and the flags:
-    the `ToleranceProblem`'s parts beside its objective and requirements, the solver, the check,
-    and the constraint model every requirement takes (`None`: each its default, `Auto()`; with
-    `secant_units` alone (`--secant-units K`, no `--model`): a scattering output, the jitter,
-    keeps the automatic recipe on K units, `Auto(units=K)`; every other output is fitted by
-    lines through K units, without scatter or twin)."""
-
-    statistic: object
-    zones: object
-    cost: object
-    allow_proxy: bool
-    solver: object
-    check: object
-    model: object = None
-    secant_units: int | None = None
-    progress: bool = True  # the phase lines (`--quiet`: none)
-
-    def problem(self, pointing, requirements):
-        """The `ToleranceProblem` of `pointing` (an objective) and `requirements`."""
-        from ..design.requirements import SCATTERING_OUTPUTS, as_requirements
-        from ..design.spec import Auto, Secants, ToleranceProblem
-
-        def model(r):
-            if self.model is not None or self.secant_units is None:
-                return self.model
-            if r.output in SCATTERING_OUTPUTS:  # the automatic recipe kept, on K units (a noise band's remedy)
-                return Auto(units=self.secant_units)
-            return Secants(units=self.secant_units, scatter=False, twin=False)
-
-        found = tuple(dataclasses.replace(r, model=model(r)) for r in as_requirements(requirements))
-        return ToleranceProblem(pointing, found, self.statistic, self.zones, self.cost, self.allow_proxy)
 
 
 def _more_requirements(parser, args, scene_file):

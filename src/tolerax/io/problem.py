@@ -11,7 +11,8 @@ The `[tolerances]` keys (docs/scene_files.md) and what they become:
   objective is at the beginning of life.
 - `yield`: the statistic `Yield(yield)`; without it `MeanPlusKStd()` (mean + 1 std over a few
   units, no check).
-- `model`: every requirement's constraint model (`"auto"`, the default: `Auto()`).
+- `model`: every requirement's constraint model (`"auto"`, the default: `Auto()`), or a table of
+  them by output (`model = { pointing_jitter = "surface" }`: the outputs it does not name auto).
 - `band`/`bands`/`distribution` (the starting zones), `min_clearance`, `band_range`, `fixed`:
   the `Zones`; `cost = {grades, costs}`: a shop's `GradeTable` (default the ISO 286 law).
 """
@@ -86,9 +87,10 @@ def problem_of(scene_file):
     if eol and scene_file.life is None:
         raise SceneFileError("an end-of-life requirement (..._eol) needs a [life] table in the scene file "
                              "(docs/scene_files.md).", scene_file.source, None, "tolerances", "require")
-    model = model_of(tol.get("model", "auto")) if level is not None else None
-    if model is not None:
-        requirements = [dataclasses.replace(r, model=model) for r in requirements]
+    if level is not None:  # one model name for every requirement, or a table of them by output (the others auto)
+        models = tol.get("model", "auto")
+        named, default = (models, "auto") if isinstance(models, dict) else ({}, models)
+        requirements = [dataclasses.replace(r, model=model_of(named.get(r.output, default))) for r in requirements]
     # A [life] costs its points + 1 runs per unit: carried only where a requirement reads the end of life.
     objective = scene_file.objective(jitter_cutoff=cutoff, **({} if eol else {"life": None}))
     return ToleranceProblem(objective, tuple(requirements), MeanPlusKStd() if level is None else Yield(float(level)),

@@ -75,9 +75,10 @@ OUTPUT_KEYS = {"series": (list, list(SERIES)), "plots": (list, ["pointing_error"
 DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6)),
-                  "model": (str, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, JITTER_CUTOFF),
+                  "model": (str | dict, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, JITTER_CUTOFF),
                   "require": (dict, {})}
-# [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`).
+# [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`),
+# one name for all, or a table of them by output (`model = { pointing_jitter = "surface" }`: the others auto).
 MODELS = ("auto", "tangents", "secants", "surface")
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
@@ -255,9 +256,18 @@ def _check_tolerances(chk: Checker, tol: dict, model):
         chk.typed(tol, table, key, TOLERANCE_KEYS[key][0])
     if "band" in tol and not (math.isfinite(tol["band"]) and tol["band"] >= 0):
         raise chk.error(f"must be a non-negative finite half-width (m), got {tol['band']!r}.", table, "band")
-    if tol.get("model", "auto") not in MODELS:
-        raise chk.error(f"model={tol['model']!r} is unknown; use one of {MODELS} (how a design linearises each requirement's "
-                        "yield: tolerax.design.spec).", table, "model")
+    models = tol.get("model", "auto")
+    from ..design.objectives import EOL, OUTPUTS
+
+    outputs = [*OUTPUTS, *(o + EOL for o in OUTPUTS)]
+    for output, name in (models.items() if isinstance(models, dict) else [(None, models)]):
+        where = (table + ("model",), output) if output is not None else (table, "model")
+        if output is not None and output not in outputs:
+            raise chk.error(f"{output!r} is not an output a requirement can be on{_suggest(output, outputs)}; the outputs: "
+                            f"{', '.join(outputs)}.", *where)
+        if name not in MODELS:
+            raise chk.error(f"model={name!r} is unknown; use one of {MODELS} (how a design linearises each requirement's "
+                            "yield: tolerax.design.spec), one for all or a table by output.", *where)
     if tol.get("distribution", "uniform") not in DISTRIBUTIONS:
         raise chk.error(f"distribution={tol['distribution']!r} is unknown; use one of {DISTRIBUTIONS}.", table, "distribution")
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
