@@ -229,6 +229,9 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     assert [r.model for r in problem.requirements] == [tx.Secants(units=9, scatter=False, twin=False), tx.Auto(units=9)]
     assert [r.model.resolve(r) for r in problem.requirements][1] == tx.Surface(units=9)
     capsys.readouterr()
+    # The solver by name: --method slsqp is tx.SLSQP() (--outer: its iterations per width).
+    assert cli.main(["design", str(scene), "--requirement", "500", "--method", "slsqp", "--outer", "50", "--out", str(tmp_path / "o")]) == 2
+    assert seen[-1][1] == tx.SLSQP(max_iterations=50) and "stopped here by the test" in capsys.readouterr().err
     with pytest.raises(ValueError, match="units must be >= 2"):
         tx.Auto(units=1)
     # A model per output: a table by output name, the outputs it does not name on Auto(); the

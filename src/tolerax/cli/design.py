@@ -35,8 +35,8 @@ def _design_setup(parser, args, command):
         args.yield_ = tol["yield"]  # the scene's [tolerances] yield; --yield overrides it
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
-    if args.yield_ is not None and args.method != "sequential":
-        parser.error("--yield needs --method sequential (its Monte Carlo check re-solves the design)")
+    if args.yield_ is not None and args.method == "augmented-lagrangian":
+        parser.error("--yield needs --method sequential or slsqp (its Monte Carlo check re-solves the design)")
     if args.check is not None and args.yield_ is None:
         parser.error("--check needs --yield (it checks the yield of the proposal)")
     if args.secant_units is not None and args.yield_ is None:
@@ -62,8 +62,9 @@ def _design_setup(parser, args, command):
     from ..design.check import Check
     from ..io.problem import cost_of, model_of, zones_of
 
-    solver = (solvers.Sequential(widths, 20 if args.outer is None else args.outer) if args.method == "sequential" else
-              solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner))
+    solver = {"sequential": lambda: solvers.Sequential(widths, 20 if args.outer is None else args.outer),
+              "augmented-lagrangian": lambda: solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner),
+              "slsqp": lambda: solvers.SLSQP(widths, 100 if args.outer is None else args.outer)}[args.method]()
     model = model_of(model_name)
     if args.secant_units is not None and model is not None:
         model = dataclasses.replace(model, units=args.secant_units)

@@ -62,12 +62,13 @@ def optimiser_options(parser):
     """The proposal's options, shared by `design` and `tradeoff`."""
     parser.add_argument("--draws", type=count(2), default=4,
                         help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
-    parser.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
+    parser.add_argument("--method", choices=("sequential", "augmented-lagrangian", "slsqp"), default="sequential",
                         help="optimiser (default sequential: a stack-up linearised from the simulation at each iterate, "
-                        "solved exactly in a trust region; see tolerax.propose_design)")
+                        "solved exactly in a trust region; slsqp: SciPy's SLSQP on the same problem, the reference, tangent "
+                        "slopes only; see tolerax.design.solvers)")
     parser.add_argument("--outer", type=count(1), default=None,
                         help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
-                        "iterations (default 6)")
+                        "iterations (default 6); slsqp: its iterations per width (default 100)")
     parser.add_argument("--inner", type=count(1), default=10, help="augmented-lagrangian: steps per outer iteration (default 10)")
     parser.add_argument("--widths", type=positive_length("m"), nargs="+", default=None, metavar="W",
                         help="smoothing widths of the contacts, m (or with a unit: 1um), wide to narrow; the design is judged at the last (default "
