@@ -43,7 +43,7 @@ _FACE = {
     "io.scenefile": ("SceneFile", "SceneFileError", "SceneFileNote", "builtin_scenes", "load_scene", "parse_scene", "save_scene"),
     "design.features": ("design_names", "design_of", "lost_motion_weights", "tolerances_of", "with_design"),
     "design.objectives": ("AbstractMetric", "AbstractObjective", "PointingObjective"),
-    "design.propose": ("DesignReport", "JitterRequirement", "propose_design"),
+    "design.propose": ("DesignReport", "propose_design"),
     "design.spec": ("Auto", "MeanPlusKStd", "Secants", "Surface", "Tangents", "ToleranceProblem", "Yield", "Zones"),
     "design.solvers": ("AbstractDesignMethod", "AugmentedLagrangian", "SLSQP", "Sequential"),
     "design.report": ("RequirementOutcome",),
@@ -72,7 +72,18 @@ _WHERE = {name: module for module, names in _FACE.items() for name in names}
 __all__ = sorted([*_WHERE, *_KERNELS])
 
 
+# Former public names, still served for one release with a DeprecationWarning saying what replaces them.
+_DEPRECATED = {"JitterRequirement": ("design.report", "a jitter requirement's outcome is report.outcomes[k], a "
+                                                      "RequirementOutcome, as every requirement's")}
+
+
 def __getattr__(name: str):
+    if name in _DEPRECATED:
+        import warnings
+
+        module, instead = _DEPRECATED[name]
+        warnings.warn(f"tolerax.{name} is deprecated and goes in the next release: {instead}.", DeprecationWarning, stacklevel=2)
+        return getattr(_importlib.import_module(f".{module}", __name__), name)
     if name in _WHERE:
         value = getattr(_importlib.import_module(f".{_WHERE[name]}", __name__), name)
     elif name in _KERNELS:
