@@ -35,14 +35,13 @@ backlashes of a lumped joint: the output sees their sum).
 
 import dataclasses
 import math
-import sys
-import time
 
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
 from ..design.objectives import PointingObjective
+from ..design.phases import Phases
 from ..eta import human_seconds, rough_wall, time_left
 from ..mechanism.drives import ScanServo
 from .identify import DETERMINED, UNIT, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
@@ -226,14 +225,13 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     middle = int(np.argmin(np.abs(np.log(factors))))
     factors[middle] = 1.0
     errors, logdets, rugged = [], [], []
-    say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
-    clock = time.perf_counter()
-    if say is not None:
+    say = Phases(progress, "design_test")
+    if say.on:
         # Per candidate: a forward-mode Jacobian (about a simulation per parameter and one more)
         # and each parameter's cost profile (PROFILE_POINTS simulations each, one batched run).
         one = rough_wall(scene, duration, objective.integrator)
         runs = len(parameters) + 1 + len(parameters) * PROFILE_POINTS
-        say(f"design_test: {len(grid)} candidate scans, each a Jacobian and {len(parameters)} cost profiles of {PROFILE_POINTS} "
+        say(f"{len(grid)} candidate scans, each a Jacobian and {len(parameters)} cost profiles of {PROFILE_POINTS} "
             "points" + ("" if one is None else f": roughly {human_seconds(max(len(grid) * runs * one, 1.0))} on one core") +
             " plus compilation")
     for k, (a, t) in enumerate(grid):  # one compiled program for all: the scan's amplitude and period are arrays of the scene
@@ -247,10 +245,7 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
         _, (eigenvalues, _), cov = _information(jac, x, (noise / UNIT) ** 2)
         errors.append(np.sqrt(np.maximum(np.diag(cov), 0.0)) / x)
         logdets.append(float(np.sum(np.log(eigenvalues))))
-        if say is not None:
-            spent = time.perf_counter() - clock
-            say(f"design_test [{int(spent // 60)}:{int(spent % 60):02d}] candidate {k + 1} of {len(grid)} (±"
-                f"{math.degrees(a):.3g}° × {t:.3g} s) done{time_left(spent, k + 1, len(grid))}")
+        say(f"candidate {k + 1} of {len(grid)} (±{math.degrees(a):.3g}° × {t:.3g} s) done{time_left(say.elapsed(), k + 1, len(grid))}")
     errors, rugged = np.array(errors), np.array(rugged)
     seen = np.any(errors < DETERMINED, axis=0)
     if criterion == "weakest":
