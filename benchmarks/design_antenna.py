@@ -70,7 +70,7 @@ def main():
     q = float(np.quantile(values, args.yield_)) if len(values) else math.nan
     rows = [(
         f"{2 * len(report.names)}", f"{report.cost:.3f} (baseline {report.baseline[2]:.3f})", "yes" if bool(report.result.converged) else "no",
-        f"{report.result.optimality:.2g} (bands {report.result.band_optimality:.2g})", f"{report.objective:.1f}", report.checks[-1].text() if report.checks else "",
+        f"{report.result.optimality:.2g} (bands {report.result.band_optimality:.2g})", f"{report.outcomes[0].objective:.1f}", report.outcomes[0].checks[-1].text() if report.outcomes[0].checks else "",
         f"{int(s['n_used'])} of {args.verify_units}", f"{s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}]", f"{q:.1f}",
         f"{wall_design:.0f}", f"{wall_verify:.0f}", f"{total:.0f}",
     )]

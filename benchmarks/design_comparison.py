@@ -174,10 +174,10 @@ def run_sequential(race, band):
     )
     if len(race.args.widths) > 1:  # the callback cannot tell the widths apart: judge the proposal itself
         race.rows = []
-        race.log(tx.Design(report.result.x.nominal, report.result.x.band), report.objective, "final")
+        race.log(tx.Design(report.result.x.nominal, report.result.x.band), report.outcomes[0].objective, "final")
     # The proposal is the method's answer: judged like every other design, at the final width.
     out = race.end(converged=bool(report.result.converged), gradients=int(np.asarray(report.result.history.steps)[-1]),
-                   reported_cost=report.cost, reported_objective=report.objective, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
+                   reported_cost=report.cost, reported_objective=report.outcomes[0].objective, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
     return out
 
 
@@ -185,7 +185,7 @@ def run_augmented_lagrangian(race):
     race.begin()
     report = tx.propose_design(race.spec(), tx.AugmentedLagrangian(widths=(1e-6, race.args.widths[-1]), max_outer=4, inner_steps=6))
     x = tx.Design(report.result.x.nominal, report.result.x.band)
-    race.log(x, report.objective, "final")  # the optimiser's iterates are not observable one by one
+    race.log(x, report.outcomes[0].objective, "final")  # the optimiser's iterates are not observable one by one
     return race.end(converged=bool(report.result.converged), gradients=28, optimality=report.result.optimality, band_optimality=report.result.band_optimality)
 
 

@@ -248,13 +248,14 @@ def run_one(key: str, seed: int, args) -> dict:
         spec = tx.ToleranceProblem(pointing, requirement, tx.Yield(args.yield_), zones, options.get("cost_model"))
         solver = tx.Sequential() if args.max_outer is None else tx.Sequential(max_gradients=args.max_outer)
         wall_s, report = harness.wall(tx.propose_design, spec, solver, check=tx.Check(args.check_units) if args.check_units else None)
-        check = report.checks[-1] if report.checks else None
+        first = report.outcomes[0]
+        check = first.checks[-1] if first.checks else None
         row.update(
             wall_s=wall_s, status=report.status, diagnosis=report.diagnosis, notes=list(getattr(report, "notes", ())), accepted=bool(getattr(report, "accepted", report.status == "converged")),
             cost=float(report.cost), baseline_cost=float(report.baseline[2]), report_baseline_quantile=float(report.baseline[3]),
-            objective=float(report.objective), solved_for=None if report.solved_for is None else float(report.solved_for),
+            objective=float(first.objective), solved_for=float(first.target),
             optimiser_converged=bool(report.result.converged), gradients=int(np.asarray(report.result.history.steps)[-1]),
-            n_checks=len(report.checks),
+            n_checks=len(first.checks),
             check=None if check is None else dict(
                 n=int(check.n), n_failed=int(check.n_failed), yield_simulated=float(check.yield_simulated),
                 interval=[float(v) for v in check.interval], yield_linear=float(check.yield_linear),
@@ -285,7 +286,7 @@ def _details(report) -> dict:
             optimality=float(report.result.optimality), band_optimality=float(report.result.band_optimality),
             checks=[dict(yield_simulated=float(c.yield_simulated), interval=[float(v) for v in c.interval],
                          quantile_simulated=float(c.quantile_simulated), quantile_linear=float(c.quantile_linear),
-                         shift=float(c.shift), shift_se=float(c.shift_se)) for c in report.checks],
+                         shift=float(c.shift), shift_se=float(c.shift_se)) for c in report.outcomes[0].checks],
             # one entry per iterate: cost, linearised quantile (arcsec), smoothing width (m), gradients so far
             history={f: np.asarray(getattr(h, f), dtype=float).reshape(n, -1)[:, 0].tolist()
                      for f in ("cost", "objective", "continuation", "steps")},
@@ -378,7 +379,7 @@ def write(name, meta, rows, args):
         intro=[summary(rows, args.yield_)],
         notes=["Status: what `DesignReport.status` says (expected: `converged` for M.., `infeasible` for X..). Design wall: "
                "`propose_design` alone (its compilation included; the baseline evaluation that set the requirement is apart, "
-               "`setup_s` in the JSON). Check: the last Monte Carlo check of the returned design (`report.checks[-1]`); meets "
+               "`setup_s` in the JSON). Check: the last Monte Carlo check of the returned design (`report.outcomes[0].checks[-1]`); meets "
                "yield: the upper end of its Wilson interval reaches the yield. The scene files, designs and check details are in "
                f"`{name}.json`. Each row's `commit` in the JSON is the code it ran on (src/ was being edited during these runs).",
                ] + _commits(rows),

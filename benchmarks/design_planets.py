@@ -68,7 +68,7 @@ def main():
         values = mc.dataset["pointing_rms"].values[mc.dataset["success"].values]
         rows.append((label, f"{2 * n}", f"{report.cost:.3f}", "yes" if bool(report.result.converged) else "no",
                      f"{report.result.optimality:.2g} / {report.result.band_optimality:.2g} / {report.result.band_optimality_within_noise:.2g}",
-                     f"{report.objective:.1f}", f"{int(s['n_used'])} of {args.verify_units}",
+                     f"{report.outcomes[0].objective:.1f}", f"{int(s['n_used'])} of {args.verify_units}",
                      f"{s['yield']:.3f} [{s['yield_low']:.3f}, {s['yield_high']:.3f}]",
                      f"{float(np.quantile(values, args.yield_)):.1f}", f"{wall_design:.0f}", f"{wall_verify:.0f}"))
         print(rows[-1], flush=True)

@@ -29,7 +29,7 @@ baseline's (scene values +- 10 um) linearised quantile, jitter `--jitter-require
 (or `--jitter-fraction` x the baseline's). Each design is verified on `--verify-units` fresh
 units at `--verify-fidelity` (default the full stage; `tolerax.monte_carlo`, key 2026): the
 yield on each requirement with its 95 % Wilson interval, side by side. `--log-fit`: the jitter's
-secant line is fitted to its logarithm (`Requirement(log_fit=True)`, `LinearisedYield.log_outputs`:
+secant line is fitted to its logarithm (`Secants(log=True)`, `LinearisedYield.log_outputs`:
 its scatter over units grows with its level, `results/jitter_reach.md`); writes
 `design_stability_<fidelity>_log.md`. `--secant-reach` (m): the secant units span the zone's
 middle +- at least this much (`LinearisedYield.secant_reach`: the jitter's trend, about 1 % per
@@ -81,7 +81,7 @@ def main():
     parser.add_argument("--mass-scaling", type=float, default=1000.0)
     parser.add_argument("--chunk", type=int, default=10)
     parser.add_argument("--log-fit", action="store_true",
-                        help="fit the jitter's secant line to its logarithm (Requirement(log_fit=True): a scatter relative to its level)")
+                        help="fit the jitter's secant line to its logarithm (Secants(log=True): a scatter relative to its level)")
     parser.add_argument("--secant-reach", type=float, default=None,
                         help="m: the secant units span the middle +- at least this much (LinearisedYield.secant_reach)")
     parser.add_argument("--check-units", type=int, default=0,

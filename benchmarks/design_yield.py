@@ -106,7 +106,7 @@ def main():
             f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}]",
             f"{check.quantile_simulated:.1f}",
         ))
-    s = np.asarray(report.sensitivity.nominal)
+    s = np.asarray(report.outcomes[0].sensitivity.nominal)
     w = np.asarray(weights)
     ref = list(names).index("azimuth.sun_backlash")
     weights_row = [

@@ -6,6 +6,7 @@ for one release, with a warning naming what replaces each keyword."""
 
 import dataclasses
 import inspect
+import warnings
 
 import numpy as np
 import pytest
@@ -28,6 +29,11 @@ def test_propose_design_takes_at_most_five_keyword_options():
     assert len(options) <= 5 and [p.name for p in options] == ["solver", "check", "progress", "callback"]
     assert [p.name for p in params.values() if p.kind is inspect.Parameter.VAR_KEYWORD] == ["deprecated"]
     assert not any(isinstance(p.default, str) for p in params.values())
+    # Its answer is small data: one outcome per requirement, none of them copied flat onto the report.
+    fields = {f.name for f in dataclasses.fields(tx.DesignReport)}
+    assert "outcomes" in fields and len(fields) <= 19
+    assert not fields & {"objective", "requirement", "constraint_active", "multiplier", "sensitivity", "checks", "jitter",
+                         "solved_for"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -114,7 +120,7 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     assert said[0].startswith("propose_design [0:0") and "the starting design's outputs" in said[0]
     assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
     again = float(built.value(mine.result.x, 1e-6))
-    assert again == pytest.approx(mine.objective, rel=1e-9) and again <= requirement * 1.01
+    assert again == pytest.approx(mine.outcomes[0].objective, rel=1e-9) and again <= requirement * 1.01
     assert mine.cost == pytest.approx(ours.cost, rel=0.02) and ours.status == "converged"
     # The status is data (an enum, like diffrax's RESULTS) that is also its string.
     assert ours.status is tx.DesignStatus.CONVERGED and f"{ours.status}" == "converged" and ours.accepted
@@ -168,7 +174,13 @@ def test_the_former_keywords_map_to_the_values_that_replace_them():
     assert problem.requirements[0].model == tx.Secants(units=12, scatter=False, twin=False) and check is None
     assert isinstance(solver, tx.AugmentedLagrangian) and problem.zones == tx.Zones(band=5e-6)
     # A requirement flagged for secants (as a jitter is) takes a surface at the default units.
-    flagged = tx.Requirement("pointing_rms", 700.0, secants=True)
+    with pytest.warns(DeprecationWarning, match=r"secants=\.\.\., log_fit=\.\.\.\) is deprecated .* model=tx\.Secants\(\)"):
+        flagged = tx.Requirement("pointing_rms", 700.0, secants=True)
+    assert flagged.secants and not flagged.log_fit
+    with warnings.catch_warnings():  # the defaults given, or read back and given again, say nothing
+        warnings.simplefilter("error")
+        jitter = tx.Requirement("pointing_jitter", 0.2, secants=True, log_fit=False)
+        dataclasses.replace(jitter, limit=0.3)
     with pytest.warns(DeprecationWarning):
         problem, _, _ = legacy.from_legacy(pointing, flagged, default, dict(yield_=0.9, surface_box=(5e-6, 90e-6)))
     assert problem.requirements[0].model == tx.Surface(units=None, box=(5e-6, 90e-6), rounds=4, log=False)

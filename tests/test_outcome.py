@@ -4,6 +4,7 @@ whose tightest design is known in closed form, and on constructed Monte Carlo ch
 import numpy as np
 import jax.numpy as jnp
 import pytest
+import tolerax as tx
 
 from tolerax.design.outcome import diagnose, tightest
 from tolerax.design.check import YieldCheck
@@ -90,6 +91,14 @@ def test_a_check_below_its_yield_or_an_unconverged_run_is_not_a_proposal():
     # a stalled optimiser (its trust region collapsed) is not helped by more iterations
     status, text = diagnose(converged=False, stalled=True, **common)
     assert status == "not converged" and "stalled" in text and "more iterations" not in text
+    # the advice names the options of the solver that ran: SLSQP's own budget, and secants only with a solver that fits them
+    text = diagnose(converged=False, **common | dict(objective=130.0))[1]
+    assert "Sequential(max_gradients=...)" in text and "Sequential(widths=...)" in text and "tangent slopes only" not in text
+    text = diagnose(converged=False, solver=tx.SLSQP(), **common | dict(objective=130.0))[1]
+    assert "SLSQP(max_iterations=...)" in text and "SLSQP(widths=...)" in text and "Sequential(max" not in text
+    assert "with Sequential(), as SLSQP takes tangent slopes only" in text
+    text = diagnose(converged=False, solver=tx.AugmentedLagrangian(), **common)[1]
+    assert "AugmentedLagrangian(max_outer=...)" in text
 
 
 def test_a_collapsed_trust_region_ends_the_run_as_stalled():
@@ -140,7 +149,6 @@ def test_a_stalled_tangent_design_is_finished_on_secant_slopes():
     solver and the same settings: the tangent solve alone stalls after the gradients the note
     counts; the secant solve from its design is what the report keeps (its history continuing
     the first) or not, as the note says."""
-    import tolerax as tx
     from tolerax.design import propose as P
     from tolerax.design.features import lost_motion_weights
 
@@ -181,7 +189,6 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
     named is the tightest design's value of the design problem, and the report says it was
     answered first. A requirement above it (x 1.25) is designed as before."""
     import _responses as R
-    import tolerax as tx
     from tolerax.design import propose as P
 
     slopes = np.array([4.0e6, 8.0e6, 0.5e6, -0.2e6])  # arcsec/m: the last feature lowers the output as it opens
@@ -194,7 +201,7 @@ def test_an_unreachable_requirement_is_answered_before_optimising(factor):
         assert report.status == "infeasible" and calls == []
         assert f"reach {reach:.4g} arcsec at best" in report.diagnosis
         assert any(note.startswith("Answered before optimising") for note in report.notes)
-        assert float(report.objective) == pytest.approx(reach, rel=1e-12)
+        assert float(report.outcomes[0].objective) == pytest.approx(reach, rel=1e-12)
         # Honest words: the report never says the design meets what it misses, and its figure
         # says first that it is not a proposal.
         plain = report.plain()
@@ -226,7 +233,6 @@ def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grad
     lower: the pin zone closes below the knee and that design, checked on the same units, is
     the proposal."""
     import _responses as R
-    import tolerax as tx
     from tolerax.design import propose as P
     from tolerax.design.features import lost_motion_weights
 
@@ -265,7 +271,6 @@ def test_the_check_is_a_monte_carlo_run_chunked_and_kept(tmp_path):
     `chunk_size`, each kept under `out` in a folder of the design's own; the same design asked
     again reads those chunks back (the model is never evaluated) and answers the same."""
     import _responses as R
-    import tolerax as tx
     from tolerax.design import check as chk
     from tolerax.design import propose as P
     from tolerax.design.features import lost_motion_weights
@@ -300,7 +305,6 @@ def test_a_tangent_model_the_check_finds_off_is_finished_on_secants():
     100 +- 10 um), so the Monte Carlo check finds their linear model off by more than half the
     requirement; the design is then finished on secant slopes over units of the zone (the
     report's note says why), and converges with its check meeting the yield."""
-    import tolerax as tx
     from tolerax.design import propose as P
     from tolerax.design.features import lost_motion_weights
 
@@ -315,4 +319,5 @@ def test_a_tangent_model_the_check_finds_off_is_finished_on_secants():
                                check=tx.Check(units=100))
     assert len(report.notes) == 1 and report.notes[0].startswith("The tangent slopes read a linear model the check found off")
     assert "secant slopes over 16 units" in report.notes[0] and report.status == "converged"
-    assert report.checks[-1].interval[1] >= 0.99 and abs(report.checks[-1].shift) < 0.5 * requirement
+    checks = report.outcomes[0].checks
+    assert checks[-1].interval[1] >= 0.99 and abs(checks[-1].shift) < 0.5 * requirement

@@ -634,8 +634,8 @@ def test_the_requirements_are_data_in_the_scene_file(tmp_path, capsys, monkeypat
     sf = tx.parse_scene(text)
     names = tx.design_names(sf.build())
     zones = tx.Tolerances(names, np.full(len(names), 20e-6), np.full(len(names), 5e-6))
-    report = types.SimpleNamespace(tolerances=zones, requirement=800.0, yield_=0.99, drawable=None, cost=1.0, baseline=(0, 0, 2.0),
-                                   status="converged", accepted=True,
+    report = types.SimpleNamespace(tolerances=zones, yield_=0.99, drawable=None, cost=1.0, baseline=(0, 0, 2.0),
+                                   status="converged", accepted=True, cost_unit="relative, 1 per feature at IT7",
                                    outcomes=[types.SimpleNamespace(requirement=r) for r in (
                                        Requirement("pointing_rms", 800.0), Requirement("pointing_jitter", 0.2),
                                        Requirement("tracking_speed_rms", 40.0))])

@@ -119,7 +119,7 @@ def _demo_figure(result, scene_file, report):
     ax2.legend(fontsize=7, loc="upper right")
     ax.grid(alpha=0.3)
     if report is not None:
-        report.plot_zones(axes[1, 0], f"Azimuth scan: tolerance zones for {report.requirement:.0f} arcsec (mean + 1 std of the RMS), "
+        report.plot_zones(axes[1, 0], f"Azimuth scan: tolerance zones for {report.outcomes[0].requirement.limit:.0f} arcsec (mean + 1 std of the RMS), "
                                       f"{len(report.result.history.cost)} iterations")
     fig.tight_layout()
     return fig

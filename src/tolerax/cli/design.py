@@ -416,17 +416,18 @@ def tradeoff_command(parser, args) -> int:
                             out / f"{'proposal' if report.accepted or args.allow_unconverged else 'best_reached'}-{requirement:g}.toml")
         # The proposal is the zones as drawn (whole grades) and their own check, where there are some.
         drawn = report.drawable.checks if report.drawable is not None and report.drawable.checks else ()
-        check = drawn[0] if drawn else report.checks[-1] if report.checks else None
+        first = report.outcomes[0]
+        check = drawn[0] if drawn else first.checks[-1] if first.checks else None
         zones = report.tolerances
         points.append(dict(
-            requirement=requirement, target=report.target, objective=report.objective, cost=report.proposal_cost,
+            requirement=requirement, target=first.target, objective=first.objective, cost=report.proposal_cost,
             continuous_cost=report.cost, baseline_cost=report.baseline[2], converged=bool(report.result.converged), status=report.status,
             diagnosis=report.diagnosis, names=list(report.names), cost_unit=report.cost_unit, extrapolated=list(report.extrapolated),
             nominal_um=(np.asarray(zones.nominal) * 1e6).tolist(), band_um=(np.asarray(zones.band) * 1e6).tolist(), proposal=str(path),
             wall_s=wall,
             check=None if check is None else dict(units=check.n - check.n_failed, yield_=check.yield_simulated, interval=list(check.interval)),
         ))
-        rows.append(f"| {requirement:g} | {report.objective:.1f} | {report.proposal_cost:.3f} | {report.status} | "
+        rows.append(f"| {requirement:g} | {first.objective:.1f} | {report.proposal_cost:.3f} | {report.status} | "
                     + ", ".join(f"{b * 1e6:.1f}" for b in np.asarray(zones.band)) + " | "
                     + ("" if check is None else f"{check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}]")
                     + f" | {path.name} | {wall:.0f} |")

@@ -40,7 +40,7 @@ class AbstractMetric(eqx.Module):
     scene's result (e.g. `MechanismResult`: `pointing_error` in rad per save), `times` the save
     times (s, NumPy: decide masks in Python) and `window` (NumPy bool per save) the objective's
     window $t \\ge$ `settle`. Differentiable in the result for tangents; a yield linearised by
-    secants (`Requirement(secants=True)`) needs only its values.
+    secants (`Requirement(model=Secants())`) needs only its values.
     """
 
     name: ClassVar[str]

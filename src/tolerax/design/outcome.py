@@ -82,7 +82,8 @@ MODEL_OFF = 0.5  # a check whose linear and simulated quantiles differ by more t
 
 
 def diagnose(*, objective, requirement, tol, converged, iterations, labels, evaluate=None, lower=None, upper=None,
-             sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="", stalled=False) -> tuple[str, str]:
+             sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="", stalled=False,
+             solver=None) -> tuple[str, str]:
     """`(status, diagnosis)` of a design run (module docstring); the diagnosis is empty when
     converged.
 
@@ -101,7 +102,14 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     - `noisy`: the gradients are estimates (secant fits); `stalled`: the optimiser's steps
       stopped being accepted at its smallest trust region (`OptimisationResult.stalled`).
     - `bounds_text`: what the user sets the bounds with (named in the advice).
+    - `solver`: the design solver that ran (`AbstractDesignMethod`; default `Sequential`): its
+      own options are the ones the advice names.
     """
+    name, budget = (("Sequential", "max_gradients") if solver is None else (type(solver).__name__, solver.budget))
+    more_iterations = f"more iterations ({name}({budget}=...), --outer)"
+    wider = f"a wider first smoothing width ({name}(widths=...), --widths)"
+    secants = "model=Secants(units=...), --secant-units" + (
+        "" if solver is None or solver.fitted else f"; with Sequential(), as {name} takes tangent slopes only")
     f, r, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (objective, requirement, tol))
     t = np.broadcast_to(t, r.shape)
     missing = f > r * (1 + t)
@@ -126,10 +134,10 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"The optimiser {how}, and the best design reached misses the {labels[k]} requirement ({f[k]:.4g} against "
             f"{r[k]:.4g} arcsec)" + (", though the tightest designs in the bounds meet it" if evaluate is not None else "")
             + ". To change it: "
-            + ("" if stalled else "more iterations (Sequential(max_gradients=...), --outer), ")
-            + "a wider first smoothing width (Sequential(widths=...), --widths), or "
+            + ("" if stalled else more_iterations + ", ")
+            + wider + ", or "
             + ("more units in the model that fitted the slopes (its units=..., --secant-units, which keeps the model): they are "
-               "fits over units of a chaotic response." if noisy else "slopes fitted over units (model=Secants(units=...), --secant-units)."))
+               "fits over units of a chaotic response." if noisy else f"slopes fitted over units ({secants})."))
     for k, check in enumerate(checks):
         if abs(check.quantile_linear - check.quantile_simulated) > MODEL_OFF * check.requirement:
             return "check missed", (
@@ -137,7 +145,7 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 f"units its {check.q:.1%} quantile reads {check.quantile_linear:.4g} arcsec where the units' is "
                 f"{check.quantile_simulated:.4g} (yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] "
                 f"at {check.requirement:.4g} arcsec), so the design was optimised on a wrong model. To change it: fit it over "
-                "units (model=Secants(units=...), --secant-units), take the slopes at a wider smoothing width (Tangents(slope_width=...)), or narrow the "
+                f"units ({secants}), take the slopes at a wider smoothing width (Tangents(slope_width=...)), or narrow the "
                 "band range.")
         if check.missed:  # checks are of yield designs: check.q is the yield asked
             return "check missed", (
@@ -145,18 +153,18 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
                 f"do not: yield {check.yield_simulated:.3f} [{check.interval[0]:.3f}, {check.interval[1]:.3f}] (95 % Wilson) "
                 f"against {yield_:.1%} asked; {check.q:.1%} quantile simulated {check.quantile_simulated:.4g}, linear model "
                 f"{check.quantile_linear:.4g} arcsec. The linear model does not hold over these zones. To change it: fit it "
-                "over units (model=Secants(units=...), --secant-units), narrow the band range, or allow more checks (Check(rounds=...)).")
+                f"over units ({secants}), narrow the band range, or allow more checks (Check(rounds=...)).")
     if not converged and stalled:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but the optimiser stalled after {iterations} gradients: its steps stopped "
             "being accepted at the smallest trust region, so the linear model does not predict the response even over tiny "
             "steps (rough at this smoothing width, or noisy); a cheaper design may exist. To change it: a wider smoothing "
-            "width first (Sequential(widths=...), --widths), or "
+            f"width first ({name}(widths=...), --widths), or "
             + ("more units in the model that fitted the slopes (its units=..., --secant-units, which keeps the model)." if noisy
-               else "fit the slopes over units (model=Secants(units=...), --secant-units)."))
+               else f"fit the slopes over units ({secants})."))
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "
-            "design may exist. To change it: more iterations (Sequential(max_gradients=...), --outer)"
+            "design may exist. To change it: " + more_iterations
             + (", the same model on more units (its units=..., --secant-units, which keeps the model)" if noisy else "") + ".")
     return "converged", ""

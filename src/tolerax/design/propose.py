@@ -34,7 +34,7 @@ from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
 from .report import DesignReport, JitterRequirement, RequirementOutcome  # noqa: F401
-from .requirements import Requirement, as_requirements  # noqa: F401
+from .requirements import Requirement, as_requirements, resolved  # noqa: F401
 
 DEFAULT_CHECK = Check()  # `propose_design`'s check where none is named: a yield's; a MeanPlusKStd problem has none
 
@@ -183,13 +183,13 @@ def propose_design(
         upper=built.upper, sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=built.gradient_noise is not None,
         bounds_text=" (the zones' min_clearance and band_range; a scene file's [tolerances])",
-        stalled=bool(result.stalled is not None and result.stalled))
+        stalled=bool(result.stalled is not None and result.stalled), solver=solver)
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
         status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged),
                                            combined.surface is not None)
     drawable = None
-    first, band = outcomes[0], np.asarray(result.x.band)
+    band = np.asarray(result.x.band)
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
     if solver.drawable:
         drawn_check = None if check is None or status != "converged" else check
@@ -199,20 +199,15 @@ def propose_design(
             # One proposal: what the drawing carries is the answer, so a continuous optimum whose
             # whole grades miss is not a proposal.
             status, diagnosis = "check missed", _drawable_missed(drawable, yield_)
-    jitter_outcome = next((o for o in outcomes if o.requirement.output == "pointing_jitter"), None)
     features, x0 = built.features, built.x0
     say(f"done: {status}.")
     return DesignReport(
         names=features.names, nominal=np.asarray(result.x.nominal) + band, band=band,
         grade=grade, feature_cost=np.asarray(result.feature_cost), cost=float(result.cost),
-        objective=first.objective, requirement=first.requirement.limit, constraint_active=first.constraint_active,
-        multiplier=first.multiplier, sensitivity=first.sensitivity,
         baseline=(np.asarray(x0.nominal + x0.band), np.asarray(x0.band), float(built.cost_model.total(x0.band, features.size_mm)),
-                  first.baseline),
-        result=result, yield_=yield_, checks=first.checks, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
-        fixed=_fixed_names(problem.zones.fixed), jitter=None if jitter_outcome is None else JitterRequirement.of(
-            jitter_outcome, getattr(pointing, "jitter_cutoff", None)),
-        solved_for=first.target if solver.drawable else None, status=status, diagnosis=diagnosis, outcomes=outcomes,
+                  outcomes[0].baseline),
+        result=result, outcomes=outcomes, yield_=yield_, lost_motion=np.asarray(lost_motion_weights(pointing.scene)),
+        fixed=_fixed_names(problem.zones.fixed), status=status, diagnosis=diagnosis,
         noise_band=None if twin_costs is None else twin_costs[:2], notes=notes, cost_unit=built.cost_model.unit,
         grade_range=built.cost_model.grade_range, drawable=drawable,
     )
@@ -366,7 +361,7 @@ def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement,
     if len(requirements_) > 1 and not solver.several:
         raise ValueError(f"propose_design: {type(solver).__name__} meets one requirement; several need Sequential().")
     logs = combined.options.get("log_outputs", ())
-    requirements_ = tuple(dataclasses.replace(r, secants=combined.secants, log_fit=r.output in logs) for r in requirements_)
+    requirements_ = tuple(resolved(r, secants=combined.secants, log_fit=r.output in logs) for r in requirements_)
     return requirements_, combined
 
 

@@ -283,7 +283,7 @@ class LinearisedYield(eqx.Module):
     optimiser cannot see that a tighter zone scatters less, and a requirement below the scatter
     reads as unreachable; on the log scale the scatter is relative and moves with the level. It
     does not by itself make the full stage's stability design converge (its slopes within a
-    zone are still noise); opt-in (`Requirement(log_fit=True)`).
+    zone are still noise); opt-in (`Secants(log=True)`).
 
     `secant_reach` (m, with `secant_units`): the secant units span the middle +- at least this
     much, wider than a narrower zone: the line is the response's trend over that neighbourhood.

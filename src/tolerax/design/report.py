@@ -1,10 +1,11 @@
 """What a tolerance design proposes and why: `DesignReport` (the proposal, how it stands against
 each requirement (`RequirementOutcome`), its checks, a table and a plot). `JitterRequirement`
-is the older view of a jitter requirement's outcome, kept for code that reads it."""
+is the older view of a jitter requirement's outcome (deprecated)."""
 
 import dataclasses
 import math
 import textwrap
+import warnings
 
 import numpy as np
 
@@ -59,7 +60,7 @@ class RequirementOutcome:
 
 @dataclasses.dataclass(frozen=True)
 class JitterRequirement:
-    """The pointing-stability part of a proposal with two requirements (`DesignReport.jitter`).
+    """The pointing-stability part of a proposal with two requirements (deprecated: `DesignReport.outcomes` holds it).
 
     - `requirement` (arcsec): the jitter (RMS of the pointing error above `cutoff` Hz over the
       window) that a fraction `yield_` of units must meet; `objective` (arcsec): its linearised
@@ -91,6 +92,22 @@ class JitterRequirement:
                    baseline=outcome.baseline, tol=outcome.tol, target=outcome.target, checks=outcome.checks)
 
 
+def _deprecated(name: str, instead: str) -> None:
+    warnings.warn(f"DesignReport.{name} is deprecated and goes in the next release: read report.{instead} (one "
+                  "RequirementOutcome per requirement, in the order given).", DeprecationWarning, stacklevel=3)
+
+
+def _first_requirements(name: str, instead: str, read):
+    """A read-only attribute of the first requirement's outcome, deprecated (`report.{instead}`)."""
+
+    def get(self):
+        _deprecated(name, instead)
+        return read(self.outcomes[0])
+
+    get.__doc__ = f"Deprecated: the first requirement's; read `report.{instead}`."
+    return property(get)
+
+
 @dataclasses.dataclass(frozen=True)
 class DesignReport:
     """What `propose_design` proposes, and why.
@@ -102,26 +119,23 @@ class DesignReport:
     - `names`: the features; `nominal`, `band` (m): the continuous optimum; `grade`: the ISO
       286 grade of each band on its feature's size (fractional); `feature_cost`, `cost` (model
       units): per feature and total, of the continuous optimum.
-    - `baseline`: `(nominal, band, cost, objective)` of the starting design.
-    - `objective` (arcsec): the robust statistic at the proposal over the fixed draws;
-      `requirement` (arcsec); `constraint_active`; `multiplier` (cost per arcsec: what one more
-      arcsec of requirement saves).
-    - `sensitivity` (arcsec/m): d objective / d (nominal, band) per feature at the proposal.
+    - `baseline`: `(nominal, band, cost, first requirement's objective)` of the starting design.
     - `result`: the full `OptimisationResult` (history included); its `x.nominal` holds the
       lower limits $l$ (`FromLowerLimit`), the proposal's `nominal` is $l + b$.
+    - `outcomes`: one `RequirementOutcome` per requirement, in the order given: its statistic at
+      the proposal (the linearised yield quantile, or mean + k std), the limit it was solved for
+      (`target`: the limit, or shifted by a Monte Carlo check), whether its constraint is active,
+      its multiplier (cost per unit of the output: what one more unit of limit saves), its
+      sensitivities (output unit per m) and its Monte Carlo checks (`YieldCheck`; the last is
+      the returned design's). The first requirement's are the ones `plain`, `table` and `plot`
+      lead with. (`objective`, `requirement`, `constraint_active`, `multiplier`,
+      `sensitivity`, `checks`, `solved_for`, `target` and `jitter` once copied them flat: still
+      read, deprecated.)
     - `yield_`: the yield $Y$ of a yield requirement (the objective is then the linearised
-      $Y$-quantile, `LinearisedYield`), else `None`; `checks`: the Monte Carlo checks of the
-      proposal (`YieldCheck`; the last is the returned design's: the cheapest checked design
-      whose simulated quantile met the requirement to 1 %, else the last one checked).
+      $Y$-quantile, `LinearisedYield`), else `None`.
     - `lost_motion` (arcsec/m): the geometric stack-up's weight of each feature
-      (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities.
-    - `outcomes`: one `RequirementOutcome` per requirement, in the order given; the fields above
-      (`objective`, `requirement`, `constraint_active`, `multiplier`, `sensitivity`, `checks`)
-      are the first requirement's.
-    - `jitter`: a jitter requirement's outcome in its older form (`JitterRequirement`) where
-      one was given, else `None`.
-    - `solved_for` (arcsec): the requirement the optimiser solved the returned design for
-      (`target`).
+      (`lost_motion_weights`), shown in `table()` beside the simulated sensitivities; `fixed`:
+      the features whose zones were given.
     - `noise_band`: `(cost, cost with an independent set of secant units)` where the slopes are
       fitted over units (`Secants(twin=True)`), else `None`.
     - `status`, `diagnosis`: whether this is a proposal (`DesignStatus.CONVERGED`, equal to
@@ -145,30 +159,48 @@ class DesignReport:
     grade: np.ndarray
     feature_cost: np.ndarray
     cost: float
-    objective: float
-    requirement: float
-    constraint_active: bool
-    multiplier: float
-    sensitivity: Design
     baseline: tuple
     result: OptimisationResult
+    outcomes: tuple[RequirementOutcome, ...]
     yield_: float | None = None
-    checks: tuple[YieldCheck, ...] = ()
     lost_motion: np.ndarray | None = None
     fixed: tuple[str, ...] = ()
-    jitter: JitterRequirement | None = None
-    solved_for: float | None = None
     status: DesignStatus = DesignStatus.CONVERGED
     diagnosis: str = ""
     notes: tuple[str, ...] = ()
     cost_unit: str = "relative, 1 per feature at IT7"
     grade_range: tuple[float, float] | None = None
     drawable: "DrawableDesign | None" = None
-    outcomes: tuple[RequirementOutcome, ...] = ()
     noise_band: tuple[float, float] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "status", DesignStatus(self.status))  # a status given as its string: the enum
+        object.__setattr__(self, "outcomes", tuple(self.outcomes))
+        if not self.outcomes:
+            raise ValueError("DesignReport: outcomes must hold one RequirementOutcome per requirement (at least one).")
+
+    # The first requirement's outcome, once copied flat onto the report: served for one release.
+    objective = _first_requirements("objective", "outcomes[0].objective", lambda o: o.objective)
+    requirement = _first_requirements("requirement", "outcomes[0].requirement.limit", lambda o: o.requirement.limit)
+    constraint_active = _first_requirements("constraint_active", "outcomes[0].constraint_active", lambda o: o.constraint_active)
+    multiplier = _first_requirements("multiplier", "outcomes[0].multiplier", lambda o: o.multiplier)
+    sensitivity = _first_requirements("sensitivity", "outcomes[0].sensitivity", lambda o: o.sensitivity)
+    checks = _first_requirements("checks", "outcomes[0].checks", lambda o: o.checks)
+    solved_for = _first_requirements("solved_for", "outcomes[0].target", lambda o: o.target)
+    target = _first_requirements("target", "outcomes[0].target", lambda o: o.target)
+
+    @property
+    def jitter(self):
+        """Deprecated: the jitter requirement's outcome is one of `outcomes` (`output ==
+        "pointing_jitter"`). Its older view, `JitterRequirement`, with `cutoff` NaN (the cutoff is
+        the objective's `jitter_cutoff`, not kept on the report); `None` without a jitter requirement."""
+        _deprecated("jitter", 'the RequirementOutcome in outcomes whose requirement.output is "pointing_jitter"')
+        o = self._jitter_outcome
+        return None if o is None else JitterRequirement.of(o, math.nan)
+
+    @property
+    def _jitter_outcome(self) -> "RequirementOutcome | None":
+        return next((o for o in self.outcomes if o.requirement.output == "pointing_jitter"), None)
 
     @property
     def accepted(self) -> bool:
@@ -201,16 +233,6 @@ class DesignReport:
         one, else the continuous optimum's `cost`."""
         return float(self.drawable.cost) if self.drawable is not None else float(self.cost)
 
-    @property
-    def target(self) -> float:
-        """The requirement (arcsec) the optimiser met with the returned design: `requirement`
-        itself, or, where a Monte Carlo check found the linear model under- or over-reading
-        the quantile and the design was solved again, the requirement shifted by that check
-        (`requirement - shift`, the SORA correction)."""
-        if self.solved_for is not None:
-            return self.solved_for
-        return self.requirement if len(self.checks) < 2 else self.requirement - self.checks[-2].shift
-
     def plain(self) -> str:
         """The proposal in plain words, first in `table()`: what to put on the drawing (the
         drawable zones where there are some: whole grades, and each journal's ISO 286 fit),
@@ -222,16 +244,17 @@ class DesignReport:
         else:
             zones = [f"{name} {1e6 * (m - b):.1f}–{1e6 * (m + b):.1f} µm (IT{float(g):.1f}{', given' if name in self.fixed else ''})"
                      for name, m, b, g in zip(self.names, self.nominal, self.band, self.grade)]
-        requirements = [o.requirement.text() for o in self.outcomes] or [f"{self.requirement:g} arcsec"]
+        requirements = [o.requirement.text() for o in self.outcomes]
         where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
-        checks = d.checks if d is not None and d.checks else self.checks[-1:]
-        units = [o.requirement.unit for o in self.outcomes] or ["arcsec"]
+        checks = d.checks if d is not None and d.checks else self.outcomes[0].checks[-1:]
+        units = [o.requirement.unit for o in self.outcomes]
         checked = (" Checked on " + ", ".join(f"{c.n - c.n_failed} simulated units: {c.yield_simulated:.1%} met {c.requirement:g} {u}"
                                               for c, u in zip(checks, units + units[-1:] * len(checks))) + ".") if checks else ""
         cost = d.cost if d is not None else self.cost
         baseline = float(self.baseline[2])
         change = f", {cost / baseline - 1:+.0%} against the baseline's {baseline:.3g}" if baseline > 0 else ""
-        k = int(np.argmax(np.abs(np.asarray(self.sensitivity.nominal))))
+        sensitivity = self.outcomes[0].sensitivity.nominal
+        k = int(np.argmax(np.abs(np.asarray(sensitivity))))
         verb = "Put on the drawing" if self.accepted else "The best design reached (not a proposal) would put on the drawing"
         why = ""
         if self.lost_motion is not None:
@@ -245,8 +268,8 @@ class DesignReport:
             values = [float(v) for v in d.objective]
         else:
             ok, values = [o.met for o in self.outcomes], [o.objective for o in self.outcomes]
-        met = [o for o, good in zip(self.outcomes, ok) if good] if self.outcomes else None
-        if met is None or len(met) == len(self.outcomes):
+        met = [o for o, good in zip(self.outcomes, ok) if good]
+        if len(met) == len(self.outcomes):
             verdict = f"It meets {' and '.join(requirements)}{where} by the design's {model}."
         else:  # say what it misses, never "meets" for all (an infeasible or unconverged design)
             missed = [f"{o.requirement.text()}{where} (by the design's {model}: {v:.4g} {o.requirement.unit})"
@@ -255,7 +278,7 @@ class DesignReport:
                 " and ".join(missed) + ".")
         return (f"{verb}: {'; '.join(zones)}. {verdict}{checked} "
                 f"Cost {cost:.3g} ({self.cost_unit}){change}. Why these zones: the pointing is most sensitive to "
-                f"{self.names[k]} ({float(self.sensitivity.nominal[k]) * 1e-6:.3g} arcsec per µm of its nominal){why}.")
+                f"{self.names[k]} ({float(sensitivity[k]) * 1e-6:.3g} {self.outcomes[0].requirement.unit} per µm of its nominal){why}.")
 
     def table(self) -> str:
         """The proposal in Markdown: `plain` first (after what makes it not a proposal, where it
@@ -273,7 +296,7 @@ class DesignReport:
             low, high = (self.nominal[k] - self.band[k]) * 1e6, (self.nominal[k] + self.band[k]) * 1e6
             rows.append(
                 f"| {name}{' (given)' if name in self.fixed else ''} | {self.nominal[k] * 1e6:.1f} | {self.band[k] * 1e6:.1f} | {low:.1f}–{high:.1f} | IT{self.grade[k]:.1f} | "
-                f"{self.feature_cost[k]:.3g} | {float(self.sensitivity.nominal[k]) * 1e-6:.3g} |"
+                f"{self.feature_cost[k]:.3g} | {float(self.outcomes[0].sensitivity.nominal[k]) * 1e-6:.3g} |"
                 + "".join(f" {float(o.sensitivity.nominal[k]) * 1e-6:.3g} |" for o in more)
                 + (f" {float(self.lost_motion[k]) * 1e-6:.3g} |" if geometric else "")
             )
@@ -281,7 +304,8 @@ class DesignReport:
             rows += ["", self._weights_text(), "", self._split_text()]
             rows += [x for o in more for x in ("", self._split_text(o))]
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
-        unit = self.outcomes[0].requirement.unit if self.outcomes else "arcsec"
+        first = self.outcomes[0]
+        unit, limit = first.requirement.unit, first.requirement.limit
         banner = "" if self.accepted else f"**Not a proposal: {self.status}.** {self.diagnosis}\n\n"
         if self.drawable is not None:
             name = "Continuous optimum (the bound the drawn zones round from)"
@@ -289,14 +313,14 @@ class DesignReport:
             name = "Proposed design" if self.accepted else "Best design reached"
         head = (
             f"{name}: cost {self.cost:.4g} ({self.cost_unit}; baseline {self.baseline[2]:.4g}); {what} "
-            f"{self.objective:.1f} {unit} against a requirement of {self.requirement:.1f} {unit} "
-            + (f"(shifted to {self.target:.1f} by the check before: the linear model's error there) " if self.target != self.requirement else "")
-            + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if self.constraint_active else 'inactive'}; "
+            f"{first.objective:.1f} {unit} against a requirement of {limit:.1f} {unit} "
+            + (f"(shifted to {first.target:.1f} by the check before: the linear model's error there) " if first.target != limit else "")
+            + f"(baseline {self.baseline[3]:.1f}); constraint {'active' if first.constraint_active else 'inactive'}; "
             f"{self._iteration_text()}; {'converged' if bool(self.result.converged) else 'not converged'}; first-order "
             f"optimality residual {self.result.optimality:.2g} (bands alone {self.result.band_optimality:.2g})."
         )
-        if self.checks:
-            head += " " + self.checks[-1].text() + "."
+        if first.checks:
+            head += " " + first.checks[-1].text() + "."
         for note in self.notes + self.extrapolated:
             head += " " + note
         if self.noise_band is not None:
@@ -324,7 +348,7 @@ class DesignReport:
         """The simulated sensitivities beside the drawings' weights, each relative to the first
         feature the drawings weigh (a backlash or a pin clearance): where they differ, a stack-up
         from the drawings misallocates the bands."""
-        s, w = np.asarray(self.sensitivity.nominal, dtype=float), np.asarray(self.lost_motion, dtype=float)
+        s, w = np.asarray(self.outcomes[0].sensitivity.nominal, dtype=float), np.asarray(self.lost_motion, dtype=float)
         ref = int(np.flatnonzero(w > 0)[0]) if np.any(w > 0) else None
         if ref is None or s[ref] == 0:
             return "No feature moves the output by the drawings: no weights to compare."
@@ -342,12 +366,14 @@ class DesignReport:
         dynamics part $\\sum_i r_i^2 b_i^2/3$. The shares sum to 1; $c$ is the arcsec of the
         objective per arcsec of lost motion.
         NaN where the drawings weigh nothing or the bands are all zero."""
-        return self._split_of(self.sensitivity.nominal)
+        return self.split_of(self.outcomes[0])
 
     @property
     def jitter_split(self) -> tuple[float, float, float]:
-        """`split` of the jitter requirement's sensitivities (NaN without one)."""
-        return (math.nan,) * 3 if self.jitter is None else self._split_of(self.jitter.sensitivity.nominal)
+        """Deprecated: `split_of(outcome)` of the jitter's outcome (NaN without one)."""
+        _deprecated("jitter_split", 'split_of(outcome) of the outcome whose requirement.output is "pointing_jitter"')
+        o = self._jitter_outcome
+        return (math.nan,) * 3 if o is None else self.split_of(o)
 
     def split_of(self, outcome: RequirementOutcome) -> tuple[float, float, float]:
         """`split` of one requirement's sensitivities (`outcomes`)."""
@@ -408,9 +434,9 @@ class DesignReport:
         ax.set_yticks(y, [n.partition(".")[2] if len(joints) == 1 else n for n in self.names], fontsize=8)
         ax.set_xlabel("tolerance zone (µm)")
         if title is None:
-            met = " and ".join(o.requirement.text() for o in self.outcomes) or f"{self.requirement:g} arcsec"
+            met = " and ".join(o.requirement.text() for o in self.outcomes)
             where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
-            checks = d.checks if d is not None and d.checks else self.checks[-1:]
+            checks = d.checks if d is not None and d.checks else self.outcomes[0].checks[-1:]
             checked = ("; checked: " + ", ".join(f"{c.yield_simulated:.1%} of {c.n - c.n_failed} units" for c in checks)) if checks else ""
             title = f"tolerance zones for {met}{where}{checked}"
             if not self.accepted:  # the status first: an infeasible or unconverged run proposes nothing
@@ -429,9 +455,9 @@ class DesignReport:
         fig, (zones, sens) = plt.subplots(2, 1, figsize=(9, 6.5), height_ratios=[1.2, 1.0])
         self.plot_zones(zones)
         y = np.arange(len(self.names))
-        sens.barh(y, np.asarray(self.sensitivity.nominal) * 1e-6)
+        sens.barh(y, np.asarray(self.outcomes[0].sensitivity.nominal) * 1e-6)
         sens.set_yticks(y, self.names, fontsize=7)
-        first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
+        first = self.outcomes[0].requirement
         sens.set_xlabel(f"d {first.name} / d nominal ({first.unit}/µm)", fontsize=8)
         sens.set_title("why: the simulated sensitivity at the proposal", fontsize=9)
         fig.tight_layout()
@@ -446,17 +472,17 @@ class DesignReport:
 
         fig, hist_ax = plt.subplots(figsize=(6.5, 3.5))
         hist = self.result.history
-        first = self.outcomes[0].requirement if self.outcomes else Requirement("pointing_rms", self.requirement)
+        first = self.outcomes[0].requirement
         it = np.arange(0, len(np.asarray(hist.cost)) + 1)
         hist_ax.plot(it, np.r_[float(self.baseline[2]), np.asarray(hist.cost)], "o-", label="cost (0: the baseline)")
         ax2 = hist_ax.twinx()
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         objective = np.asarray(hist.objective)
-        start = np.array([o.baseline for o in self.outcomes]) if self.outcomes else None
+        start = np.array([o.baseline for o in self.outcomes])
         if objective.ndim == 1:
-            values = objective if start is None else np.r_[start[:1], objective]
+            values = np.r_[start[:1], objective]
             ax2.plot(it[-len(values):], values, "s--", color="C1", label=f"{what}, {first.unit}")
-            ax2.axhline(self.requirement, color="C1", lw=0.8, ls=":", label="requirement")
+            ax2.axhline(first.limit, color="C1", lw=0.8, ls=":", label="requirement")
             ax2.set_ylabel(f"{first.name}: {what} ({first.unit})", fontsize=8)
         else:  # requirements of different sizes: each over its own
             for k, (o, marker) in enumerate(zip(self.outcomes, "s^vD<>ph")):

@@ -11,12 +11,15 @@ requirement on its own, marginal yields). The optimiser, the Monte Carlo checks,
 
 A kind of requirement is a value, not a class: which output, which limit. An output whose
 unit-to-unit scatter the features do not explain (the jitter of a rattling stage: chaotic) is
-linearised by secants over units with that scatter (`secants=True`, the default for the
-outputs in `SCATTERING_OUTPUTS`); its tolerance then defaults to twice its fit's standard error.
+linearised over units with that scatter (its constraint model, `model=`: `Secants`, `Surface`;
+`Auto()`, the default, gives the outputs in `SCATTERING_OUTPUTS` a response surface); its
+tolerance then defaults to twice its fit's standard error.
 """
 
+import contextvars
 import dataclasses
 import math
+import warnings
 
 from .objectives import UNITS
 
@@ -24,7 +27,7 @@ from .objectives import UNITS
 # rattle): linearised by secants over units, with the fit's residual scatter.
 SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
 # Of those, outputs whose scatter grows with their level: their secant line is fitted to their
-# logarithm (a relative scatter). Empty: the log fit is opt-in (`Requirement(log_fit=True)`).
+# logarithm (a relative scatter). Empty: the log fit is opt-in (`Secants(log=True)`).
 LOG_FIT_OUTPUTS = frozenset()
 
 NAMES = {
@@ -45,12 +48,11 @@ class Requirement:
     - `tol` (optional): relative tolerance the optimiser holds it to, in (0, 1); default 1 %,
       or for a secant-fitted output twice its fit's standard error at the start (at least 1 %,
       at most 50 %).
-    - `secants` (optional): linearise it by secants over units with their residual scatter
-      (needs a yield requirement); default: for the outputs in `SCATTERING_OUTPUTS`.
-    - `log_fit` (optional, with `secants`): fit the secant line to the output's logarithm, so
-      that its unit-to-unit scatter is relative to its level (`LinearisedYield.log_outputs`);
-      default: for the outputs in `LOG_FIT_OUTPUTS` (none: it suits the jitter, whose scatter
-      grows with its level, but is opt-in).
+    - `secants`, `log_fit`: deprecated spellings of `model=Secants()` and
+      `model=Secants(log=True)` (a `DeprecationWarning` where given otherwise than their
+      defaults). Read back, they say how the requirement is linearised: over units
+      (`secants`: by default for the outputs in `SCATTERING_OUTPUTS`, and for every
+      requirement of a design where one is), on the output's logarithm (`log_fit`).
     - `label` (optional): its name in reports; default from the output.
     - `unit` (optional): the output's unit in reports; default the objective's (`propose_design`
       takes it from `PointingObjective.units`, a metric's own included).
@@ -84,12 +86,18 @@ class Requirement:
         object.__setattr__(self, "limit", limit)
         if self.tol is not None and not 0.0 < float(self.tol) < 1.0:
             raise ValueError(f"Requirement({self.output!r}): tol must be in (0, 1) (relative), got {self.tol!r}.")
+        given = (self.secants, self.log_fit)
         if self.secants is None:
             object.__setattr__(self, "secants", self.output in SCATTERING_OUTPUTS)
         if self.log_fit is None:
             object.__setattr__(self, "log_fit", bool(self.secants) and self.output in LOG_FIT_OUTPUTS)
         elif self.log_fit and not self.secants:
             raise ValueError(f"Requirement({self.output!r}): log_fit (a line through the logarithm over units) needs secants=True.")
+        if not _RESOLVING.get() and ((given[0] is not None and bool(given[0]) != (self.output in SCATTERING_OUTPUTS))
+                                     or (given[1] is not None and bool(given[1]) != (self.output in LOG_FIT_OUTPUTS))):
+            warnings.warn(f"Requirement({self.output!r}, secants=..., log_fit=...) is deprecated and goes in the next release: "
+                          "give its constraint model, model=tx.Secants() (log_fit: tx.Secants(log=True)) or tx.Tangents().",
+                          DeprecationWarning, stacklevel=3)
         if self.unit is None:
             object.__setattr__(self, "unit", UNITS.get(self.output, "arcsec"))
         if self.fidelity not in (None, "any", "lumped", "planetary-scaled", "planetary"):
@@ -104,6 +112,19 @@ class Requirement:
     def text(self) -> str:
         """E.g. `"RMS pointing error <= 700 arcsec"`."""
         return f"{self.name} <= {self.limit:g} {self.unit}"
+
+
+_RESOLVING = contextvars.ContextVar("tolerax_resolving_requirements", default=False)
+
+
+def resolved(requirement: Requirement, **changes) -> Requirement:
+    """`dataclasses.replace(requirement, **changes)` for `propose_design`'s own bookkeeping
+    (how each requirement is linearised, `secants` and `log_fit`): no deprecation warning."""
+    token = _RESOLVING.set(True)
+    try:
+        return dataclasses.replace(requirement, **changes)
+    finally:
+        _RESOLVING.reset(token)
 
 
 def as_requirements(requirement, jitter=None, output: str = "pointing_rms") -> tuple[Requirement, ...]:

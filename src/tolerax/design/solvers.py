@@ -38,9 +38,11 @@ class AbstractDesignMethod(abc.ABC):
     it continues over; the design is judged at the last. Class attributes: `several` (it meets
     several requirements at once), `fitted` (it takes slopes fitted over units: secants),
     `drawable` (its result carries the sensitivities the rounding to whole grades uses),
-    `restarts` (it re-solves from a design: a check's shifted requirement, a surface's rounds)."""
+    `restarts` (it re-solves from a design: a check's shifted requirement, a surface's rounds),
+    `budget` (the name of its field that bounds its iterations, which a diagnosis names)."""
 
     widths: tuple
+    budget: ClassVar[str] = "max_gradients"
     several: ClassVar[bool] = True
     fitted: ClassVar[bool] = True
     drawable: ClassVar[bool] = True
@@ -110,6 +112,7 @@ class AugmentedLagrangian(AbstractDesignMethod):
     max_outer: int = 6
     inner_steps: int = 10
     learning_rate: float = 0.1
+    budget: ClassVar[str] = "max_outer"
     several: ClassVar[bool] = False
     fitted: ClassVar[bool] = False
     drawable: ClassVar[bool] = False
@@ -148,6 +151,7 @@ class SLSQP(AbstractDesignMethod):
     widths: tuple = (1e-6, 1e-7)
     max_iterations: int = 100
     ftol: float = 1e-9
+    budget: ClassVar[str] = "max_iterations"
     fitted: ClassVar[bool] = False
 
     def __post_init__(self):

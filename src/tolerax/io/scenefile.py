@@ -178,10 +178,11 @@ class SceneFile:
         tol = data["tolerances"]
         for key in ("yield", "jitter", "jitter_cutoff", "require"):
             tol.pop(key, None)
-        tol["requirement"] = float(report.requirement)
+        first = report.outcomes[0]
+        tol["requirement"] = float(first.requirement.limit)
         if report.yield_ is not None:
             tol["yield"] = float(report.yield_)
-        further = [o.requirement for o in getattr(report, "outcomes", ())[1:]]
+        further = [o.requirement for o in report.outcomes[1:]]
         for r in further:
             if r.output == "pointing_jitter" and report.yield_ is not None:
                 tol["jitter"] = float(r.limit)
@@ -191,12 +192,12 @@ class SceneFile:
         if others:
             tol["require"] = others
         what = "mean + 1 std over a few units" if report.yield_ is None else f"{report.yield_:.1%} yield"
-        d = getattr(report, "drawable", None)
+        d = report.drawable
         cost = report.cost if d is None else d.cost
         data["title"] = f"Proposal: {self.title}"
         data["description"] = (f"Written by tolerax design from {self.source}: cost {cost:.4g} (baseline "
-                               f"{report.baseline[2]:.4g}; {getattr(report, 'cost_unit', 'relative, 1 per feature at IT7')}), RMS pointing requirement {report.requirement:g} arcsec "
-                               f"({what})" + "".join(f", {o.requirement.text()}" for o in getattr(report, "outcomes", ())[1:])
+                               f"{report.baseline[2]:.4g}; {report.cost_unit}), {first.requirement.text()} "
+                               f"({what})" + "".join(f", {o.requirement.text()}" for o in report.outcomes[1:])
                                + f"; {report.status}" + ("" if report.accepted else " (not a proposal: the best design reached)") + "."
                                + ("" if d is None else f" On whole grades, as drawn: {'; '.join(d.callouts())} (continuous optimum's "
                                   f"cost {report.cost:.4g})."))
