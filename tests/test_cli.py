@@ -682,6 +682,25 @@ def test_run_says_roughly_how_long_before_it_starts(tmp_path, capsys):
     assert "roughly 1 s on one core plus compilation" in out and "--progress shows" not in out
 
 
+def test_integrator_option_names_a_preset(tmp_path, capsys):
+    """`--integrator NAME` (every command that reads a scene) overrides `[run] integrator`: the
+    preset by name, which the scene's other [run] settings refine; an unknown name is refused
+    before any work with the names there are."""
+    import argparse
+
+    from tolerax.cli.common import read_scene_file, settings
+
+    args = argparse.Namespace(scene="scan-azimuth", duration=None, settle=None, integrator="fast-stage", command="run")
+    scene_file = read_scene_file(argparse.ArgumentParser(), args)
+    assert scene_file.run["integrator"] == "fast-stage"
+    assert scene_file.objective().integrator == tx.solve.FAST_STAGE.replace(max_steps=400_000)
+    assert "integrator fast-stage" in settings(scene_file) and "integrated with SRK53, rtol 0.0001" in settings(scene_file)
+    for argv in (["run", "scan-azimuth"], ["montecarlo", "scan-azimuth", "--n", "2"], ["design", "scan-azimuth"]):
+        with pytest.raises(SystemExit) as refused:
+            cli.main(argv + ["--integrator", "quick", "--out", str(tmp_path / "no")])
+        assert refused.value.code == 2 and "'fast-stage'" in capsys.readouterr().err and not (tmp_path / "no").exists()
+
+
 def test_lengths_take_a_unit_suffix():
     """Lengths on the command line take a unit suffix in any option (`--band 10um`, `0.01mm`,
     `1e-5m`, `--widths 1um`), returned in the option's own unit exactly; a bare number keeps it;

@@ -177,8 +177,21 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     assert "Integrated with Tsit5" in res.report()
     asked, why = choose_integrator(lumped, "auto", dict(rtol=1e-5, solver=None))
     assert asked == ACCURATE.replace(rtol=1e-5) and why == "Tsit5, rtol 1e-05, atol 1e-09, I-controller: as asked"
-    with pytest.raises(TypeError, match="integrator must be 'auto' or a tolerax.Integrator"):
+    # A preset by name (simulate, the objective, a scene file's [run] integrator, --integrator),
+    # refined by the settings given beside it; an unknown name refused with the names there are.
+    assert choose_integrator(full, "fast-stage", {}) == (FAST_STAGE, FAST_STAGE.said())
+    assert choose_integrator(full, "fast-stage", dict(rtol=1e-5))[0] == FAST_STAGE.replace(rtol=1e-5)
+    assert choose_integrator(full, "accurate", {})[0] == ACCURATE
+    with pytest.raises(ValueError, match="simulate: 'fast' is not an integrator's name; use 'auto' .*'fast-stage'"):
         tx.simulate(lumped, 0.01, integrator="fast")
+    with pytest.raises(TypeError, match="integrator must be 'auto', a name in tolerax.solve.NAMED_INTEGRATORS"):
+        tx.simulate(lumped, 0.01, integrator=3)
+    assert tx.PointingObjective(full, 0.1, 0.0, integrator="fast-stage").integrator == FAST_STAGE.replace(max_steps=400_000)
+    assert tx.PointingObjective(full, 0.1, 0.0, integrator="auto").integrator == objective.integrator
+    staged = type(named).from_data({**data, "run": {**data["run"], "integrator": "fast-stage", "rtol": 1e-5}}, "staged", "test")
+    assert staged.objective().integrator == FAST_STAGE.replace(rtol=1e-5, max_steps=400_000)
+    with pytest.raises(tx.SceneFileError, match=r"\[run\] integrator: integrator 'quick' is unknown; use 'auto'"):
+        named.replace(integrator="quick")
     with pytest.raises(ValueError, match="give rtol in the integrator"):
         choose_integrator(lumped, FAST_STAGE, dict(rtol=1e-5))
     with pytest.raises(tx.SimulationError, match="It was integrated with Tsit5.*as asked"):

@@ -163,6 +163,20 @@ class Integrator(eqx.Module):
 # (benchmarks/README.md).
 ACCURATE = Integrator()
 FAST_STAGE = Integrator(solver="SRK53", rtol=1e-4, atol=1e-7, pcoeff=0.2, icoeff=0.2)
+# The integrators a run names by name (`simulate(integrator="fast-stage")`, a scene file's
+# `[run] integrator`, the command line's `--integrator`); "auto" is the scene's own choice.
+NAMED_INTEGRATORS = {"accurate": ACCURATE, "fast-stage": FAST_STAGE}
+
+
+def named_integrator(name: str, where: str = "integrator") -> "Integrator | None":
+    """The integrator a run names: `NAMED_INTEGRATORS[name]`, or `None` for `"auto"` (the
+    scene's automatic choice). An unknown name is refused with the names there are."""
+    if name == "auto":
+        return None
+    if not isinstance(name, str) or name not in NAMED_INTEGRATORS:
+        raise ValueError(f"{where}: {name!r} is not an integrator's name; use 'auto' (chosen from the scene), "
+                         + ", ".join(repr(n) for n in NAMED_INTEGRATORS) + " or a tolerax.Integrator(...).")
+    return NAMED_INTEGRATORS[name]
 
 
 class SimulationError(RuntimeError):

@@ -74,7 +74,7 @@ def settings(scene_file) -> str:
     """The solver settings of a scene's `[run]`, for a report: the keys it gives, and the
     integrator its runs use and why (chosen from the scene where `[run]` names none)."""
     run = scene_file.run
-    keys = ("duration", "settle", "start", "n_save", "rtol", "atol", "pcoeff", "icoeff", "solver", "dtmax", "max_steps")
+    keys = ("duration", "settle", "start", "n_save", "integrator", "rtol", "atol", "pcoeff", "icoeff", "solver", "dtmax", "max_steps")
     given = ", ".join(f"{k} {run[k]}" for k in keys if run.get(k) is not None)
     return f"{given}; integrated with {scene_file.objective().integrated_with}"
 
@@ -95,7 +95,7 @@ def read_scene_file(parser, args, **run):
         settle = scene_file.run["settle"] if args.settle is None else args.settle
         if args.duration is not None and args.settle is None and settle >= duration:
             parser.error(f"--duration {duration} s is not longer than the scene's run.settle = {settle} s: give --settle too")
-        return scene_file.replace(duration=args.duration, settle=args.settle, **run)
+        return scene_file.replace(duration=args.duration, settle=args.settle, integrator=getattr(args, "integrator", None), **run)
     except F.SceneFileError as err:
         print(f"tolerax {args.command}: {err}", file=sys.stderr)
         return None
@@ -315,12 +315,22 @@ def out_options(parser, command: str, default: str | None = None):
                             help="overwrite the results of an earlier `tolerax " + command + "` in --out (refused otherwise)")
 
 
+def integrator_option(parser):
+    from ..solve import NAMED_INTEGRATORS
+
+    parser.add_argument("--integrator", choices=("auto", *NAMED_INTEGRATORS), default=None,
+                        help="override run.integrator: 'auto' (chosen from the scene), or a preset by name "
+                        "(tolerax.solve.NAMED_INTEGRATORS; 'fast-stage': SRK53 at rtol 1e-4 for a full planetary stage, faster, "
+                        "its outputs read less closely), which the scene's other [run] settings refine")
+
+
 def scene_options(parser, what, command: str):
     parser.add_argument("scene", nargs="?", default=DEFAULT_SCENE,
                         help=f"built-in scene name (`tolerax run --list`) or path to a .toml scene file (default {DEFAULT_SCENE}); "
                         f"its [run] settings set the {what} horizon and window, its [tolerances] the bands and requirement")
     parser.add_argument("--duration", type=positive, default=None, help="override run.duration (simulated time per unit), s")
     parser.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
+    integrator_option(parser)
     parser.add_argument("--quiet", action="store_true",
                         help="no progress while it runs (the time estimate, phase lines and progress bars); the results "
                         "and errors are still printed")

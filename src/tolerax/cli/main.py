@@ -46,7 +46,7 @@ from .. import __version__  # the package's import is light (tolerax/__init__.py
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
-                     scene_options)
+                     integrator_option, scene_options)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
 
@@ -155,6 +155,7 @@ def main(argv=None) -> int:
     run.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
     run.add_argument("--n-save", type=count(2), default=None, help="override run.n_save (saved times)")
     run.add_argument("--start", choices=("rest", "steady", "loaded"), default=None, help="override run.start")
+    integrator_option(run)
     run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     design = sub.add_parser(
         "design", help="propose clearances, backlash and tolerance bands for a pointing requirement",

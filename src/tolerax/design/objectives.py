@@ -18,7 +18,7 @@ from .features import design_names, with_design
 from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
-from ..solve import Integrator
+from ..solve import Integrator, named_integrator
 
 OBJECTIVE_INTEGRATOR = Integrator(max_steps=400_000)  # a design's units: `simulate`'s settings, a tenth of its step budget
 _UNSET = object()  # a run setting not given to `PointingObjective`
@@ -135,7 +135,8 @@ class PointingObjective(AbstractObjective):
     `smoothing_width` (m, optional): overrides every stage's smoothing width — the continuation
     parameter of the optimiser (wide early, exact late). `integrator`: the run settings as one
     value (`tolerax.Integrator`: the solver by name, the controller's tolerances and
-    coefficients, the steps' limits; default: the one `simulate` chooses for the scene,
+    coefficients, the steps' limits; or a preset's name, `"fast-stage"`, `"accurate"`, on the
+    objective's step budget; default (`"auto"`): the one `simulate` chooses for the scene,
     `scene.automatic_integrator()`, with a step budget of 400 000; `integrated_with` says which
     and why); the settings may also be given one by one (`rtol=...`, `solver="Bosh3"`, a scene
     file's `[run]` keys), each replacing the integrator's (`OBJECTIVE_INTEGRATOR`, Tsit5 at rtol
@@ -184,6 +185,9 @@ class PointingObjective(AbstractObjective):
         given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dt0=dt0, dtmax=dtmax,
                                         dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step).items()
                  if v is not _UNSET and v is not None}
+        if isinstance(integrator, str):  # "auto", or a preset by name ("fast-stage": NAMED_INTEGRATORS), on the objective's step budget
+            integrator = named_integrator(integrator, "PointingObjective")
+            integrator = None if integrator is None else integrator.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)
         if integrator is None and not given:
             chosen, reason = scene.automatic_integrator()
             self.integrator = chosen.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)

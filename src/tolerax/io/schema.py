@@ -20,7 +20,7 @@ from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
-from ..solve import ACCURATE, PID_RULES, SOLVERS
+from ..solve import ACCURATE, NAMED_INTEGRATORS, PID_RULES, SOLVERS
 from .checker import TOP_KEYS, Checker, SceneFileError, SceneFileNote, _accepts, _for_call, _suggest, check_top  # noqa: F401 (the schema's tables, errors)
 
 # ---------------------------------------------------------------------------------------------
@@ -50,6 +50,7 @@ RUN_KEYS = {
     "pcoeff": (float, _SIM["pcoeff"].default),
     "icoeff": (float, _SIM["icoeff"].default),
     "solver": (str, None),  # the run settings: None (not given) lets `simulate` choose the integrator
+    "integrator": (str, None),  # a preset by name (NAMED_INTEGRATORS), which the keys above refine; None: "auto"
     "settle": (float, 0.0),
 }
 
@@ -216,6 +217,10 @@ def _check_run(chk: Checker, run: dict):
     if value["solver"] is not None and value["solver"] not in SOLVERS:
         raise chk.error(f"solver {value['solver']!r} is unknown; use one of {sorted(SOLVERS)}, or leave the run settings out "
                         "and the integrator is chosen from the scene (docs/scene_files.md).", table, "solver")
+    if value["integrator"] is not None and value["integrator"] not in ("auto", *NAMED_INTEGRATORS):
+        raise chk.error(f"integrator {value['integrator']!r} is unknown; use 'auto' (chosen from the scene, the default) or "
+                        + ", ".join(repr(n) for n in NAMED_INTEGRATORS) + " (tolerax.solve.NAMED_INTEGRATORS), which the "
+                        "other [run] settings given refine.", table, "integrator")
     if value["start"] not in STARTS:
         raise chk.error(f"start={value['start']!r} is unknown; use one of {STARTS}.", table, "start")
     if value["n_save"] < 2:

@@ -16,7 +16,7 @@ import equinox as eqx
 import jax
 
 from .. import _validate as V
-from ..solve import ACCURATE, Integrator, SimulationError, SolverReport, raise_on_failure, solve, solver_named
+from ..solve import ACCURATE, Integrator, SimulationError, SolverReport, named_integrator, raise_on_failure, solve, solver_named
 
 STARTS = ("rest", "steady", "loaded")
 
@@ -121,9 +121,10 @@ def simulate(
       Python numbers: changing them recompiles (like `solver`); ignored with `fixed_step`.
     - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
       setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
-    - `integrator`: `"auto"` (the default), or a `tolerax.Integrator` (what a
-      `PointingObjective` holds and a scene file's `[run]` names), not beside the settings
-      one by one.
+    - `integrator`: `"auto"` (the default), a name in `tolerax.solve.NAMED_INTEGRATORS`
+      (`"accurate"`, `"fast-stage"`: that preset, the settings given one by one refining it),
+      or a `tolerax.Integrator` (what a `PointingObjective` holds and a scene file's `[run]`
+      names), not beside the settings one by one.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
       under `jit`/`vmap`/`grad`).
     - `progress`: print diffrax's text progress meter (compiles a separate program).
@@ -163,12 +164,19 @@ def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", give
     a dict of `simulate`'s keywords where the solver is a diffrax solver object rather than a
     name; `why` says which and why in words (a result's `integrated_with`)."""
     given = {k: v for k, v in given.items() if v is not None}
+    if isinstance(integrator, str) and integrator != "auto":
+        named = named_integrator(integrator, "simulate")  # a preset by name: the settings given refine it
+        if "solver" in given and not isinstance(given["solver"], str):
+            raise ValueError(f"simulate: integrator={integrator!r} takes its solver by name, not a diffrax solver object.")
+        chosen = named.replace(**given) if given else named
+        return chosen, chosen.said()
     if isinstance(integrator, Integrator):
         if given:
             raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
         return integrator, integrator.said()
     if integrator != "auto":
-        raise TypeError(f"integrator must be 'auto' or a tolerax.Integrator, got {integrator!r}.")
+        raise TypeError(f"integrator must be 'auto', a name in tolerax.solve.NAMED_INTEGRATORS or a tolerax.Integrator, got "
+                        f"{integrator!r}.")
     if not given:
         chosen, reason = scene.automatic_integrator()
         return chosen, chosen.said(reason)
