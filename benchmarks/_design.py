@@ -2,7 +2,8 @@
 `design_tradeoff.py`): the azimuth scan (`tolerax.scan("azimuth", fidelity=("lumped",
 "ideal"))`, steady start, one reversal at 0.25 s), the RMS pointing error over `--horizon` s (61
 saves, no settling window) of `--draws` fixed manufactured units, and an optimiser budget of
-`--outer` x `--inner` steps per `tolerax.propose_design` run."""
+`--outer` x `--inner` steps per `tolerax.propose_design` run (the values API: `ToleranceProblem`,
+`Sequential` or `AugmentedLagrangian`)."""
 
 import equinox as eqx
 import numpy as np
@@ -29,14 +30,20 @@ def pointing(args, fidelity="lumped"):
     return tx.PointingObjective(scene, duration=args.horizon, settle=0.0, start="steady", n_save=61)
 
 
-def propose(pointing, requirement, args, outer=None, inner=None, **options):
-    """`(seconds, report)`: one `tolerax.propose_design` run at `requirement` (arcsec) with the
-    problem's units and budget (`outer`, `inner`: another budget), timed by `harness.wall`;
-    `options` go to `propose_design`."""
-    return harness.wall(
-        tx.propose_design, pointing, requirement, n_draws=args.draws, max_outer=args.outer if outer is None else outer,
-        inner_steps=args.inner if inner is None else inner, **{"method": args.method, **options},
-    )
+def propose(pointing, requirement, args, yield_=None, secant_units=None):
+    """`(seconds, report)`: one `tolerax.propose_design` run at `requirement` (arcsec, the RMS
+    pointing error) timed by `harness.wall`: mean + 1 std over `--draws` units, or the yield
+    `yield_` (checked on 200 fresh units, `propose_design`'s default check); its slopes by
+    tangents (`Auto()`), or a line through `secant_units` units of the zone; `--method`'s
+    solver on `--outer` x `--inner` steps (each solver's own default where not given)."""
+    statistic = tx.MeanPlusKStd(units=args.draws) if yield_ is None else tx.Yield(yield_)
+    model = None if secant_units is None else tx.Secants(units=secant_units, scatter=False, twin=False)
+    problem = tx.ToleranceProblem(pointing, tx.Requirement("pointing_rms", requirement, model=model), statistic)
+    if args.method == "sequential":
+        solver = tx.Sequential() if args.outer is None else tx.Sequential(max_gradients=args.outer)
+    else:
+        solver = tx.AugmentedLagrangian(inner_steps=args.inner, **({} if args.outer is None else {"max_outer": args.outer}))
+    return harness.wall(tx.propose_design, problem, solver)
 
 
 def at_width(pointing, width):

@@ -30,7 +30,7 @@ def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--requirements", type=float, nargs="+", default=[300.0, 500.0, 800.0])
     parser.add_argument("--yields", type=float, nargs="+", default=None,
-                        help="one curve per yield Y (propose_design(yield_=Y), with its 200-unit Monte Carlo check), written as "
+                        help="one curve per yield Y (ToleranceProblem(..., Yield(Y)), with its 200-unit Monte Carlo check), written as "
                         "design_tradeoff_yield.*; default: the robust statistic (mean + 1 std over --draws units)")
     parser.add_argument("--secant-units", type=int, default=None,
                         help="with --yields: fit the linearised yield's value and slopes over this many units of the zone "
@@ -43,8 +43,8 @@ def main():
     rows, points, curve = [], [], []
     for target in args.yields or [None]:
         for requirement in args.requirements:
-            options = {} if target is None else {"yield_": target, "secant_units": args.secant_units}
-            wall, report = _design.propose(pointing, requirement, args, **options)
+            wall, report = _design.propose(pointing, requirement, args, yield_=target,
+                                           secant_units=None if target is None else args.secant_units)
             print(report.table(), flush=True)
             # Met to the sequential method's tolerance: against the requirement the optimiser saw
             # (shifted by a Monte Carlo check where the linear model misread the quantile).
@@ -93,7 +93,7 @@ def main():
         rows,
         about=(
             f"Features in order: {', '.join(tx.design_names(pointing.scene))}. method {args.method} (max_outer {args.outer}, inner {args.inner}). "
-            f"Figure: `{png.name}`. With a yield, the objective is the linearised quantile (`propose_design(yield_=)`) and the "
+            f"Figure: `{png.name}`. With a yield, the objective is the linearised quantile (`Yield(Y)`) and the "
             "check simulates 200 fresh units at the proposal; where its quantile differs from the linear model's by more than its noise "
             "the design is solved again against the requirement shifted by the difference, and 'met' is judged against that shifted "
             "requirement (the check's own quantile is in its column; at 99.9 % 200 units cannot resolve it)."
