@@ -302,3 +302,32 @@ def test_a_constraint_model_of_one_s_own_runs_through_propose_design():
     mine, same, plain = design(WideSlopes()), design(tx.Tangents(slope_width=1e-5)), design(tx.Tangents())
     assert mine.cost == same.cost and np.array_equal(mine.band, same.band)
     assert abs(mine.cost - plain.cost) > 1e-3 * plain.cost
+
+
+def test_auto_moves_a_noise_limited_design_on_to_more_units(monkeypatch):
+    """`Auto()` starts on its surface's units and moves on where the measurement says so: on a
+    log-linear jitter with a relative scatter of 0.5 (closed form), two sets of 8 units give
+    designs of cost 2.30 and 1.37, noise-limited; the design is made again on 16 units (the cap
+    lowered to 16 here, 128 by default, to keep the test short), the notes say so with both
+    costs, and the report is that design's. A model the user names is kept as named."""
+    from tolerax.design import propose as P
+
+    slopes, sigma = [2e4, 1.5e4, 1e4, 5e3], 0.5
+    requirement = 0.05 * np.exp(sum(slopes) * 25e-6 + 1.3 * sigma)
+    response = R.Line(R.scan_scene(), np.log(0.05), [slopes], [5e-6] * 4, names=("pointing_jitter",), log=(True,), sigma=[sigma],
+                      jitter_cutoff=20.0)
+    problem = tx.ToleranceProblem(response, tx.Requirement("pointing_jitter", requirement, model=tx.Auto(units=8)), tx.Yield(0.9),
+                                  tx.Zones(band=20e-6), allow_proxy=True)
+    monkeypatch.setattr(P, "AUTO_MAX_UNITS", 16)
+    report = tx.propose_design(problem, tx.Sequential(widths=(1e-7,)), check=None)
+    moved = [n for n in report.notes if n.startswith("On 8 units the design was noise-limited")]
+    assert len(moved) == 1 and "costs 2.302 and 1.366 with two sets of units): Auto() solved it again on 16 units." in moved[0]
+    assert report.noise_band is not None and report.noise_band[:2] != (2.302370421763528, 1.3659996495276179)
+    assert not any(n.startswith("On 16 units") for n in report.notes)  # the cap: no further
+    # Which requirements move: those on Auto() fitted over units, to twice the units within the cap.
+    again = P._on_more_units(problem, 8)
+    assert again.requirements[0].model == tx.Auto(units=16) and P._on_more_units(problem, 16) is None
+    named = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_jitter", requirement, model=tx.Surface(units=8)),))
+    tangents = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_rms", 700.0),))
+    assert P._on_more_units(named, 8) is None and P._on_more_units(tangents, 8) is None
+

@@ -27,7 +27,7 @@ from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
 from .solvers import AbstractDesignMethod, Sequential
-from .spec import Combined, Secants, ToleranceProblem, combine, with_model
+from .spec import Auto, Combined, Secants, ToleranceProblem, combine, with_model
 from .subproblem import objective_value_and_gradient
 from .surface import secant_standard_error
 from .types import Design
@@ -70,7 +70,8 @@ def propose_design(
     scattering output, the jitter, a response surface refitted as the design moves; models
     fitted over units also solve a twin design on another set of units, the noise band: where
     the two costs differ by more than the requirements' tolerances resolve, the status is
-    `"noise-limited"`). The continuous optimum is then drawn on whole ISO grades
+    `"noise-limited"`, and a requirement on `Auto()` is designed again on twice the units, up to
+    `AUTO_MAX_UNITS`, the report saying so). The continuous optimum is then drawn on whole ISO grades
     (`round_to_grades`), checked again where there is a check, and tightened by up to
     `TIGHTER_GRADES` grades where it misses.
 
@@ -188,6 +189,18 @@ def propose_design(
     if twin_costs is not None and status == "converged":
         status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged),
                                            combined.surface is not None)
+        more = _on_more_units(problem, options.get("secant_units")) if status == "noise-limited" else None
+        if more is not None:
+            # Auto(): the measurement (two sets of units that disagree on the design) moves the
+            # model on to twice the units (again while noise-limited, up to AUTO_MAX_UNITS); the
+            # report is the last design's, these costs in its notes.
+            units = int(options["secant_units"])
+            say(f"noise-limited on {units} units (costs {twin_costs[0]:.4g} and {twin_costs[1]:.4g}): the design again on "
+                f"{2 * units} units (Auto) ...")
+            again = propose_design(more, solver, check=check, progress=progress, callback=callback)
+            return dataclasses.replace(again, notes=(
+                f"On {units} units the design was noise-limited (costs {twin_costs[0]:.4g} and {twin_costs[1]:.4g} with two sets "
+                f"of units): Auto() solved it again on {2 * units} units.",) + again.notes)
     drawable = None
     band = np.asarray(result.x.band)
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
@@ -321,6 +334,22 @@ def _noise_verdict(band, outcomes, units, other_converged, surface: bool = False
         f"change it: the same {'response surface' if surface else 'secants'} on more units (the model's units={2 * units}"
         + (f", e.g. Auto(units={2 * units}) for the default" if surface else "")
         + f"; --secant-units {2 * units}, which keeps the model), or a looser tolerance on the noisy requirement.")
+
+
+AUTO_MAX_UNITS = 128  # Auto() moves a noise-limited design on to twice its units while that stays within this
+
+
+def _on_more_units(problem: ToleranceProblem, units) -> ToleranceProblem | None:
+    """`problem` with each requirement on `Auto()` (its default) that is fitted over units
+    moved to `Auto(units=2 x units)`, where that stays within `AUTO_MAX_UNITS`; `None` where no
+    requirement is (a model named by the user is kept as named)."""
+    if units is None or 2 * int(units) > AUTO_MAX_UNITS:
+        return None
+    requirements = as_requirements(problem.requirements)
+    moved = tuple(dataclasses.replace(r, model=Auto(units=2 * int(units)))
+                  if isinstance(with_model(r).model, Auto) and isinstance(with_model(r).model.resolve(r), Secants) else r
+                  for r in requirements)
+    return None if moved == requirements else dataclasses.replace(problem, requirements=moved)
 
 
 def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement, ...], Combined]:

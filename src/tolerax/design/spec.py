@@ -195,8 +195,10 @@ class Surface(Secants):
 class Auto(AbstractConstraintModel):
     """The default: for an output whose unit-to-unit scatter the features do not carry
     (`SCATTERING_OUTPUTS`: the jitter) the `Surface` recipe; else `Tangents`, finished on
-    `Secants` where their slopes stall or the check finds their model off. Cheap first, moved on
-    where the measurement says so.
+    `Secants` where their slopes stall or the check finds their model off; a design fitted over
+    units that is noise-limited (two sets of units disagree on it by more than the requirements'
+    tolerances resolve) is made again on twice the units, up to 128
+    (`propose.AUTO_MAX_UNITS`). Cheap first, moved on where the measurement says so.
 
     `units`: the response surface's units (default `Surface`'s): `Auto(units=128)` is the same
     recipe on more units, what a noise-limited answer asks for; the other outputs keep their
