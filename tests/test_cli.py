@@ -688,7 +688,9 @@ def test_integrator_option_names_a_preset(tmp_path, capsys):
     before any work with the names there are."""
     import argparse
 
-    from tolerax.cli.common import read_scene_file, settings
+    from tolerax.cli.common import INTEGRATOR_NAMES, read_scene_file, settings
+
+    assert INTEGRATOR_NAMES == ("auto", *tx.solve.NAMED_INTEGRATORS)  # the parser's names, written out to keep it import-free
 
     args = argparse.Namespace(scene="scan-azimuth", duration=None, settle=None, integrator="fast-stage", command="run")
     scene_file = read_scene_file(argparse.ArgumentParser(), args)

@@ -315,10 +315,13 @@ def out_options(parser, command: str, default: str | None = None):
                             help="overwrite the results of an earlier `tolerax " + command + "` in --out (refused otherwise)")
 
 
-def integrator_option(parser):
-    from ..solve import NAMED_INTEGRATORS
+# The integrators a run names (tolerax.solve.NAMED_INTEGRATORS' names, and "auto"), written out:
+# the parser is built without importing the simulator (tests/test_cli.py holds them equal).
+INTEGRATOR_NAMES = ("auto", "accurate", "fast-stage")
 
-    parser.add_argument("--integrator", choices=("auto", *NAMED_INTEGRATORS), default=None,
+
+def integrator_option(parser):
+    parser.add_argument("--integrator", choices=INTEGRATOR_NAMES, default=None,
                         help="override run.integrator: 'auto' (chosen from the scene), or a preset by name "
                         "(tolerax.solve.NAMED_INTEGRATORS; 'fast-stage': SRK53 at rtol 1e-4 for a full planetary stage, faster, "
                         "its outputs read less closely), which the scene's other [run] settings refine")
