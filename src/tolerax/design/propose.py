@@ -345,10 +345,12 @@ def _on_more_units(problem: ToleranceProblem, units) -> ToleranceProblem | None:
     requirement is (a model named by the user is kept as named)."""
     if units is None or 2 * int(units) > AUTO_MAX_UNITS:
         return None
+    def on_auto_fitted(r):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
+        model = with_model(r).model
+        return isinstance(model, Auto) and isinstance(model.resolve(r), Secants)
+
     requirements = as_requirements(problem.requirements)
-    moved = tuple(dataclasses.replace(r, model=Auto(units=2 * int(units)))
-                  if isinstance(with_model(r).model, Auto) and isinstance(with_model(r).model.resolve(r), Secants) else r
-                  for r in requirements)
+    moved = tuple(dataclasses.replace(r, model=Auto(units=2 * int(units))) if on_auto_fitted(r) else r for r in requirements)
     return None if moved == requirements else dataclasses.replace(problem, requirements=moved)
 
 
