@@ -105,7 +105,8 @@ class Line(tx.AbstractObjective):
             y = y + self.rough * jnp.sin(self.frequency * jnp.sum(v))
         if self.wear is not None and t is not None:
             y = y + self.wear * (jnp.exp(t) - 1.0)
-        y = jnp.where(jnp.asarray(self.log), jnp.exp(y), y)
+        log = jnp.asarray(self.log)
+        y = jnp.where(log, jnp.exp(jnp.where(log, y, 0.0)), y)  # exp only where taken: no inf x 0 = NaN in reverse mode
         return {name: y[k] for k, name in enumerate(self.names)} | dict(success=jnp.asarray(True))
 
     def exact(self, v, t=None, width=None):

@@ -119,7 +119,7 @@ def test_scan_gradients_against_finite_differences(scan_pointing, scan_unit):
     per_backlash = 1.0 / lever / tx.ARCSEC
     assert 0.1 * per_backlash < ad[2] < per_backlash
     assert ad[2] == pytest.approx(ad[3], rel=1e-9)  # sun and ring backlash add in the lumped mesh
-    # The optimiser's gradient (`RobustPointing(gradient="forward")`: tangents carried through
+    # The optimiser's gradient (`RobustPointing(adjoint=None)`: tangents carried through
     # the solve by `diffrax.ForwardMode`, the Jacobian handed to reverse mode by a custom VJP) is
     # the same derivative of the same discrete solve by another route, so it agrees far better
     # than the differences above. Not to the last bit: tangents pushed forward and adjoints

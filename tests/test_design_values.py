@@ -101,6 +101,33 @@ def test_scipy_slsqp_is_a_solver_value_and_finds_the_same_optimum(monkeypatch):
         tx.SLSQP(max_iterations=0)
 
 
+def test_the_mean_plus_k_std_gradient_is_a_diffrax_adjoint_not_a_string():
+    """`MeanPlusKStd(adjoint=...)` takes diffrax's own adjoints: forward mode (`None`, the
+    default, or `diffrax.ForwardMode()`) and checkpointed reverse mode give the same design on a
+    closed-form unit (one gradient, two ways to take it); the former string warns and maps to
+    them; anything else is refused naming what to give."""
+    import diffrax
+
+    line = R.Line(R.scan_scene(), 1000.0, 0.5 * np.asarray(tx.lost_motion_weights(R.scan_scene())), 100e-6)
+    requirement = 0.5 * float(_propose.design_problem(line, n_draws=2).value(width=1e-6))
+
+    def design(statistic):
+        return tx.propose_design(tx.ToleranceProblem(line, requirement, statistic), tx.Sequential(widths=(1e-6,)))
+
+    forward, reverse = design(tx.MeanPlusKStd(units=2)), design(tx.MeanPlusKStd(units=2, adjoint=diffrax.RecursiveCheckpointAdjoint()))
+    assert forward.status == reverse.status == "converged"
+    np.testing.assert_allclose(reverse.band, forward.band, rtol=1e-9)
+    with pytest.warns(DeprecationWarning, match="adjoint="):
+        old = tx.MeanPlusKStd(units=2, gradient="reverse")
+    assert isinstance(old.adjoint, diffrax.RecursiveCheckpointAdjoint) and old.gradient is None
+    with pytest.warns(DeprecationWarning):
+        assert tx.MeanPlusKStd(1.0, 2, None, "forward").adjoint is None  # the former fourth place
+    with pytest.raises(ValueError, match="'forward' or 'reverse'.*diffrax.ForwardMode"):
+        tx.MeanPlusKStd(adjoint="checkpointed")
+    with pytest.raises(TypeError, match="must be a diffrax adjoint"):
+        tx.MeanPlusKStd(adjoint=diffrax.RecursiveCheckpointAdjoint)  # the class, not an adjoint
+
+
 def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     """`PenaltyMethod` (above) through `propose_design`, unchanged: on a closed-form unit whose
     RMS is linear in the zones, the proposal meets a requirement half the baseline's (to the

@@ -262,7 +262,7 @@ class _Bench:
     def __init__(self):
         bench = tx.TestBench()
         self.bench = eqx.tree_at(lambda b: b.stage.smoothing_width, bench, jnp.asarray(WIDTH))
-        # Forward mode (the optimiser's default, `RobustPointing(gradient="forward")`): five
+        # Forward mode (the optimiser's default, `RobustPointing(adjoint=None)`): five
         # tangents through one solve, 4.8x a forward solve here against ~10x for reverse mode.
         self.grad = eqx.filter_jit(jax.jacfwd(lambda p: self.rms(p, diffrax.ForwardMode())))
         # One tangent (a direction `d` of the five features) through one solve.

@@ -7,7 +7,7 @@ keywords translated to the values that replace them, with a `DeprecationWarning`
 | `method="augmented-lagrangian"`, `inner_steps`, `learning_rate` | `solver=AugmentedLagrangian(widths, max_outer, inner_steps, learning_rate)` |
 | `check_units`, `max_checks`, `check_key` | `check=Check(units, rounds, key)` (`check_units=0`: `check=None`) |
 | `yield_`, `n_yield_draws` | `ToleranceProblem(statistic=Yield(level, draws))` |
-| `statistic`, `k`, `n_draws`, `key`, `gradient` | `ToleranceProblem(statistic=MeanPlusKStd(k, units, key, gradient))` |
+| `statistic`, `k`, `n_draws`, `key`, `gradient` | `ToleranceProblem(statistic=MeanPlusKStd(k, units, key, adjoint))` (a diffrax adjoint) |
 | `band`, `start`, `min_clearance`, `band_range`, `fixed` | `ToleranceProblem(zones=Zones(...))` |
 | `cost_model` | `ToleranceProblem(cost=...)` |
 | `allow_proxy` | `ToleranceProblem(allow_proxy=...)` |
@@ -73,7 +73,11 @@ def from_legacy(pointing, requirement, check, options: dict):
     else:
         if get("statistic", "mean+kstd") != "mean+kstd":
             raise ValueError(f"propose_design: statistic {get('statistic')!r} is not offered; MeanPlusKStd(k) or Yield(level).")
-        statistic = MeanPlusKStd(float(get("k", 1.0)), int(get("n_draws", 4)), get("key"), get("gradient", "forward"))
+        gradient = get("gradient", "forward")
+        if gradient not in ("forward", "reverse"):
+            raise ValueError(f"propose_design: gradient must be 'forward' or 'reverse', got {gradient!r}.")
+        adjoint = None if gradient == "forward" else __import__("diffrax").RecursiveCheckpointAdjoint()
+        statistic = MeanPlusKStd(float(get("k", 1.0)), int(get("n_draws", 4)), get("key"), adjoint)
     units = (200 if yield_ is not None else 0) if get("check_units") is None else int(get("check_units"))
     if units and yield_ is None:
         raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")

@@ -108,6 +108,11 @@ class AbstractObjective(eqx.Module):
         itself (a closed form has no solve to set up)."""
         return self
 
+    def with_adjoint(self, adjoint) -> "AbstractObjective":
+        """This objective whose solves differentiate by `adjoint` (a diffrax adjoint); default
+        itself (a closed form has no solve)."""
+        return self
+
 
 class PointingObjective(AbstractObjective):
     """Pointing statistics of `scene` over the window `[settle, duration]` (s), as a function of
@@ -258,7 +263,11 @@ class PointingObjective(AbstractObjective):
 
     def forward_mode(self) -> "PointingObjective":
         """This objective whose solves carry forward-mode tangents (`diffrax.ForwardMode`)."""
-        return dataclasses.replace(self, adjoint=diffrax.ForwardMode())
+        return self.with_adjoint(diffrax.ForwardMode())
+
+    def with_adjoint(self, adjoint) -> "PointingObjective":
+        """This objective whose solves differentiate by `adjoint` (a diffrax adjoint)."""
+        return dataclasses.replace(self, adjoint=adjoint)
 
     def jitter_window(self) -> np.ndarray:
         """The saves in `[settle, duration]` (bool per save, NumPy: the jitter's FFT length must be

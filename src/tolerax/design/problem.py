@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import math
 import warnings
 
+import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -90,25 +91,25 @@ class RobustPointing(eqx.Module):
     `width` (m). A failed solve makes the objective NaN (the optimiser then stops with an error
     naming the iteration) rather than a silently wrong number.
 
-    `gradient`: how `jax.grad` of the objective is computed through each unit's simulation:
-    `"forward"` (default; one forward solve carrying one tangent per design feature, then the
-    chain rule through `realise`; the objective then supports reverse-mode `jax.grad`/`vjp` but
-    not `jax.jvp`) or `"reverse"` (the pointing objective's own adjoint, checkpointed reverse
-    mode). `benchmarks/gradient_methods.py` compares the two."""
+    `adjoint`: how `jax.grad` of the objective passes through each unit's simulation: `None`
+    (default) or `diffrax.ForwardMode()`, one forward solve carrying one tangent per design
+    feature, then the chain rule through `realise` (the objective then supports reverse-mode
+    `jax.grad`/`vjp` but not `jax.jvp`); any other diffrax adjoint
+    (`diffrax.RecursiveCheckpointAdjoint(...)`: checkpointed reverse mode) is handed to the
+    pointing objective's solves. `benchmarks/gradient_methods.py` compares the two."""
 
     pointing: AbstractObjective
     output: str = eqx.field(static=True, default="pointing_rms")
     statistic: str = eqx.field(static=True, default="mean+kstd")
     k: float = eqx.field(static=True, default=1.0)
-    gradient: str = eqx.field(static=True, default="forward")
-
-    def __check_init__(self):
-        if self.gradient not in ("forward", "reverse"):
-            raise ValueError(f"RobustPointing: gradient must be 'forward' or 'reverse', got {self.gradient!r}.")
+    adjoint: object = eqx.field(static=True, default=None)
 
     def __call__(self, x: Design, draws, width) -> Array:
-        unit = _unit_output_forward if self.gradient == "forward" else unit_output
-        value = jax.vmap(lambda v: unit(v, self.pointing, self.output, width))(realise(x, draws))
+        if self.adjoint is None or isinstance(self.adjoint, diffrax.ForwardMode):
+            unit, pointing = _unit_output_forward, self.pointing
+        else:
+            unit, pointing = unit_output, self.pointing.with_adjoint(self.adjoint)
+        value = jax.vmap(lambda v: unit(v, pointing, self.output, width))(realise(x, draws))
         return robust(value, kind=self.statistic, k=self.k)
 
 
@@ -185,7 +186,7 @@ def design_problem(
     k: float = 1.0,
     output: str = "pointing_rms",
     cost_model: AbstractCostModel | None = None,
-    gradient: str = "forward",
+    adjoint=None,
     yield_: float | None = None,
     n_yield_draws: int = 16384,
     slope_width: float | None = None,
@@ -219,12 +220,13 @@ def design_problem(
       `output` over the draws.
     - `cost_model`: a cost of the full tolerance width $2b$; default `IsoGrade()` (ISO 286
       grades, relative cost 1 per feature at IT7).
-    - `gradient`: `"forward"` (default) or `"reverse"` mode through each simulation
-      (`RobustPointing`).
+    - `adjoint`: how the gradient passes through each simulation, a diffrax adjoint: `None`
+      (default, forward mode) or `diffrax.RecursiveCheckpointAdjoint()` (reverse mode;
+      `RobustPointing`).
     - `yield_`: a yield $Y$ in (0, 1) makes the objective the $Y$-quantile of `output` over all
       units made within the bands, linearised at the zone middles (`LinearisedYield`: one
       simulation with one forward-mode tangent per feature; `n_draws`, `key`, `statistic`, `k`
-      and `gradient` unused), so that objective $\\le R$ reads $P(\\text{output} \\le R) \\ge Y$;
+      and `adjoint` unused), so that objective $\\le R$ reads $P(\\text{output} \\le R) \\ge Y$;
       `n_yield_draws` fixed quasi-random draws (`yield_draws`) carry the quantile;
       `slope_width` (m, optional): take the slopes at this smoothing width (`LinearisedYield`:
       at a narrow width forward-mode tangents through the contacts can be spiky); default at
@@ -314,7 +316,7 @@ def design_problem(
         limit0[j] = lower_limit[j] = max(middle - half, 0.0)
         lower_band[j] = upper_band[j] = band0[j] = half
     if yield_ is None:
-        objective, draws = RobustPointing(pointing, output, statistic, k, gradient), unit_draws(key, n_draws, n)
+        objective, draws = RobustPointing(pointing, output, statistic, k, adjoint), unit_draws(key, n_draws, n)
     else:
         # The secant units' positions as values (from `secant_seed`), not as a static seed: the
         # noise band's twin design (`secant_seed` + 1) runs the same compiled programs.

@@ -27,6 +27,7 @@ units, all are.
 
 import dataclasses
 from typing import ClassVar
+import warnings
 
 from .requirements import SCATTERING_OUTPUTS, Requirement
 
@@ -52,19 +53,41 @@ class Yield:
 class MeanPlusKStd:
     """The requirement met by the mean + `k` standard deviations of the output over `units`
     units drawn uniformly within the zones (fixed draws from `key`, the same at every
-    iteration; `robust`); `gradient`: `"forward"` or `"reverse"` mode through each unit's
-    simulation (`RobustPointing`). No Monte Carlo check: it is not a yield."""
+    iteration; `robust`). `adjoint`: how the objective's gradient passes through each unit's
+    simulation, a diffrax adjoint: `None` (default) or `diffrax.ForwardMode()`, one forward
+    solve carrying one tangent per design feature (the cheaper for a scene's few clearances);
+    `diffrax.RecursiveCheckpointAdjoint(...)`, checkpointed reverse mode (`RobustPointing`).
+    No Monte Carlo check: it is not a yield. (`gradient="forward"` / `"reverse"`: deprecated,
+    the same two as adjoints.)"""
 
     k: float = 1.0
     units: int = 4
     key: object = None
-    gradient: str = "forward"
+    adjoint: object = None
+    gradient: str | None = None
 
     def __post_init__(self):
         if int(self.units) < 2:
             raise ValueError(f"MeanPlusKStd: units must be >= 2 (a standard deviation), got {self.units!r}.")
-        if self.gradient not in ("forward", "reverse"):
-            raise ValueError(f"MeanPlusKStd: gradient must be 'forward' or 'reverse', got {self.gradient!r}.")
+        # The former string (as `gradient=`, or in the fourth place where `adjoint` now is).
+        name = self.gradient if self.gradient is not None else self.adjoint if isinstance(self.adjoint, str) else None
+        if name is not None:
+            if name not in ("forward", "reverse"):
+                raise ValueError(f"MeanPlusKStd: gradient must be 'forward' or 'reverse', got {name!r}; better, give "
+                                 "adjoint=diffrax.ForwardMode() or diffrax.RecursiveCheckpointAdjoint().")
+            warnings.warn("MeanPlusKStd(gradient=...) is deprecated and goes in the next release: give adjoint=None or "
+                          "diffrax.ForwardMode() (forward mode, the default) or diffrax.RecursiveCheckpointAdjoint() (reverse "
+                          "mode).", DeprecationWarning, stacklevel=3)
+            import diffrax
+
+            object.__setattr__(self, "adjoint", None if name == "forward" else diffrax.RecursiveCheckpointAdjoint())
+            object.__setattr__(self, "gradient", None)
+        elif self.adjoint is not None:
+            import diffrax  # here, not at the top: the command line reads this module before JAX is wanted
+
+            if not isinstance(self.adjoint, diffrax.AbstractAdjoint):
+                raise TypeError(f"MeanPlusKStd: adjoint must be a diffrax adjoint (diffrax.ForwardMode(), "
+                                f"diffrax.RecursiveCheckpointAdjoint(...)) or None, got {self.adjoint!r}.")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -311,4 +334,4 @@ class ToleranceProblem:
         s = self.statistic
         if isinstance(s, Yield):
             return dict(yield_=float(s.level), n_yield_draws=int(s.draws))
-        return dict(statistic="mean+kstd", k=float(s.k), n_draws=int(s.units), key=s.key, gradient=s.gradient)
+        return dict(statistic="mean+kstd", k=float(s.k), n_draws=int(s.units), key=s.key, adjoint=s.adjoint)
