@@ -146,6 +146,8 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("propose_design [")]
     assert said[0].startswith("propose_design [0:0") and "the starting design's outputs" in said[0]
     assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
+    # Before the solve, how long it may take: its budget at the pace of the compiled evaluations.
+    assert any("solving (Sequential" in line and "at most 20 gradients, at most ~" in line for line in said), said
     again = float(built.value(mine.result.x, 1e-6))
     assert again == pytest.approx(mine.outcomes[0].objective, rel=1e-9) and again <= requirement * 1.01
     assert mine.cost == pytest.approx(ours.cost, rel=0.02) and ours.status == "converged"

@@ -16,6 +16,7 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
+from ..eta import human_seconds
 from .check import Check, as_requirement, model_off
 from .cost import grade_of
 from .drawable import round_to_grades
@@ -139,7 +140,9 @@ def propose_design(
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     evaluate = _memoised_values(width)
     say("infeasible first: the tightest designs the bounds allow ...")
+    since = say.elapsed()
     out_of_reach = _tightest_first(evaluate, built, slopes, requirements, tol)
+    pace = (say.elapsed() - since) / 2  # s per evaluation of the compiled objective (two evaluations)
     if out_of_reach is not None:
         # Infeasible first: the tightest designs the bounds allow miss a requirement, so no design
         # within them meets it; no solver is run. The report is that design's, evaluated.
@@ -154,7 +157,8 @@ def propose_design(
     else:
         rounds = None if combined.surface is None else (int(combined.surface.rounds), combined.surface.width,
                                                         combined.options.get("secant_reach"))
-        say(f"solving ({type(solver).__name__}, smoothing widths {', '.join(f'{w:g}' for w in solver.widths)} m) ...")
+        say(f"solving ({type(solver).__name__}, smoothing widths {', '.join(f'{w:g}' for w in solver.widths)} m)"
+            + _how_long(solver, pace, check) + " ...")
         built, result, checked, zoomed = _solve_and_check(built, requirements, tol, solver, check, progress, callback, rounds=rounds,
                                                           say=say)
         notes += zoomed
@@ -254,6 +258,17 @@ def _memoised_values(width):
         return memo[key][1]
 
     return evaluate
+
+
+def _how_long(solver, pace: float, check) -> str:
+    """The solve's time said before it: its solver's most gradients (`most_gradients`) at `pace`
+    (s each: the infeasible-first evaluations', compiled), and the check's units."""
+    most = solver.most_gradients()
+    said = "" if most is None else (f"; at most {most} gradients, at most ~{human_seconds(most * pace)} at the "
+                                    f"{pace:.2g} s each the infeasible-first evaluations took")
+    if check is not None:
+        said += f"; then a Monte Carlo check of {int(check.units)} fresh units (at most {int(check.rounds)} rounds)"
+    return said
 
 
 def _tightest_first(evaluate, problem, slopes, requirements, tol):

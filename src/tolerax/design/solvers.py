@@ -62,6 +62,11 @@ class AbstractDesignMethod(abc.ABC):
         """The smoothing width (m) the design is judged at: the last."""
         return float(self.widths[-1])
 
+    def most_gradients(self) -> int | None:
+        """The most gradient evaluations one solve from the start makes (over every width), for
+        the time said before it; `None` where the solver does not bound them in advance."""
+        return None
+
 
 def _widths(widths) -> tuple:
     widths = tuple(float(w) for w in np.atleast_1d(widths))
@@ -100,6 +105,9 @@ class Sequential(AbstractDesignMethod):
         return sequential_continuation(problem, requirement, widths, int(self.max_gradients), progress, callback, x0=x0,
                                        trust=trust, tol=tuple(np.atleast_1d(tol)))
 
+    def most_gradients(self) -> int:
+        return len(self.widths) * int(self.max_gradients)
+
 
 @dataclasses.dataclass(frozen=True)
 class AugmentedLagrangian(AbstractDesignMethod):
@@ -132,6 +140,9 @@ class AugmentedLagrangian(AbstractDesignMethod):
             draws=problem.draws, x0=problem.x0 if x0 is None else x0, cost_model=problem.cost_model,
             optimiser=optax.adam(self.learning_rate), continuation=lambda i: widths[jnp.minimum(i, len(widths) - 1)],
             max_outer=int(self.max_outer), inner_steps=int(self.inner_steps), tol=1e-3, progress=progress)
+
+    def most_gradients(self) -> int:
+        return int(self.max_outer) * int(self.inner_steps)
 
 
 @dataclasses.dataclass(frozen=True)
