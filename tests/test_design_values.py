@@ -148,6 +148,12 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
     # Before the solve, how long it may take: its budget at the pace of the compiled evaluations.
     assert any("solving (Sequential" in line and "at most 20 gradients, at most ~" in line for line in said), said
+    # A response surface's fits, before the first: its units at the rough pace of the scene's runs.
+    pointing = tx.load_scene("scan-azimuth-planetary").objective(jitter_cutoff=20.0)
+    one = tx.eta.rough_wall(pointing.scene, pointing.duration, pointing.integrator)
+    assert _propose._rough_units(pointing, 64, 6) == (f", roughly {tx.eta.human_seconds(64 * one)} on one core plus "
+                                                      "compilation (up to 6 such fits)")
+    assert _propose._rough_units(line, 64, 6) == ""  # a closed form: no scene run to time
     again = float(built.value(mine.result.x, 1e-6))
     assert again == pytest.approx(mine.outcomes[0].objective, rel=1e-9) and again <= requirement * 1.01
     assert mine.cost == pytest.approx(ours.cost, rel=0.02) and ours.status == "converged"

@@ -16,13 +16,14 @@ import functools
 import jax.numpy as jnp
 import numpy as np
 
-from ..eta import human_seconds
+from ..eta import human_seconds, rough_wall
 from .check import Check, as_requirement, model_off
 from .cost import grade_of
 from .drawable import round_to_grades
 from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .loop import tolerance_worth
+from .objectives import PointingObjective
 from .outcome import diagnose, tightest_reach
 from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
@@ -129,7 +130,7 @@ def propose_design(
     if combined.surface is not None:
         box = options["surface_box"]
         say(f"fitting the response surface: {options['secant_units']} simulated units over [{box[0] * 1e6:.3g}, "
-            f"{box[1] * 1e6:.3g}] um ...")
+            f"{box[1] * 1e6:.3g}] um" + _rough_units(pointing, options["secant_units"], combined.surface.rounds) + " ...")
     built = design_problem(pointing, **options)
     width = solver.width
     say("the starting design's outputs and slopes ...")
@@ -269,6 +270,14 @@ def _how_long(solver, pace: float, check) -> str:
     if check is not None:
         said += f"; then a Monte Carlo check of {int(check.units)} fresh units (at most {int(check.rounds)} rounds)"
     return said
+
+
+def _rough_units(pointing, units: int, rounds: int) -> str:
+    """The surface fits' time said before the first: `units` simulations at `rough_wall`'s pace
+    (a scene's objective only; an order of magnitude, not a bound), up to `rounds` fits."""
+    one = rough_wall(pointing.scene, pointing.duration, pointing.integrator) if isinstance(pointing, PointingObjective) else None
+    return "" if one is None else (f", roughly {human_seconds(max(units * one, 1.0))} on one core plus compilation"
+                                   + (f" (up to {rounds} such fits)" if rounds > 1 else ""))
 
 
 def _tightest_first(evaluate, problem, slopes, requirements, tol):
