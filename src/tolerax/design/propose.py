@@ -89,8 +89,9 @@ def propose_design(
       a process pool or a Dask cluster, and keeps them to be read back by a design run again.
     - `progress`: a progress bar over the solver's iterations and the checks' units, and one
       line per phase (surface fit, solve, checks, twin, drawn design) with the time since the
-      start, on stderr
-      (`tolerax.design.phases`).
+      start, on stderr (`tolerax.design.phases`; a callable takes the lines instead). Before
+      they start, the surface fits say a rough time (their units at `tolerax.eta.rough_wall`'s
+      pace) and the solve its most gradients at the pace of the compiled evaluations so far.
     - `callback`: `callback(gradients, x, cost, objective)` after every gradient evaluation
       (`Sequential`; `x.nominal` holds the lower limits).
     - `**deprecated`: the former signature, `propose_design(pointing, requirement, widths=...,
