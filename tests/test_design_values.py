@@ -6,6 +6,7 @@ for one release, with a warning naming what replaces each keyword."""
 
 import dataclasses
 import inspect
+from typing import ClassVar
 import warnings
 
 import numpy as np
@@ -321,10 +322,23 @@ class WideSlopes(tx.design.spec.AbstractConstraintModel):
         return {"slope_width": self.width}
 
 
+@dataclasses.dataclass(frozen=True)
+class TwelveUnits(tx.design.spec.AbstractConstraintModel):
+    """A constraint model of one's own fitted over units: a line through 12 units of the zone
+    without the fit's scatter."""
+
+    fitted: ClassVar[bool] = True
+
+    def options(self, requirement, n_features):
+        return dict(secant_units=12, scatter=False, secant_reach=None, secant_seed=1, log_outputs=())
+
+
 def test_a_constraint_model_of_one_s_own_runs_through_propose_design():
     """`WideSlopes` (above), no edit to the loop or to `propose_design`: on a closed-form unit
     whose slopes grow with the smoothing width, its design is the one `Tangents` gives at that
-    width (the same linearisation) and not the one tangents at the judging width give."""
+    width (the same linearisation) and not the one tangents at the judging width give. And
+    `TwelveUnits`, fitted over units without subclassing `Secants`: the design `Secants` gives on
+    the same units, and refused by a solver that takes tangents only (it is known as fitted)."""
     scene = R.scan_scene()
     line = R.Line(scene, 1000.0, 0.5 * np.asarray(tx.lost_motion_weights(scene)), 100e-6,
                   width_slopes=[[0.0, 2e10, 1e10, 0.0]])  # arcsec/m per m of width
@@ -337,6 +351,14 @@ def test_a_constraint_model_of_one_s_own_runs_through_propose_design():
     mine, same, plain = design(WideSlopes()), design(tx.Tangents(slope_width=1e-5)), design(tx.Tangents())
     assert mine.cost == same.cost and np.array_equal(mine.band, same.band)
     assert abs(mine.cost - plain.cost) > 1e-3 * plain.cost
+    # A model fitted over units, of one's own (not a Secants subclass): `combine` reads its
+    # `fitted` attribute and its options, so it runs through the same secant machinery; on the
+    # same units it is the same design as Secants'.
+    mine, same = design(TwelveUnits()), design(tx.Secants(units=12, scatter=False, twin=False))
+    assert mine.status == same.status and mine.cost == same.cost and np.array_equal(mine.band, same.band)
+    with pytest.raises(ValueError, match="takes tangent slopes only"):  # it is known as fitted: refused where slopes are asked
+        tx.propose_design(tx.ToleranceProblem(line, tx.Requirement("pointing_rms", requirement, model=TwelveUnits()), tx.Yield(0.99)),
+                          tx.AugmentedLagrangian(widths=(1e-6,)), check=None)
 
 
 def test_auto_moves_a_noise_limited_design_on_to_more_units(monkeypatch):

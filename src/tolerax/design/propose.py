@@ -372,7 +372,7 @@ def _on_more_units(problem: ToleranceProblem, units) -> ToleranceProblem | None:
         return None
     def on_auto_fitted(r):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
         model = with_model(r).model
-        return isinstance(model, Auto) and isinstance(model.resolve(r), Secants)
+        return isinstance(model, Auto) and model.resolve(r).fitted
 
     requirements = as_requirements(problem.requirements)
     moved = tuple(dataclasses.replace(r, model=Auto(units=2 * int(units))) if on_auto_fitted(r) else r for r in requirements)
@@ -394,9 +394,9 @@ def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement,
         if yield_ is None:
             raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread: the "
                              "wear rate from unit to unit); a design over it needs a yield requirement (statistic=Yield(...)).")
-        requirements_ = tuple(r if isinstance(r.model.resolve(r), Secants) else dataclasses.replace(r, model=Secants())
+        requirements_ = tuple(r if r.model.resolve(r).fitted else dataclasses.replace(r, model=Secants())
                               for r in requirements_)
-        if not all(r.model.resolve(r).scatter for r in requirements_):
+        if not all(r.model.resolve(r).options(r, n)["scatter"] for r in requirements_):
             raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread), whose "
                              "secant fits keep the scatter of what neither the features nor the rate explain: leave scatter on.")
     for r in requirements_:
@@ -407,7 +407,7 @@ def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement,
                                 if r.output == "pointing_jitter" else "."))
     combined = combine(requirements_, n, problem.zones.min_clearance)
     if combined.secants and yield_ is None:
-        fitted = next(r for r in requirements_ if isinstance(r.model.resolve(r), Secants))
+        fitted = next(r for r in requirements_ if r.model.resolve(r).fitted)
         raise ValueError(f"propose_design: the requirement {fitted.text()} needs a yield requirement (statistic=Yield(...)): "
                          f"it is fitted over units of the zone ({type(fitted.model.resolve(fitted)).__name__}: its scatter from unit "
                          "to unit is chaotic, or asked so), which reads a yield; or give it model=Tangents().")

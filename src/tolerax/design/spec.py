@@ -124,11 +124,17 @@ class AbstractConstraintModel:
     (`design_problem`'s secant and surface keywords; `{}`: forward-mode tangents at the zone
     middles), and `rounds` (how many response surfaces at most: 1 where it fits none or one),
     `twin` (solve again with another set of units, the noise band) and `rescue` (where tangent
-    slopes stall, finish on secants). `combine` merges a problem's models."""
+    slopes stall, finish on secants); `fitted` (its outputs fitted over units: `options` then
+    gives `secant_units`, `scatter`, `secant_seed`, `secant_reach` and `log_outputs`) and
+    `surface` (it fits a response surface over a box: `options` gives `surface_width` too, and
+    `box_for(min_clearance)` the first box). `combine` merges a problem's models by these
+    attributes alone, so a model of one's own needs no edit here."""
 
     rounds: ClassVar[int] = 1
     twin: ClassVar[bool] = False
     rescue: ClassVar[bool] = False
+    fitted: ClassVar[bool] = False
+    surface: ClassVar[bool] = False
 
     def options(self, requirement: Requirement, n_features: int) -> dict:
         raise NotImplementedError
@@ -170,6 +176,7 @@ class Secants(AbstractConstraintModel):
     reach: float | None = None
     seed: int = 1
     twin: bool = True
+    fitted: ClassVar[bool] = True
 
     def default_units(self, n_features: int) -> int:
         return max(16, 2 * n_features + 2)
@@ -198,6 +205,7 @@ class Surface(Secants):
     box: tuple | None = None
     width: float | None = None
     rounds: int = 6
+    surface: ClassVar[bool] = True
 
     def __post_init__(self):
         if int(self.rounds) < 1:
@@ -264,14 +272,14 @@ def combine(requirements, n_features: int, min_clearance) -> Combined:
     log fit per output, a scatter where any keeps it), on a response surface where any asks for
     one; tangents (with their slope width) where none does."""
     models = [r.model.resolve(r) for r in requirements]
-    fitted = [(r, m) for r, m in zip(requirements, models) if isinstance(m, Secants)]
+    fitted = [(r, m) for r, m in zip(requirements, models) if m.fitted]
     if not fitted:
         options = {}
         for r, m in zip(requirements, models):
             options |= m.options(r, n_features)
         return Combined(options, None, False, any(m.rescue for m in models), False)
     parts = [m.options(r, n_features) for r, m in fitted]
-    surfaces = [m for _, m in fitted if isinstance(m, Surface)]
+    surfaces = [m for _, m in fitted if m.surface]
     options = dict(secant_units=max(p["secant_units"] for p in parts), scatter=any(p["scatter"] for p in parts),
                    secant_seed=parts[0]["secant_seed"], log_outputs=tuple(o for p in parts for o in p["log_outputs"]))
     reaches = [p["secant_reach"] for p in parts if p["secant_reach"] is not None]
