@@ -209,6 +209,9 @@ def test_the_former_keywords_map_to_the_values_that_replace_them():
                                                                                    method="augmented-lagrangian", band=5e-6))
     assert problem.requirements[0].model == tx.Secants(units=12, scatter=False, twin=False) and check is None
     assert isinstance(solver, tx.AugmentedLagrangian) and problem.zones == tx.Zones(band=5e-6)
+    with pytest.warns(DeprecationWarning, match="gradient, k"):  # the former gradient string: a diffrax adjoint now
+        problem, _, _ = legacy.from_legacy(pointing, 700.0, default, dict(gradient="reverse", k=2.0))
+    assert problem.statistic.k == 2.0 and type(problem.statistic.adjoint).__name__ == "RecursiveCheckpointAdjoint"
     # A requirement flagged for secants (as a jitter is) takes a surface at the default units.
     with pytest.warns(DeprecationWarning, match=r"secants=\.\.\., log_fit=\.\.\.\) is deprecated .* model=tx\.Secants\(\)"):
         flagged = tx.Requirement("pointing_rms", 700.0, secants=True)
