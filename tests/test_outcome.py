@@ -240,9 +240,13 @@ def test_the_proposal_is_its_zones_as_drawn_and_a_missed_check_tightens_the_grad
     slopes = 0.5 * np.asarray(lost_motion_weights(scene))
     line = R.Line(scene, 600.0, slopes, 60e-6)
     requirement = 0.8 * float(P.design_problem(line, yield_=0.99).value(width=1e-6))
+    said = []
     plain = tx.propose_design(tx.ToleranceProblem(line, requirement, tx.Yield(0.99)), tx.Sequential(widths=(1e-6,)),
-                              check=tx.Check(units=100))
+                              check=tx.Check(units=100), progress=said.append)
     d = plain.drawable
+    # The drawn design's check is said with its time at the pace of the check before it.
+    drawn_line = next(line for line in said if "the design on whole ISO grades, checked on 100 units" in line)
+    assert ", about " in drawn_line and "at the last one's pace" in drawn_line, said
     assert plain.accepted and d.tightened == 0 and d.checks[0].interval[1] >= 0.99
     zones = plain.tolerances
     assert np.array_equal(np.asarray(zones.nominal), d.nominal) and np.array_equal(np.asarray(zones.band), d.band)

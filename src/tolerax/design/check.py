@@ -13,6 +13,7 @@ import json
 import math
 import os
 import pathlib
+import time
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -21,6 +22,7 @@ import scipy.stats
 
 from .reliability import LinearisedYield, _uncertain_columns, _uncertain_count, _unfitted
 from .outcome import MODEL_OFF
+from .phases import Phases
 from .types import Design, chain_results
 from ..uncertainty.montecarlo import BACKENDS, _fingerprint, key_settings, monte_carlo
 from ..uncertainty.results import wilson_interval
@@ -148,9 +150,14 @@ class Check:
             if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
                 break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
             middle = Design(result.x.nominal + result.x.band, result.x.band)
+            paced = isinstance(say, Phases)  # a Phases keeps each check's wall time, to say the next's
             if say is not None:
-                say(f"Monte Carlo check {len(checked) + 1} (of at most {int(self.rounds)}): {int(self.units)} fresh units ...")
+                say(f"Monte Carlo check {len(checked) + 1} (of at most {int(self.rounds)}): {int(self.units)} fresh units"
+                    + (say.at_pace("check") if paced else "") + " ...")
+            begun = time.perf_counter()
             got = self.simulate(problem.objective.objective, middle, requirements, solver.width, progress=progress)
+            if paced:
+                say.took("check", time.perf_counter() - begun)
             got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
             if model_off(got, requirements):

@@ -212,7 +212,8 @@ def propose_design(
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
     if solver.drawable:
         drawn_check = None if check is None or status != "converged" else check
-        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units" if drawn_check else "") + " ...")
+        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units" + say.at_pace("check") if drawn_check else "")
+            + " ...")
         drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width, progress)
         if status == "converged" and not drawable.met:
             # One proposal: what the drawing carries is the answer, so a continuous optimum whose
