@@ -148,7 +148,7 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     assert said[0].startswith("propose_design [0:0") and "the starting design's outputs" in said[0]
     assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
     # Before the solve, how long it may take: its budget at the pace of the compiled evaluations.
-    assert any("solving (Sequential" in line and "at most 20 gradients, at most ~" in line for line in said), said
+    assert any("solving (Sequential" in line and "at most 20 gradients, at most about " in line for line in said), said
     # A response surface's fits, before the first: its units at the rough pace of the scene's runs.
     pointing = tx.load_scene("scan-azimuth-planetary").objective(jitter_cutoff=20.0)
     one = tx.eta.rough_wall(pointing.scene, pointing.duration, pointing.integrator)

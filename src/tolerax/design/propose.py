@@ -267,7 +267,7 @@ def _how_long(solver, pace: float, check) -> str:
     """The solve's time said before it: its solver's most gradients (`most_gradients`) at `pace`
     (s each: the infeasible-first evaluations', compiled), and the check's units."""
     most = solver.most_gradients()
-    said = "" if most is None else (f"; at most {most} gradients, at most ~{human_seconds(most * pace)} at the "
+    said = "" if most is None else (f"; at most {most} gradients, at most about {human_seconds(most * pace)} at the "
                                     f"{pace:.2g} s each the infeasible-first evaluations took")
     if check is not None:
         said += f"; then a Monte Carlo check of {int(check.units)} fresh units (at most {int(check.rounds)} rounds)"
