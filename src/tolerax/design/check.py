@@ -66,6 +66,15 @@ class YieldCheck:
         end is below it."""
         return self.interval[1] < self.q
 
+    def met(self, unit: str = "arcsec") -> str:
+        """`"98.5% met 700 arcsec"`, and where that is short of the yield asked but the check's
+        95 % Wilson interval holds it, that it is within the units' sampling noise."""
+        said = f"{self.yield_simulated:.1%} met {self.requirement:g} {unit}"
+        if self.yield_simulated < self.q and not self.missed:
+            said += (f" (below {self.q:.0%}, but within what {self.n - self.n_failed} units resolve: their 95 % interval "
+                     f"{self.interval[0]:.1%}-{self.interval[1]:.1%} holds it)")
+        return said
+
     def text(self) -> str:
         return (
             f"Monte Carlo check on {self.n - self.n_failed} fresh units: yield {self.yield_simulated:.3f} "

@@ -248,7 +248,7 @@ class DesignReport:
         where = f" in {self.yield_:.0%} of units" if self.yield_ is not None else ""
         checks = d.checks if d is not None and d.checks else self.outcomes[0].checks[-1:]
         units = [o.requirement.unit for o in self.outcomes]
-        checked = (" Checked on " + ", ".join(f"{c.n - c.n_failed} simulated units: {c.yield_simulated:.1%} met {c.requirement:g} {u}"
+        checked = (" Checked on " + ", ".join(f"{c.n - c.n_failed} simulated units: {c.met(u)}"
                                               for c, u in zip(checks, units + units[-1:] * len(checks))) + ".") if checks else ""
         cost = d.cost if d is not None else self.cost
         baseline = float(self.baseline[2])
