@@ -358,7 +358,7 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     assert "| jitter (RMS of the pointing error over 20-100 Hz) |" in (out / "summary.md").read_text()
     # ... read by a lumped joint, which does not read it as the full stage does: said beside it.
     assert summary["metrics"]["jitter_read_by"] == {"azimuth": "lumped"}
-    assert "arcsec (not the full stage's: the azimuth joint is lumped; the jitter is read at planetary fidelity" in (
+    assert "arcsec (a proxy, not the full stage's: the azimuth joint is lumped, and the jitter is the full stage's vibration" in (
         out / "summary.md").read_text()
 
     # Tolerances no solver can meet: the error control wants a step below dtmin. Only values

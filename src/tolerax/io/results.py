@@ -203,8 +203,8 @@ def summary_md(s: dict) -> str:
         ]
         if m.get("jitter_read_by"):  # a proxy's jitter: say so beside the number
             joints = ", ".join(f"the {joint} joint is {f}" for joint, f in m["jitter_read_by"].items())
-            lines[-1] = lines[-1][:-1] + (f"(not the full stage's: {joints}; the jitter is read at planetary fidelity, "
-                                          "the scene file's `[scene] fidelity`) |")
+            lines[-1] = lines[-1][:-1] + (f"(a proxy, not the full stage's: {joints}, and the jitter is the full stage's "
+                                          "vibration; `[scene] fidelity = \"planetary\"` reads it) |")
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             lines += [
