@@ -88,6 +88,14 @@ def test_a_check_below_its_yield_or_an_unconverged_run_is_not_a_proposal():
     # missing the requirement with no infeasibility test to run: not converged, with the numbers
     status, text = diagnose(converged=False, **common | dict(objective=130.0))
     assert status == "not converged" and "130 against 100 arcsec" in text and "more iterations" in text
+    # a design on its requirements whose cost has settled (within 1 % over its last 5 steps) is
+    # not helped by more iterations either: said so, with the flag that accepts it (a new user's
+    # first design, scan-azimuth at 600 arcsec, bounced at cost 1.833-1.836 for 20 gradients)
+    status, text = diagnose(converged=False, settled=0.0016, **common)
+    assert status == "not converged" and "cost has settled (within 0.16% over its last 5 steps)" in text
+    assert "more iterations would move the design about, not lower its cost" in text and "--allow-unconverged" in text
+    assert "a wider last smoothing width (Sequential(widths=...), --widths)" in text
+    assert "more iterations (" in diagnose(converged=False, settled=0.05, **common)[1]  # not settled: the budget's advice
     # a stalled optimiser (its trust region collapsed) is not helped by more iterations
     status, text = diagnose(converged=False, stalled=True, **common)
     assert status == "not converged" and "stalled" in text and "more iterations" not in text

@@ -81,9 +81,15 @@ def tightest_reach(evaluate, lower: Design, upper: Design, sensitivity=None) -> 
 MODEL_OFF = 0.5  # a check whose linear and simulated quantiles differ by more than this fraction of the requirement
 
 
+# A cost that moved by less than this (relative) over the last SETTLED_STEPS steps has settled:
+# the diagnosis of a design that met its requirements without passing its stopping test then says
+# that more iterations would not lower it (the status is unchanged: the stopping test decides).
+SETTLED, SETTLED_STEPS = 0.01, 5
+
+
 def diagnose(*, objective, requirement, tol, converged, iterations, labels, evaluate=None, lower=None, upper=None,
              sensitivity=None, checks=(), yield_=None, noisy=False, bounds_text="", stalled=False,
-             solver=None) -> tuple[str, str]:
+             solver=None, settled=None) -> tuple[str, str]:
     """`(status, diagnosis)` of a design run (module docstring); the diagnosis is empty when
     converged.
 
@@ -104,6 +110,9 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     - `bounds_text`: what the user sets the bounds with (named in the advice).
     - `solver`: the design solver that ran (`AbstractDesignMethod`; default `Sequential`): its
       own options are the ones the advice names.
+    - `settled` (optional): the relative spread of the cost over the last `SETTLED_STEPS` steps
+      at the last width; at most `SETTLED` on a design that meets its requirements, the advice is
+      that more iterations would not lower the cost (not that they might).
     """
     name, budget = (("Sequential", "max_gradients") if solver is None else (type(solver).__name__, solver.budget))
     more_iterations = f"more iterations ({name}({budget}=...), --outer)"
@@ -162,6 +171,14 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"width first ({name}(widths=...), --widths), or "
             + ("more units in the model that fitted the slopes (its units=..., --secant-units, which keeps the model)." if noisy
                else f"fit the slopes over units ({secants})."))
+    if not converged and settled is not None and settled <= SETTLED and not noisy:
+        return "not converged", (
+            f"The design meets the requirements and its cost has settled (within {settled:.2%} over its last {SETTLED_STEPS} "
+            f"steps), but its stopping test did not pass within {iterations} gradients: at the last smoothing width the "
+            "objective is rough at the steps' scale (impacts), and the optimality test reads that roughness; more iterations "
+            "would move the design about, not lower its cost. To accept the best design reached (below): --allow-unconverged "
+            f"writes it as proposal.toml. To change it: {wider.replace('first', 'last')}, which judges the design on a smoother "
+            "model (farther from the exact contacts).")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (
             f"The design meets the requirements but its stopping test did not pass within {iterations} gradients: a cheaper "

@@ -24,7 +24,7 @@ from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .loop import tolerance_worth
 from .objectives import PointingObjective
-from .outcome import diagnose, tightest_reach
+from .outcome import SETTLED_STEPS, diagnose, tightest_reach
 from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
@@ -190,7 +190,7 @@ def propose_design(
         upper=built.upper, sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=built.gradient_noise is not None,
         bounds_text=" (the zones' min_clearance and band_range; a scene file's [tolerances])",
-        stalled=bool(result.stalled is not None and result.stalled), solver=solver)
+        stalled=bool(result.stalled is not None and result.stalled), solver=solver, settled=_settled(result))
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
         status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged),
@@ -261,6 +261,17 @@ def _memoised_values(width):
         return memo[key][1]
 
     return evaluate
+
+
+def _settled(result):
+    """The relative spread of the cost over the last `SETTLED_STEPS` history rows at the last
+    smoothing width (`diagnose`), or `None` where there are fewer."""
+    history = result.history
+    last = np.asarray(history.continuation) == np.asarray(history.continuation)[-1]
+    costs = np.asarray(history.cost)[last][-SETTLED_STEPS:]
+    if costs.size < SETTLED_STEPS or not np.all(np.isfinite(costs)):
+        return None
+    return float((costs.max() - costs.min()) / costs.min())
 
 
 def _how_long(solver, pace: float, check) -> str:
