@@ -80,7 +80,17 @@ def test_a_bad_option_is_answered_before_the_simulator_is_imported():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
-    assert "unrecognized arguments: --bogus" in done.stderr
+    assert "unrecognized arguments: --bogus" in done.stderr and "`tolerax design --help` lists its options" in done.stderr
+
+
+def test_a_misspelt_option_is_answered_with_the_nearest(capsys):
+    """A misspelt option is refused by its command's own parser (its usage, not the top
+    level's), naming the option it is nearest (a new user's `--requirment`)."""
+    with pytest.raises(SystemExit) as refused:
+        cli.main(["design", "--requirment", "600"])
+    err = capsys.readouterr().err
+    assert refused.value.code == 2 and err.startswith("usage: tolerax design")
+    assert "unrecognized arguments: --requirment (did you mean --requirement?)" in err
 
 
 @pytest.mark.parametrize("text, message", [

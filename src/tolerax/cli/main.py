@@ -258,7 +258,9 @@ def main(argv=None) -> int:
     studies.add_argument("--resume", action="store_true",
                          help="keep the rows of STUDY-SIZE.json in --out whose scene and horizon match; run the rest")
     studies.add_argument("--quiet", action="store_true", help="no estimate or line per scene (errors are still printed)")
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # refused by the command's own parser, with the option nearest a misspelt one
+        _refuse_unknown(sub.choices[args.command], args.command, unknown)
     args.argv = argv
     # What can be wrong with the scene file before the simulator loads (unreadable, not TOML, an
     # unknown top-level table: tolerax.io.checker) is answered first, as the command would.
@@ -301,3 +303,14 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def _refuse_unknown(command_parser, command: str, unknown) -> None:
+    """Exit 2 naming the arguments `command` does not take, the nearest option where one is
+    misspelt (`--requirment`: `--requirement`), and where its options are listed."""
+    import difflib
+
+    options = [o for action in command_parser._actions for o in action.option_strings]
+    near = [m for u in unknown if u.startswith("-") for m in difflib.get_close_matches(u.split("=")[0], options, n=1)]
+    command_parser.error(f"unrecognized arguments: {' '.join(unknown)}"
+                         + (f" (did you mean {', '.join(near)}?)" if near else "") + f"; `tolerax {command} --help` lists its options")
