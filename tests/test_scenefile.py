@@ -360,6 +360,9 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     assert summary["metrics"]["jitter_read_by"] == {"azimuth": "lumped"}
     assert "arcsec (a proxy, not the full stage's: the azimuth joint is lumped, and the jitter is the full stage's vibration" in (
         out / "summary.md").read_text()
+    # A lumped joint's output does not translate: no bearing force or runout to read, said so (not "0 N").
+    assert "| azimuth peak output-bearing force | not modelled (the azimuth joint is lumped) |" in (out / "summary.md").read_text()
+    assert summary["metrics"]["joint_fidelity"]["azimuth"] == "lumped"
 
     # Tolerances no solver can meet: the error control wants a step below dtmin. Only values
     # change, so the compiled program is reused.

@@ -88,7 +88,10 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
     # fidelity (tolerax.design.fidelity); the joints that model their play more coarsely.
     from ..design.fidelity import proxies
 
+    from ..design.fidelity import joint_fidelities
+
     out["jitter_read_by"] = proxies(scene_file.build(), "planetary")
+    out["joint_fidelity"] = joint_fidelities(scene_file.build())  # the bearing force and runout: the floating stage's only
     for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
         out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
@@ -207,10 +210,14 @@ def summary_md(s: dict) -> str:
                                           "vibration; `[scene] fidelity = \"planetary\"` reads it) |")
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
+            kind = m.get("joint_fidelity", {}).get(joint)
+            floats = kind in (None, "planetary", "planetary-scaled")  # the output translates: a bearing force and runout
             lines += [
                 f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",
-                f"| {joint} peak output-bearing force | {m[f'{joint}_output_force_peak_N']:.4g} N |",
-                f"| {joint} peak runout | {m[f'{joint}_runout_peak_um']:.4g} µm |",
+                f"| {joint} peak output-bearing force | "
+                + (f"{m[f'{joint}_output_force_peak_N']:.4g} N |" if floats else f"not modelled (the {joint} joint is {kind}) |"),
+                f"| {joint} peak runout | "
+                + (f"{m[f'{joint}_runout_peak_um']:.4g} µm |" if floats else f"not modelled (the {joint} joint is {kind}) |"),
             ]
     lines += ["", "## Files", ""] + [f"- `{f}`" for f in s["files"]]
     return "\n".join(lines) + "\n"
