@@ -167,7 +167,11 @@ class Checker:
     def typed(self, data: dict, table: tuple[str, ...], key: str, ann):
         value = data[key]
         if not _accepts(value, ann):
-            raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).", table, key)
+            # A number written with its unit ("50um"): the file holds plain numbers in SI units.
+            units = (" Scene files hold plain numbers in SI units (lengths in m: 50 µm is 5e-05; angles in rad); "
+                     "docs/scene_files.md gives each key's unit." if isinstance(value, str) and re.match(r"\s*[-+]?[\d.]", value)
+                     and _accepts(1.0, ann) else "")
+            raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).{units}", table, key)
 
     def wrap(self, err: Exception, table: tuple[str, ...], data: dict):
         """A builder's error, located at the key of `table` its message names first: the
