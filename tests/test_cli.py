@@ -91,6 +91,9 @@ def test_a_misspelt_option_is_answered_with_the_nearest(capsys):
     err = capsys.readouterr().err
     assert refused.value.code == 2 and err.startswith("usage: tolerax design")
     assert "unrecognized arguments: --requirment (did you mean --requirement?)" in err
+    with pytest.raises(SystemExit):  # the command's own option before it: said so, not "did you mean" itself
+        cli.main(["--quiet", "studies"])
+    assert "--quiet: an option of `tolerax studies`: give it after the command" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("text, message", [

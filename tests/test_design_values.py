@@ -127,6 +127,11 @@ def test_the_mean_plus_k_std_gradient_is_a_diffrax_adjoint_not_a_string():
         tx.MeanPlusKStd(adjoint="checkpointed")
     with pytest.raises(TypeError, match="must be a diffrax adjoint"):
         tx.MeanPlusKStd(adjoint=diffrax.RecursiveCheckpointAdjoint)  # the class, not an adjoint
+    with pytest.warns(DeprecationWarning, match="design_problem"):  # the builder's former keyword too
+        built = _propose.design_problem(line, n_draws=2, gradient="reverse")
+    assert isinstance(built.objective.objective.adjoint, diffrax.RecursiveCheckpointAdjoint)
+    with pytest.raises(TypeError, match="RobustPointing: adjoint must be a diffrax adjoint"):
+        _propose.design_problem(line, n_draws=2, adjoint="reverse")
 
 
 def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
@@ -148,7 +153,7 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
     assert said[0].startswith("propose_design [0:0") and "the starting design's outputs" in said[0]
     assert any("infeasible first" in line for line in said) and said[-1].endswith(f"done: {ours.status}.")
     # Before the solve, how long it may take: its budget at the pace of the compiled evaluations.
-    assert any("solving (Sequential" in line and "at most 20 gradients, at most about " in line for line in said), said
+    assert any("solving (Sequential" in line and "the first solve's budget 20 gradients, about " in line for line in said), said
     # A response surface's fits, before the first: its units at the rough pace of the scene's runs.
     pointing = tx.load_scene("scan-azimuth-planetary").objective(jitter_cutoff=20.0)
     one = tx.eta.rough_wall(pointing.scene, pointing.duration, pointing.integrator)

@@ -226,7 +226,8 @@ def test_good_text_parses():
         ("duration = 0.6", 'duration = "0.6"', 13, "run", "duration", "must be a number"),
         # A number with its unit typed in (a new user's "50um"): the file's units named.
         ("planet_clearance = 5e-05", 'planet_clearance = "50um"', 10, "scene.azimuth_stage", "planet_clearance",
-         "must be a number, got '50um' (a string). Scene files hold plain numbers in SI units (lengths in m: 50 µm is 5e-05"),
+         "must be a number, got '50um' (a string). Scene files hold plain numbers, each in its key's unit (docs/scene_files.md: "
+         "lengths in m, so 50 µm is 5e-05"),
         ('fidelity = ["lumped", "ideal"]', "fidelity = 3", 6, "scene", "fidelity", "must be a string or a list of 2"),
         ("planet_clearance = 5e-05", "planet_clearance = -5e-05", 10, "scene.azimuth_stage", "planet_clearance", "must be finite and >= 0"),
         ('mode = "azimuth"', 'mode = "roll"', 5, "scene", "mode", "mode='roll' is unknown"),

@@ -107,6 +107,20 @@ def optimiser_options(parser):
 PATH = __doc__[__doc__.index("The engineer's path"):__doc__.index("SCENE is a built-in")].strip()
 
 
+def _refuse_unknown(command_parser, command: str, unknown) -> None:
+    """Exit 2 naming the arguments `command` does not take, the nearest option where one is
+    misspelt (`--requirment`: `--requirement`), and where its options are listed."""
+    import difflib
+
+    options = [o for action in command_parser._actions for o in action.option_strings]
+    early = [u for u in unknown if u.split("=")[0] in options]  # the command's own, given before it
+    near = [m for u in unknown if u.startswith("-") and u not in early
+            for m in difflib.get_close_matches(u.split("=")[0], options, n=1, cutoff=0.75)]
+    command_parser.error(f"unrecognized arguments: {' '.join(unknown)}"
+                         + (f" ({', '.join(early)}: an option of `tolerax {command}`: give it after the command)" if early else "")
+                         + (f" (did you mean {', '.join(near)}?)" if near else "") + f"; `tolerax {command} --help` lists its options")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tolerax", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"tolerax {__version__}")
@@ -303,14 +317,3 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
-
-
-def _refuse_unknown(command_parser, command: str, unknown) -> None:
-    """Exit 2 naming the arguments `command` does not take, the nearest option where one is
-    misspelt (`--requirment`: `--requirement`), and where its options are listed."""
-    import difflib
-
-    options = [o for action in command_parser._actions for o in action.option_strings]
-    near = [m for u in unknown if u.startswith("-") for m in difflib.get_close_matches(u.split("=")[0], options, n=1)]
-    command_parser.error(f"unrecognized arguments: {' '.join(unknown)}"
-                         + (f" (did you mean {', '.join(near)}?)" if near else "") + f"; `tolerax {command} --help` lists its options")

@@ -71,7 +71,7 @@ class YieldCheck:
         95 % Wilson interval holds it, that it is within the units' sampling noise."""
         said = f"{self.yield_simulated:.1%} met {self.requirement:g} {unit}"
         if self.yield_simulated < self.q and not self.missed:
-            said += (f" (below {self.q:.0%}, but within what {self.n - self.n_failed} units resolve: their 95 % interval "
+            said += (f" (below {self.q:.1%}, but within what {self.n - self.n_failed} units resolve: their 95 % interval "
                      f"{self.interval[0]:.1%}-{self.interval[1]:.1%} holds it)")
         return said
 

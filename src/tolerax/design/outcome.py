@@ -176,8 +176,8 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"The design meets the requirements and its cost has settled (within {settled:.2%} over its last {SETTLED_STEPS} "
             f"steps), but its stopping test did not pass within {iterations} gradients: at the last smoothing width the "
             "objective is rough at the steps' scale (impacts), and the optimality test reads that roughness; more iterations "
-            "would move the design about, not lower its cost. To accept the best design reached: --allow-unconverged "
-            f"writes it as proposal.toml. To change it: {wider.replace('first', 'last')}, which judges the design on a smoother "
+            "would move the design about, not lower its cost. To accept the best design reached: the command line's "
+            f"--allow-unconverged writes it as proposal.toml. To change it: {wider.replace('first', 'last')}, which judges the design on a smoother "
             "model (farther from the exact contacts).")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (

@@ -104,6 +104,11 @@ class RobustPointing(eqx.Module):
     k: float = eqx.field(static=True, default=1.0)
     adjoint: object = eqx.field(static=True, default=None)
 
+    def __check_init__(self):
+        if self.adjoint is not None and not isinstance(self.adjoint, diffrax.AbstractAdjoint):
+            raise TypeError(f"RobustPointing: adjoint must be a diffrax adjoint (diffrax.ForwardMode(), "
+                            f"diffrax.RecursiveCheckpointAdjoint(...)) or None, got {self.adjoint!r}.")
+
     def __call__(self, x: Design, draws, width) -> Array:
         if self.adjoint is None or isinstance(self.adjoint, diffrax.ForwardMode):
             unit, pointing = _unit_output_forward, self.pointing
@@ -199,6 +204,7 @@ def design_problem(
     secant_reach: float | None = None,
     surface_box: tuple | None = None,
     surface_width: float | None = None,
+    gradient: str | None = None,
 ) -> DesignProblem:
     """The `DesignProblem` that `propose_design` solves.
 
@@ -222,7 +228,7 @@ def design_problem(
       grades, relative cost 1 per feature at IT7).
     - `adjoint`: how the gradient passes through each simulation, a diffrax adjoint: `None`
       (default, forward mode) or `diffrax.RecursiveCheckpointAdjoint()` (reverse mode;
-      `RobustPointing`).
+      `RobustPointing`); `gradient="forward"|"reverse"`: the same, deprecated.
     - `yield_`: a yield $Y$ in (0, 1) makes the objective the $Y$-quantile of `output` over all
       units made within the bands, linearised at the zone middles (`LinearisedYield`: one
       simulation with one forward-mode tangent per feature; `n_draws`, `key`, `statistic`, `k`
@@ -255,6 +261,12 @@ def design_problem(
       `Tolerances` (held at its zones). Their lower limit and band are bounded to those values
       (their cost is counted, constant).
     """
+    if gradient is not None:  # the former string, for one release
+        if gradient not in ("forward", "reverse"):
+            raise ValueError(f"design_problem: gradient must be 'forward' or 'reverse', got {gradient!r}.")
+        warnings.warn("design_problem(gradient=...) is deprecated and goes in the next release: give adjoint=None (forward "
+                      "mode) or diffrax.RecursiveCheckpointAdjoint() (reverse mode).", DeprecationWarning, stacklevel=2)
+        adjoint = None if gradient == "forward" else diffrax.RecursiveCheckpointAdjoint()
     scene = pointing.scene
     uncertain = getattr(pointing, "uncertain_inputs", ())
     if uncertain and not (yield_ is not None and secant_units is not None and scatter):

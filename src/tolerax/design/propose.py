@@ -142,9 +142,10 @@ def propose_design(
     checked, twin_costs, notes = [], None, proxy_notes  # checked: (result, its checks: one per requirement, the requirements it was solved for)
     evaluate = _memoised_values(width)
     say("infeasible first: the tightest designs the bounds allow ...")
-    since = say.elapsed()
+    since, made = say.elapsed(), evaluate.made
     out_of_reach = _tightest_first(evaluate, built, slopes, requirements, tol)
-    pace = (say.elapsed() - since) / 2  # s per evaluation of the compiled objective (two evaluations)
+    # s per evaluation of the compiled objective (two designs asked for; one where they coincide)
+    pace = (say.elapsed() - since) / (evaluate.made - made) if evaluate.made > made else None
     if out_of_reach is not None:
         # Infeasible first: the tightest designs the bounds allow miss a requirement, so no design
         # within them meets it; no solver is run. The report is that design's, evaluated.
@@ -212,8 +213,9 @@ def propose_design(
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
     if solver.drawable:
         drawn_check = None if check is None or status != "converged" else check
-        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units" + say.at_pace("check") if drawn_check else "")
-            + " ...")
+        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units (up to {TIGHTER_GRADES + 1} designs, "
+                                                f"each a check{say.at_pace('check').replace(', about', ': about')})"
+                                                if drawn_check else "") + " ...")
         drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width, progress)
         if status == "converged" and not drawable.met:
             # One proposal: what the drawing carries is the answer, so a continuous optimum whose
@@ -258,28 +260,36 @@ def _memoised_values(width):
         key = (id(problem), np.asarray(x.nominal).tobytes(), np.asarray(x.band).tobytes())
         if key not in memo:  # the problem is kept with its values: its id is not reused while the memo lives
             memo[key] = (problem, _value_and_sensitivity(problem, x, width)[0])
+            evaluate.made += 1
         return memo[key][1]
 
+    evaluate.made = 0  # evaluations made (not read back from the memo)
     return evaluate
 
 
 def _settled(result):
-    """The relative spread of the cost over the last `SETTLED_STEPS` history rows at the last
-    smoothing width (`diagnose`), or `None` where there are fewer."""
+    """The relative spread of the cost over the last `SETTLED_STEPS` accepted steps at the last
+    smoothing width (`diagnose`), or `None` where there are fewer. A rejected step repeats the
+    cost of the row before it, so only the rows whose cost changed count: a run of rejections (a
+    shrinking trust region, where more iterations may still find a step) is not a settled cost."""
     history = result.history
     last = np.asarray(history.continuation) == np.asarray(history.continuation)[-1]
-    costs = np.asarray(history.cost)[last][-SETTLED_STEPS:]
-    if costs.size < SETTLED_STEPS or not np.all(np.isfinite(costs)):
+    costs = np.asarray(history.cost)[last]
+    moved = costs[np.concatenate([[True], np.diff(costs) != 0])][-SETTLED_STEPS:]
+    if moved.size < SETTLED_STEPS or not np.all(np.isfinite(moved)) or moved.min() <= 0:
         return None
-    return float((costs.max() - costs.min()) / costs.min())
+    return float((moved.max() - moved.min()) / moved.min())
 
 
-def _how_long(solver, pace: float, check) -> str:
-    """The solve's time said before it: its solver's most gradients (`most_gradients`) at `pace`
-    (s each: the infeasible-first evaluations', compiled), and the check's units."""
+def _how_long(solver, pace, check) -> str:
+    """The solve's time said before it: its solver's budget (`most_gradients`) at `pace` (s
+    each: the infeasible-first evaluations', compiled; `None`: not measured), and the check's
+    units. The first solve's budget: a check's re-solves, a surface's rounds and a twin design
+    add their own."""
     most = solver.most_gradients()
-    said = "" if most is None else (f"; at most {most} gradients, at most about {human_seconds(most * pace)} at the "
-                                    f"{pace:.2g} s each the infeasible-first evaluations took")
+    said = "" if most is None else f"; the first solve's budget {most} gradients" + (
+        "" if pace is None else f", about {human_seconds(most * pace)} at the {pace:.2g} s each the infeasible-first "
+                                "evaluations took")
     if check is not None:
         said += f"; then a Monte Carlo check of {int(check.units)} fresh units (at most {int(check.rounds)} rounds)"
     return said

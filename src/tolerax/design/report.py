@@ -402,7 +402,7 @@ class DesignReport:
         chosen, n = int(self.result.iteration), len(np.asarray(self.result.history.cost))
         gradients = int(np.asarray(self.result.history.steps)[-1])  # the count the progress and the diagnosis give
         return (f"the last of {n} steps" if chosen == n - 1 else f"step {chosen + 1} of {n}, the cheapest that met the requirement") \
-            + f" ({gradients} gradients in all)"
+            + f" ({gradients} gradient{'' if gradients == 1 else 's'} in all)"
 
     def plot_zones(self, ax, title: str | None = None):
         """The tolerance zones on `ax`: the baseline's, the proposal's and, where there is one,

@@ -142,7 +142,7 @@ class AugmentedLagrangian(AbstractDesignMethod):
             max_outer=int(self.max_outer), inner_steps=int(self.inner_steps), tol=1e-3, progress=progress)
 
     def most_gradients(self) -> int:
-        return int(self.max_outer) * int(self.inner_steps)
+        return int(self.max_outer) * (int(self.inner_steps) + 1)  # and one value-and-gradient per outer iteration
 
 
 @dataclasses.dataclass(frozen=True)

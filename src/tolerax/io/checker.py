@@ -168,8 +168,8 @@ class Checker:
         value = data[key]
         if not _accepts(value, ann):
             # A number written with its unit ("50um"): the file holds plain numbers in SI units.
-            units = (" Scene files hold plain numbers in SI units (lengths in m: 50 µm is 5e-05; angles in rad); "
-                     "docs/scene_files.md gives each key's unit." if isinstance(value, str) and re.match(r"\s*[-+]?[\d.]", value)
+            units = (" Scene files hold plain numbers, each in its key's unit (docs/scene_files.md: lengths in m, so "
+                     "50 µm is 5e-05; requirements in arcsec)." if isinstance(value, str) and re.match(r"\s*[-+]?[\d.]", value)
                      and _accepts(1.0, ann) else "")
             raise self.error(f"must be {_type_text(ann)}, got {value!r} ({_toml_type(value)}).{units}", table, key)
 

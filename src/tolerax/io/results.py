@@ -86,12 +86,11 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
         out["jitter_not_resolved"] = str(err)
     # The jitter is the stage's vibration: read as the full stage does only at planetary
     # fidelity (tolerax.design.fidelity); the joints that model their play more coarsely.
-    from ..design.fidelity import proxies
+    from ..design.fidelity import joint_fidelities, proxies
 
-    from ..design.fidelity import joint_fidelities
-
-    out["jitter_read_by"] = proxies(scene_file.build(), "planetary")
-    out["joint_fidelity"] = joint_fidelities(scene_file.build())  # the bearing force and runout: the floating stage's only
+    model = scene_file.build()
+    out["jitter_read_by"] = proxies(model, "planetary")
+    out["joint_fidelity"] = joint_fidelities(model)  # the bearing force and runout: not of a lumped or ideal joint
     for k, joint in enumerate(JOINTS):
         out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
         out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
@@ -211,7 +210,7 @@ def summary_md(s: dict) -> str:
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             kind = m.get("joint_fidelity", {}).get(joint)
-            floats = kind in (None, "planetary", "planetary-scaled")  # the output translates: a bearing force and runout
+            floats = kind not in ("lumped", "ideal")  # the output translates: a bearing force and runout
             lines += [
                 f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",
                 f"| {joint} peak output-bearing force | "
