@@ -91,7 +91,8 @@ def propose_design(
       line per phase (surface fit, solve, checks, twin, drawn design) with the time since the
       start, on stderr (`tolerax.design.phases`; a callable takes the lines instead). Before
       they start, the surface fits say a rough time (their units at `tolerax.eta.rough_wall`'s
-      pace) and the solve its most gradients at the pace of the compiled evaluations so far.
+      pace), the solve its budget of gradients at the pace of the compiled evaluations so far,
+      and each later check the last one's time.
     - `callback`: `callback(gradients, x, cost, objective)` after every gradient evaluation
       (`Sequential`; `x.nominal` holds the lower limits).
     - `**deprecated`: the former signature, `propose_design(pointing, requirement, widths=...,
