@@ -28,7 +28,7 @@ import warnings
 from .check import Check
 from .requirements import as_requirements
 from .solvers import AugmentedLagrangian, Sequential
-from .spec import MeanPlusKStd, Secants, Surface, Tangents, ToleranceProblem, Yield, Zones
+from .spec import MeanPlusKStd, Secants, Surface, Tangents, ToleranceProblem, Yield, Zones, adjoint_named
 
 SOLVER_KEYS = ("method", "widths", "max_outer", "inner_steps", "learning_rate")
 CHECK_KEYS = ("check_units", "max_checks", "check_key")
@@ -73,11 +73,8 @@ def from_legacy(pointing, requirement, check, options: dict):
     else:
         if get("statistic", "mean+kstd") != "mean+kstd":
             raise ValueError(f"propose_design: statistic {get('statistic')!r} is not offered; MeanPlusKStd(k) or Yield(level).")
-        gradient = get("gradient", "forward")
-        if gradient not in ("forward", "reverse"):
-            raise ValueError(f"propose_design: gradient must be 'forward' or 'reverse', got {gradient!r}.")
-        adjoint = None if gradient == "forward" else __import__("diffrax").RecursiveCheckpointAdjoint()
-        statistic = MeanPlusKStd(float(get("k", 1.0)), int(get("n_draws", 4)), get("key"), adjoint)
+        statistic = MeanPlusKStd(float(get("k", 1.0)), int(get("n_draws", 4)), get("key"),
+                                 adjoint_named(get("gradient", "forward"), "propose_design"))
     units = (200 if yield_ is not None else 0) if get("check_units") is None else int(get("check_units"))
     if units and yield_ is None:
         raise ValueError("propose_design: check_units needs a yield requirement (yield_=...), the thing it checks.")

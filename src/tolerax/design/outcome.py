@@ -117,6 +117,7 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
     name, budget = (("Sequential", "max_gradients") if solver is None else (type(solver).__name__, solver.budget))
     more_iterations = f"more iterations ({name}({budget}=...), --outer)"
     wider = f"a wider first smoothing width ({name}(widths=...), --widths)"
+    wider_last = f"a wider last smoothing width ({name}(widths=...), --widths)"
     secants = "model=Secants(units=...), --secant-units" + (
         "" if solver is None or solver.fitted else f"; with Sequential(), as {name} takes tangent slopes only")
     f, r, t = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (objective, requirement, tol))
@@ -177,7 +178,7 @@ def diagnose(*, objective, requirement, tol, converged, iterations, labels, eval
             f"steps), but its stopping test did not pass within {iterations} gradients: at the last smoothing width the "
             "objective is rough at the steps' scale (impacts), and the optimality test reads that roughness; more iterations "
             "would move the design about, not lower its cost. To accept the best design reached: the command line's "
-            f"--allow-unconverged writes it as proposal.toml. To change it: {wider.replace('first', 'last')}, which judges the design on a smoother "
+            f"--allow-unconverged writes it as proposal.toml. To change it: {wider_last}, which judges the design on a smoother "
             "model (farther from the exact contacts).")
     if not converged:
         return ("noise-limited" if noisy else "not converged"), (

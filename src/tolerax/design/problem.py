@@ -17,6 +17,7 @@ from jaxtyping import Array
 from .cost import AbstractCostModel, IsoGrade
 from .features import design_names, design_of, feature_entries
 from .objectives import AbstractObjective, unit_output, value_and_jacobian
+from .spec import adjoint_named, check_adjoint
 from .subproblem import objective_value
 from .reliability import LinearisedYield, secant_draws, yield_draws
 from .surface import fit_surface, secant_gradient_noise
@@ -105,9 +106,7 @@ class RobustPointing(eqx.Module):
     adjoint: object = eqx.field(static=True, default=None)
 
     def __check_init__(self):
-        if self.adjoint is not None and not isinstance(self.adjoint, diffrax.AbstractAdjoint):
-            raise TypeError(f"RobustPointing: adjoint must be a diffrax adjoint (diffrax.ForwardMode(), "
-                            f"diffrax.RecursiveCheckpointAdjoint(...)) or None, got {self.adjoint!r}.")
+        check_adjoint(self.adjoint, "RobustPointing")
 
     def __call__(self, x: Design, draws, width) -> Array:
         if self.adjoint is None or isinstance(self.adjoint, diffrax.ForwardMode):
@@ -262,11 +261,9 @@ def design_problem(
       (their cost is counted, constant).
     """
     if gradient is not None:  # the former string, for one release
-        if gradient not in ("forward", "reverse"):
-            raise ValueError(f"design_problem: gradient must be 'forward' or 'reverse', got {gradient!r}.")
+        adjoint = adjoint_named(gradient, "design_problem")
         warnings.warn("design_problem(gradient=...) is deprecated and goes in the next release: give adjoint=None (forward "
                       "mode) or diffrax.RecursiveCheckpointAdjoint() (reverse mode).", DeprecationWarning, stacklevel=2)
-        adjoint = None if gradient == "forward" else diffrax.RecursiveCheckpointAdjoint()
     scene = pointing.scene
     uncertain = getattr(pointing, "uncertain_inputs", ())
     if uncertain and not (yield_ is not None and secant_units is not None and scatter):

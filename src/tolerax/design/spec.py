@@ -72,22 +72,37 @@ class MeanPlusKStd:
         # The former string (as `gradient=`, or in the fourth place where `adjoint` now is).
         name = self.gradient if self.gradient is not None else self.adjoint if isinstance(self.adjoint, str) else None
         if name is not None:
-            if name not in ("forward", "reverse"):
-                raise ValueError(f"MeanPlusKStd: gradient must be 'forward' or 'reverse', got {name!r}; better, give "
-                                 "adjoint=diffrax.ForwardMode() or diffrax.RecursiveCheckpointAdjoint().")
+            adjoint = adjoint_named(name, "MeanPlusKStd")
             warnings.warn("MeanPlusKStd(gradient=...) is deprecated and goes in the next release: give adjoint=None or "
                           "diffrax.ForwardMode() (forward mode, the default) or diffrax.RecursiveCheckpointAdjoint() (reverse "
                           "mode).", DeprecationWarning, stacklevel=3)
-            import diffrax
-
-            object.__setattr__(self, "adjoint", None if name == "forward" else diffrax.RecursiveCheckpointAdjoint())
+            object.__setattr__(self, "adjoint", adjoint)
             object.__setattr__(self, "gradient", None)
-        elif self.adjoint is not None:
-            import diffrax  # here, not at the top: the command line reads this module before JAX is wanted
+        check_adjoint(self.adjoint, "MeanPlusKStd")
 
-            if not isinstance(self.adjoint, diffrax.AbstractAdjoint):
-                raise TypeError(f"MeanPlusKStd: adjoint must be a diffrax adjoint (diffrax.ForwardMode(), "
-                                f"diffrax.RecursiveCheckpointAdjoint(...)) or None, got {self.adjoint!r}.")
+
+def adjoint_named(gradient: str, who: str):
+    """The diffrax adjoint the former `gradient` string names: `"forward"` -> `None` (forward
+    mode, the default), `"reverse"` -> `diffrax.RecursiveCheckpointAdjoint()`; `ValueError`
+    (from `who`) for anything else. `MeanPlusKStd`, `design_problem` and the former
+    `propose_design` keywords all translate through it."""
+    if gradient not in ("forward", "reverse"):
+        raise ValueError(f"{who}: gradient must be 'forward' or 'reverse', got {gradient!r}; better, give "
+                         "adjoint=diffrax.ForwardMode() or diffrax.RecursiveCheckpointAdjoint().")
+    import diffrax  # here, not at the top: the command line reads this module before JAX is wanted
+
+    return None if gradient == "forward" else diffrax.RecursiveCheckpointAdjoint()
+
+
+def check_adjoint(adjoint, who: str) -> None:
+    """`TypeError` (from `who`) unless `adjoint` is `None` or a diffrax adjoint."""
+    if adjoint is None:
+        return
+    import diffrax
+
+    if not isinstance(adjoint, diffrax.AbstractAdjoint):
+        raise TypeError(f"{who}: adjoint must be a diffrax adjoint (diffrax.ForwardMode(), "
+                        f"diffrax.RecursiveCheckpointAdjoint(...)) or None, got {adjoint!r}.")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -210,13 +210,11 @@ def summary_md(s: dict) -> str:
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             kind = m.get("joint_fidelity", {}).get(joint)
-            floats = kind not in ("lumped", "ideal")  # the output translates: a bearing force and runout
+            absent = f"not modelled (the {joint} joint is {kind})" if kind in ("lumped", "ideal") else None  # no output translation
             lines += [
                 f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",
-                f"| {joint} peak output-bearing force | "
-                + (f"{m[f'{joint}_output_force_peak_N']:.4g} N |" if floats else f"not modelled (the {joint} joint is {kind}) |"),
-                f"| {joint} peak runout | "
-                + (f"{m[f'{joint}_runout_peak_um']:.4g} µm |" if floats else f"not modelled (the {joint} joint is {kind}) |"),
+                f"| {joint} peak output-bearing force | {absent or format(m[joint + '_output_force_peak_N'], '.4g') + ' N'} |",
+                f"| {joint} peak runout | {absent or format(m[joint + '_runout_peak_um'], '.4g') + ' µm'} |",
             ]
     lines += ["", "## Files", ""] + [f"- `{f}`" for f in s["files"]]
     return "\n".join(lines) + "\n"
