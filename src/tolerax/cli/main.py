@@ -38,6 +38,7 @@ TOLERAX_CACHE=off to turn it off): a second command on the same scene structure 
 """
 
 import argparse
+import shutil
 import sys
 import textwrap
 import warnings
@@ -49,6 +50,9 @@ from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_u
                      integrator_option, scene_options)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
+
+# The design command's own paragraphs wrapped as argparse wraps its options: to the terminal, at most 100 columns.
+_WIDTH = max(40, min(100, shutil.get_terminal_size().columns - 2))
 
 # What an interrupted command has kept, and how to go on.
 RESUME = {
@@ -178,8 +182,8 @@ def main(argv=None) -> int:
             "cost (ISO 286 grades) whose RMS pointing error meets the requirement: mean + 1 std over a few manufactured units, "
             "or with --yield Y in a fraction Y of all units (tolerax.propose_design). Starts from the scene's zones (its design and "
             "its [tolerances] bands). Writes scene.toml, design.md, design.png, design_history.png and proposal.toml (the scene with the proposed "
-            "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", 100),
-        epilog=PATH + "\n\n" + DESIGN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+            "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", _WIDTH),
+        epilog=PATH + "\n\n" + textwrap.fill(DESIGN_EPILOG, _WIDTH), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     scene_options(design, "design", "design")
     design.add_argument("--requirement", type=positive, default=None,
