@@ -165,8 +165,19 @@ def test_montecarlo_writes_netcdf_and_resumes(tmp_path, capsys):
     assert cli.main([*args, "--quiet"]) == 0  # the second run only reloads the finished chunk; --quiet: no progress
     out = capsys.readouterr()
     assert "roughly" not in out.out and "Monte Carlo" not in out.err and "jitter yield" in out.out
-    # Other tolerances in the same folder: the checkpoints are refused, not mixed.
+    assert "1 finished chunk of an earlier run" in out.out  # said before the work
+    # Other tolerances in the same folder: the checkpoints are refused, not mixed; the message
+    # says how they differ (tidy numbers, not 1.9999999999999998e-05) and how to start afresh.
     assert cli.main([*args, "--band", "20"]) == 2
+    err = capsys.readouterr().err
+    assert "[1e-05, 1e-05, 1e-05, 1e-05] there, [2e-05, 2e-05, 2e-05, 2e-05] now" in err and "--force starts afresh" in err
+    # --force: the earlier run's chunks removed, the new one run from nothing (fewer units too).
+    before = (tmp_path / "chunks" / "chunk-00000.nc").stat().st_mtime_ns
+    assert cli.main([*args, "--band", "20", "--n", "1", "--chunk", "1", "--force", "--quiet"]) == 0
+    assert "earlier run" not in capsys.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "chunks").iterdir()) == ["chunk-00000.nc", "manifest.json"]
+    assert (tmp_path / "chunks" / "chunk-00000.nc").stat().st_mtime_ns != before
+    assert json.loads((tmp_path / "summary.json").read_text())["pointing_rms"]["n_used"] == 1
 
 
 def test_demo_at_a_tiny_size(tmp_path, capsys):

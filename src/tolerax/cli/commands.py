@@ -42,7 +42,7 @@ def studies_command(parser, args) -> int:
 
 
 def montecarlo_command(parser, args) -> int:
-    out = check_out(parser, args.out, "montecarlo", resumes=True)
+    out = check_out(parser, args.out, "montecarlo", force=args.force, resumes=True)
     scene_file = read_scene_file(parser, args)
     if scene_file is None:
         return 2
@@ -54,7 +54,7 @@ def montecarlo_command(parser, args) -> int:
     cutoff = None if args.jitter is None else args.jitter_cutoff
     summary = run_monte_carlo(parser, scene_file, out, n=args.n, seed=args.seed, backend=args.backend, chunk=args.chunk,
                               requirement=requirement, allow_clip=args.allow_clip, command="montecarlo", jitter_cutoff=cutoff,
-                              jitter_requirement=args.jitter, quiet=args.quiet)
+                              jitter_requirement=args.jitter, quiet=args.quiet, fresh=args.force)
     if summary is None:
         return 2
     if args.jitter is not None:
@@ -65,10 +65,11 @@ def montecarlo_command(parser, args) -> int:
 
 
 def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command, jitter_cutoff=None, quiet=False,
-                    jitter_requirement=None, more_requirements=None):
+                    jitter_requirement=None, more_requirements=None, fresh=False):
     """`n` units of `scene_file` (its [tolerances] around its design) into the folder `out`:
     montecarlo.nc, summary.json, histogram.png and the scene; the summary (`None` where the
-    checkpoints in `out` belong to other settings: the message is printed). What `tolerax
+    checkpoints in `out` belong to other settings: the message is printed). `fresh`
+    (`--force`): an earlier run's results and chunks in `out` removed first. What `tolerax
     montecarlo` runs, and `tolerax design --verify` on the proposal it wrote (with
     `jitter_cutoff` (Hz) the units' jitter too, its yield against `jitter_requirement`; and
     the yield of each output against its limit in `more_requirements`, {output: limit})."""
@@ -82,7 +83,8 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     pointing = scene_file.objective(jitter_cutoff=jitter_cutoff)
     tolerances = scene_file.tolerances(pointing.scene)
     check_clipping(parser, tolerances, allow_clip)
-    claim_out(out, "montecarlo")  # design's --verify writes here too: its folder is montecarlo's
+    claim_out(out, "montecarlo", fresh=fresh)  # design's --verify writes here too: its folder is montecarlo's
+    kept = len(list((out / "chunks").glob("chunk-*.nc")))
     bands = ", ".join(f"{name} {m * 1e6:.4g} +- {b * 1e6:.3g}" for name, m, b in
                       zip(tolerances.names, tolerances.nominal.tolist(), tolerances.band.tolist()))
     print(f"tolerax {command}: {n} units of {scene_file.name} ({scene_file.source}), {pointing.duration} s each, "
@@ -92,6 +94,9 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
           + ("" if pointing.life is None else f" [life]: each unit also run at {pointing.life.points} life points (its outputs at "
              "the end of life: *_eol)" + (f"; its wear rate drawn over x{pointing.life.spread[0]:.3g} to x{pointing.life.spread[1]:.3g} "
                                           "(spread)." if pointing.uncertain_inputs else ".")))
+    if kept:
+        print(f"tolerax {command}: {kept} finished chunk{'s' if kept > 1 else ''} of an earlier run in {out / 'chunks'}: read back, "
+              "not simulated again, where this run's settings are theirs (--force starts afresh).", flush=True)
     estimate = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
     runs = n * (1 if pointing.life is None else pointing.life.points + 1)
     if estimate is not None and not quiet:
@@ -108,7 +113,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
                                  **({"pointing_rms_eol": requirement} if pointing.life is not None else {}),
                                  **(more_requirements or {})})
     except ValueError as err:  # e.g. checkpoints of other settings in the output folder
-        print(f"tolerax {command}: {err}", file=sys.stderr)
+        print(f"tolerax {command}: {err}" + (" (--force starts afresh there.)" if command == "montecarlo" else ""), file=sys.stderr)
         return None
     F.save_scene(scene_file, out / "scene.toml")  # after the checkpoints were accepted as this run's
     res.save(out / "montecarlo.nc")

@@ -304,13 +304,17 @@ def count(minimum):
 
 
 def out_options(parser, command: str, default: str | None = None):
-    """`--out` (default `./tolerax-out/COMMAND`: each command its own folder, `check_out`) and,
-    for a command that does not resume from its folder, `--force`."""
+    """`--out` (default `./tolerax-out/COMMAND`: each command its own folder, `check_out`) and
+    `--force` (montecarlo, which resumes from its folder by default: start afresh)."""
     default_text = default or f"./tolerax-out/{command}"
     parser.add_argument("--out", default=None if default else f"tolerax-out/{command}",
                         help=f"output folder (default {default_text}); a folder holding another command's results is refused"
                         + ("; rerun into it to resume" if command == "montecarlo" else ""))
-    if command != "montecarlo":
+    if command == "montecarlo":
+        parser.add_argument("--force", action="store_true",
+                            help="start afresh: remove an earlier `tolerax montecarlo` run's results and finished chunks in --out "
+                            "(default: resume from them, or extend them to a larger --n)")
+    else:
         parser.add_argument("--force", action="store_true",
                             help="overwrite the results of an earlier `tolerax " + command + "` in --out (refused otherwise)")
 

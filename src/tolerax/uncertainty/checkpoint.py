@@ -51,5 +51,15 @@ def _differences(there: dict, now: dict, prefix: str = "") -> list[str]:
         if isinstance(old, dict) and isinstance(new, dict):
             lines += _differences(old, new, f"{prefix}{key}.")
         elif old != new:
-            lines.append(f"{prefix}{key}: {old!r} there, {new!r} now")
+            lines.append(f"{prefix}{key}: {_said(old)} there, {_said(new)} now")
     return lines
+
+
+def _said(value) -> str:
+    """A setting as a message shows it: floats to 6 significant digits (a band of 20 um read
+    back as 1.9999999999999998e-05 m reads 2e-05), the rest as `repr`."""
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list):
+        return "[" + ", ".join(_said(v) for v in value) + "]"
+    return repr(value)
