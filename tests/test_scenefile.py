@@ -364,9 +364,18 @@ def test_cli_run_writes_results_and_reports_solver_failure(tmp_path, capsys):
     assert summary["metrics"]["jitter_read_by"] == {"azimuth": "lumped"}
     assert "arcsec (a proxy, not the full stage's: the azimuth joint is lumped, and the jitter is the full stage's vibration" in (
         out / "summary.md").read_text()
-    # A lumped joint's output does not translate: no bearing force or runout to read, said so (not "0 N").
-    assert "| azimuth peak output-bearing force | not modelled (the azimuth joint is lumped) |" in (out / "summary.md").read_text()
-    assert summary["metrics"]["joint_fidelity"]["azimuth"] == "lumped"
+    # The output bearing: the ideal pitch joint's output does not translate: no force or runout to
+    # read, said so (not "0 N") and null in summary.json; the lumped azimuth joint's own bearing
+    # (its output translates in its clearance) is read, and said to be a proxy's.
+    table, metrics = (out / "summary.md").read_text(), summary["metrics"]
+    assert "| pitch peak output-bearing force | not modelled (the pitch joint is ideal: its output does not translate) |" in table
+    assert metrics["pitch_output_force_peak_N"] is None and metrics["pitch_runout_peak_um"] is None
+    built = ran.build()
+    q = np.asarray(direct.states[0])[:, built.layout.azimuth_q][:, built.azimuth.layout.carrier_xy]
+    runout = np.max(np.hypot(q[:, 0], q[:, 1])) * 1e6  # the output's eccentricity in its bearing, from the states
+    assert metrics["azimuth_runout_peak_um"] == pytest.approx(runout, rel=1e-6)
+    assert f"| azimuth peak runout | {runout:.4g} µm (the azimuth joint is lumped: its own output bearing, not read" in table
+    assert metrics["joint_fidelity"] == {"azimuth": "lumped", "pitch": "ideal"}
 
     # Tolerances no solver can meet: the error control wants a step below dtmin. Only values
     # change, so the compiled program is reused.

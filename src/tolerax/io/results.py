@@ -90,10 +90,13 @@ def _window_stats(scene_file: SceneFile, result) -> dict:
 
     model = scene_file.build()
     out["jitter_read_by"] = proxies(model, "planetary")
-    out["joint_fidelity"] = joint_fidelities(model)  # the bearing force and runout: not of a lumped or ideal joint
+    out["joint_fidelity"] = joint_fidelities(model)
     for k, joint in enumerate(JOINTS):
-        out[f"{joint}_output_force_peak_N"] = float(force[:, k].max())
-        out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6)
+        # The output bearing's force and runout: null where the joint's output does not translate
+        # (an ideal joint, a rigid output support); a lumped joint's are its own (a proxy's).
+        moves = getattr(model, joint).layout.carrier_xy is not None
+        out[f"{joint}_output_force_peak_N"] = float(force[:, k].max()) if moves else None
+        out[f"{joint}_runout_peak_um"] = float(runout[:, k].max() * 1e6) if moves else None
         out[f"{joint}_angle_range_deg"] = [float(angle[:, k].min()), float(angle[:, k].max())]
     return out
 
@@ -210,11 +213,14 @@ def summary_md(s: dict) -> str:
         for joint in JOINTS:
             lo, hi = m[f"{joint}_angle_range_deg"]
             kind = m.get("joint_fidelity", {}).get(joint)
-            absent = f"not modelled (the {joint} joint is {kind})" if kind in ("lumped", "ideal") else None  # no output translation
+            force, runout = m[joint + "_output_force_peak_N"], m[joint + "_runout_peak_um"]
+            absent = f"not modelled (the {joint} joint is {kind}: its output does not translate)"
+            proxy = (f" (the {joint} joint is lumped: its own output bearing, not read as the full stage reads it; "
+                     "`[scene] fidelity = \"planetary\"` does)") if kind == "lumped" else ""
             lines += [
                 f"| {joint} output angle | {lo:.4g} to {hi:.4g} deg |",
-                f"| {joint} peak output-bearing force | {absent or format(m[joint + '_output_force_peak_N'], '.4g') + ' N'} |",
-                f"| {joint} peak runout | {absent or format(m[joint + '_runout_peak_um'], '.4g') + ' µm'} |",
+                f"| {joint} peak output-bearing force | {absent if force is None else format(force, '.4g') + ' N' + proxy} |",
+                f"| {joint} peak runout | {absent if runout is None else format(runout, '.4g') + ' µm' + proxy} |",
             ]
     lines += ["", "## Files", ""] + [f"- `{f}`" for f in s["files"]]
     return "\n".join(lines) + "\n"
