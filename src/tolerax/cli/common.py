@@ -13,6 +13,7 @@ import shlex
 import shutil
 import sys
 import tempfile
+import textwrap
 
 from .._defaults import JITTER_CUTOFF  # noqa: F401 (the commands take it from here)
 from .._files import atomic_write
@@ -342,6 +343,12 @@ def scene_options(parser, what, command: str):
                         help="no progress while it runs (the time estimate, phase lines and progress bars); the results "
                         "and errors are still printed")
     out_options(parser, command)
+
+
+def wrap(text: str) -> str:
+    """`text` wrapped as argparse wraps its options (to the terminal, at most 100 columns): for a
+    parser with `RawDescriptionHelpFormatter`, whose own paragraphs it does not wrap."""
+    return textwrap.fill(text, max(40, min(100, shutil.get_terminal_size().columns - 2)))
 
 
 EPILOG = ("Exit codes: 0 done, 2 bad input (the message names the scene file's key and line; an output folder refused before "

@@ -1,12 +1,13 @@
 """`tolerax identify SCENE RECORDING`: a unit's clearances and backlash from its test recording."""
 
+import argparse
 import json
 import pathlib
 import sys
 import time
 
 from .._files import atomic_write, save_figure
-from .common import check_out, claim_out, command_line, load_average, read_scene_file, scene_and_settings
+from .common import check_out, claim_out, command_line, load_average, read_scene_file, scene_and_settings, wrap
 
 
 def _scene_and_parameters(parser, args):
@@ -109,15 +110,30 @@ def identify_command(parser, args) -> int:
     return 0 if got.converged and not rugged else 3
 
 
+# What a recording holds (tolerax.identification.recording's docstring), for `identify --help`.
+RECORDING_LAYOUT = """A recording, CSV: one header row, each column's name with its unit in brackets, one row per sample:
+
+    time [s], azimuth measured [deg], azimuth commanded [deg]
+    0.000, 0.000000, 0.000000
+    ...
+
+time in s or ms; angles in rad, mrad, urad, deg or arcsec; a column `AXIS measured` for each recorded
+axis (azimuth, pitch), `AXIS commanded` optional. netCDF: a coordinate `time` and variables
+`azimuth_measured`, `azimuth_commanded`, ..., each with a `units` attribute. The unit ran SCENE's own
+drive (a test planned by `tolerax plan-test` writes it as test.toml); a synthetic recording to try
+this on: notebooks/identify_unit.ipynb writes one from a simulated unit with encoder noise."""
+
+
 def add_parser(sub, out_options, positive, non_negative, epilog):
     parser = sub.add_parser(
         "identify", help="a unit's clearances and backlash from its test recording (encoder angles)",
-        description="Estimate the chosen clearances and backlash of SCENE that reproduce RECORDING (a CSV or netCDF of "
+        description=wrap("Estimate the chosen clearances and backlash of SCENE that reproduce RECORDING (a CSV or netCDF of "
         "the output encoder's angles while the unit ran SCENE's drive: tolerax.identification.recording), by least squares "
         "through the simulation (Levenberg-Marquardt, exact Jacobian), with 95 % intervals and which of them the "
         "recording determines. Writes identification.md, identification.json, identification.png and identified.toml "
         "(the unit as a scene file). Exits 3 where the fit did not converge or an interval does not hold (the residual "
-        "not quadratic along it: the report says which and what would change it).", epilog=epilog)
+        "not quadratic along it: the report says which and what would change it)."), epilog=RECORDING_LAYOUT + "\n\n" + wrap(epilog),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file: the model, with the test's drive")
     parser.add_argument("recording", type=pathlib.Path, help="the recording: .csv or .nc with units in its headers")
     parser.add_argument("--parameters", nargs="+", default=None, metavar="PARAMETER",

@@ -38,21 +38,16 @@ TOLERAX_CACHE=off to turn it off): a second command on the same scene structure 
 """
 
 import argparse
-import shutil
 import sys
-import textwrap
 import warnings
 
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
-                     integrator_option, scene_options)
+                     integrator_option, scene_options, wrap)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
-
-# The design command's own paragraphs wrapped as argparse wraps its options: to the terminal, at most 100 columns.
-_WIDTH = max(40, min(100, shutil.get_terminal_size().columns - 2))
 
 # What an interrupted command has kept, and how to go on.
 RESUME = {
@@ -177,13 +172,13 @@ def main(argv=None) -> int:
     run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     design = sub.add_parser(
         "design", help="propose clearances, backlash and tolerance bands for a pointing requirement",
-        description=textwrap.fill(
+        description=wrap(
             "Propose, for each clearance and backlash of the scene, the tolerance zone (lower limit and half-width) of lowest "
             "cost (ISO 286 grades) whose RMS pointing error meets the requirement: mean + 1 std over a few manufactured units, "
             "or with --yield Y in a fraction Y of all units (tolerax.propose_design). Starts from the scene's zones (its design and "
             "its [tolerances] bands). Writes scene.toml, design.md, design.png, design_history.png and proposal.toml (the scene with the proposed "
-            "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it.", _WIDTH),
-        epilog=PATH + "\n\n" + textwrap.fill(DESIGN_EPILOG, _WIDTH), formatter_class=argparse.RawDescriptionHelpFormatter,
+            "nominals and bands filled in, which run, montecarlo and design read back); --verify N simulates N units of it."),
+        epilog=PATH + "\n\n" + wrap(DESIGN_EPILOG), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     scene_options(design, "design", "design")
     design.add_argument("--requirement", type=positive, default=None,
