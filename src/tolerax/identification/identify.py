@@ -62,7 +62,7 @@ from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import AXES, Recording, RecordingError
-from .result import DETERMINED, PROFILE_STEPS, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
+from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
 # Levenberg-Marquardt's relative and absolute tolerance on the step (log µm, log of the scene's
@@ -361,7 +361,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         x = np.asarray(_bounded(z, centre, reach))
         jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(x), widths[-1]))
         r = ((fitted - measured) / UNIT).ravel()
-        s2 = float(np.sum(r**2)) / max(r.size - len(parameters), 1)
+        s2 = max(float(np.sum(r**2)) / max(r.size - len(parameters), 1), (RESOLVED / UNIT) ** 2)  # floored: result.RESOLVED
         scaled, (values, vectors), cov_x = _information(jac, x, s2)
         remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
         seen = 1.0 / np.sqrt(values) < DETERMINED

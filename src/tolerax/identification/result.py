@@ -17,6 +17,12 @@ MISFIT = 1.5
 # ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
+# rad: the finest residual the intervals are stated at. Below it the residual is the simulation's
+# own error, not the unit's (a noise-free recording of the model itself, fitted at another
+# smoothing width: 0.003-0.016 µrad RMS on the lumped scan at the default integration), and an
+# interval that narrow lies inside that error: its check along the profile fails on the solve's
+# noise. No encoder records that finely (a 24-bit one's rounding alone: 0.11 µrad RMS).
+RESOLVED = 0.1e-6
 
 
 def show(value: float, unit: str) -> str:
@@ -32,8 +38,9 @@ class Identification:
 
     - `names`: the identified parameters, `units` their SI units ("m" for the clearances and
       backlash); `estimate`, `covariance`, `standard_error` in those units.
-    - `sigma` (rad): the residual's standard deviation at the estimate, $s$; `n` residuals,
-      `cost` $\\lVert r\\rVert^2$ (µrad²).
+    - `sigma` (rad): the residual's standard deviation at the estimate, $s$, floored at
+      `RESOLVED` (what the intervals are stated at; `residual_sd` is the residual's own); `n`
+      residuals, `cost` $\\lVert r\\rVert^2$ (µrad²).
     - `residual` (rad, (saves, axes)), `times` (s), `measured` and `fitted` (rad): the fit.
     - `directions`: [(relative standard error, eigenvector over `names`)], best determined first.
     - `steps`: Levenberg-Marquardt steps of the winning start at the last width; `converged`:
@@ -72,6 +79,11 @@ class Identification:
     scene: object = dataclasses.field(repr=False, default=None)
     wall: dict = dataclasses.field(default_factory=dict)
     profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
+
+    @property
+    def residual_sd(self) -> float:
+        """The residual's own standard deviation (rad; `sigma` is it floored at `RESOLVED`)."""
+        return math.sqrt(self.cost / max(self.n - len(self.names), 1)) * 1e-6
 
     @property
     def standard_error(self) -> np.ndarray:
@@ -193,14 +205,18 @@ class Identification:
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
             interval += " (does not hold)" if status == "interval does not hold" else ""
             rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
-        lines = [f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; "
-                 f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
+        below = self.residual_sd < RESOLVED * (1 - 1e-9)
+        lines = [(f"Residual standard deviation {1e6 * self.residual_sd:.3g} µrad over {self.n} samples, below what the "
+                  f"simulation resolves ({1e6 * RESOLVED:.3g} µrad: its own integration error, as from a noise-free recording "
+                  f"of the model itself), so the intervals are stated at {1e6 * RESOLVED:.3g} µrad; "
+                  if below else f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; ")
+                 + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
                  f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
-        misfit = bool(self.noise and self.sigma > MISFIT * self.noise)
+        misfit = bool(self.noise and self.residual_sd > MISFIT * self.noise)
         if misfit:
-            notes += ["", f"**The residual ({1e6 * self.sigma:.3g} µrad) is {self.sigma / self.noise:.2g}x the recording's stated "
+            notes += ["", f"**The residual ({1e6 * self.residual_sd:.3g} µrad) is {self.residual_sd / self.noise:.2g}x the recording's stated "
                       f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
                       "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
                       "count that bias: the estimates can be off by more than they say."]

@@ -196,8 +196,8 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
         raise ValueError(f"design_test: criterion={criterion!r} is unknown; use one of {CRITERIA}.")
     axes = _scanning(scene)
     if not axes:
-        raise ValueError("design_test varies a sine scan: the scene has no joint driven by a ScanServo (build it with "
-                         "tolerax.scan, or a scene file whose drive is a scan).")
+        raise ValueError("design_test varies a sine scan: the scene has no joint driven by one (a scene file with "
+                         "[scene] kind = \"scan\" and its mode, amplitude and period; in Python tolerax.scan, a ScanServo).")
     if not noise > 0:
         raise ValueError(f"design_test: noise={noise!r} must be > 0 (rad): the encoder's standard deviation.")
     drive = getattr(scene, axes[0]).drive
