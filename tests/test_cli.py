@@ -146,7 +146,7 @@ def test_montecarlo_writes_netcdf_and_resumes(tmp_path, capsys):
             "--requirement", "1000", "--jitter", "5", "--out", str(tmp_path)]
     assert cli.main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"]
+    assert summary["pointing_rms"]["n_used"] == 2 and "yield" in summary["pointing_rms"] and summary["pointing_rms"]["unit"] == "arcsec"
     jitter = summary["pointing_jitter"]
     out = capsys.readouterr()
     assert jitter["n_used"] == 2 and f"jitter yield {jitter['yield']:.3f}" in out.out

@@ -118,6 +118,8 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     F.save_scene(scene_file, out / "scene.toml")  # after the checkpoints were accepted as this run's
     res.save(out / "montecarlo.nc")
     summary = res.summary()
+    for name, row in summary.items():  # each output's statistics in its unit, said beside them
+        row["unit"] = UNITS.get(name, "")
     atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float))
     fig = res.plot_histogram("pointing_rms", requirement=requirement).figure
     save_figure(fig, out / "histogram.png", dpi=120)
