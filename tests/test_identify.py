@@ -99,8 +99,13 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     assert rec.noise == pytest.approx(math.hypot(NOISE, ENCODER / math.sqrt(12)))
     other = Recording(rec.time, rec.measured, rec.axes, 1.5 * rec.commanded, source="unit7.csv")
     said = []
-    with pytest.raises(RecordingError, match="unit7.csv: the recording's commanded azimuth angle is not the scene's drive"):
+    with pytest.raises(RecordingError, match="unit7.csv: the recording's commanded azimuth angle is not the scene's drive") as info:
         identify(scene, other, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,), progress=said.append)
+    assert "apart" not in str(info.value)  # 1.5x is no unit's factor
+    # Radians written under a [deg] header read pi/180 of the scene's command: the slip named.
+    slipped = Recording(rec.time, rec.measured * math.pi / 180, rec.axes, rec.commanded * math.pi / 180, source="unit8.csv")
+    with pytest.raises(RecordingError, match=r"0.01745x apart: the header's unit is likely wrong \(values in rad under a \[deg\] header"):
+        identify(scene, slipped, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
     # A rough time is said before any work (the command line prints it): 20 steps of 2 runs, then
     # the interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate).
     assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each, then "

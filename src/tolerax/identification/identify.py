@@ -329,7 +329,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 f"{recording.source}: the recording's commanded {recording.axes[j]} angle is not the scene's drive: "
                 f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
-                "is fitted as clearance.")
+                "is fitted as clearance." + _unit_slip(recorded[:, j], commanded[:, j]))
     lap("check", "the recording's command checked against the scene's" if recording.commanded is not None else None)
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
     x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
@@ -425,6 +425,24 @@ def _information(jac, x, s2):
         return scaled, (np.full_like(values, 1e-200), vectors), np.full((x.size, x.size), np.inf)
     values = np.maximum(values, float(values.max()) * 1e-15)
     return scaled, (values, vectors), x[:, None] * ((vectors / values) @ vectors.T) * x[None, :]
+
+
+# Factors between angle units (and time units) a header can state wrongly: deg <-> rad, mrad, arcsec.
+_SLIPS = {"deg": math.pi / 180, "mrad": 1e-3, "arcsec": math.pi / 180 / 3600}
+
+
+def _unit_slip(recorded, commanded) -> str:
+    """A sentence naming the unit slip where the recorded command is the scene's times one of
+    `_SLIPS`' factors (or its inverse) to 1 %, else ""."""
+    big = np.abs(commanded) > 0.5 * np.max(np.abs(commanded))
+    if not np.any(big):
+        return ""
+    ratio = float(np.median(recorded[big] / commanded[big]))
+    for unit, factor in _SLIPS.items():
+        for k, said in ((factor, f"values in rad under a [{unit}] header"), (1 / factor, f"values in {unit} under a [rad] header")):
+            if abs(ratio / k - 1) < 0.01:
+                return f" The two are {ratio:.4g}x apart: the header's unit is likely wrong ({said}?)."
+    return ""
 
 
 def synthetic_recording(scene, values=None, *, duration: float, n_save: int, start: str = "steady", noise: float = 0.0,
