@@ -106,10 +106,14 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     slipped = Recording(rec.time, rec.measured * math.pi / 180, rec.axes, rec.commanded * math.pi / 180, source="unit8.csv")
     with pytest.raises(RecordingError, match=r"0.01745x apart: the header's unit is likely wrong \(values in rad under a \[deg\] header"):
         identify(scene, slipped, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
-    # A rough time is said before any work (the command line prints it): 20 steps of 2 runs, then
-    # the interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate).
+    # A rough time is said before any work (the command line prints it): 20 steps of LM_STEP_RUNS
+    # x 2 runs, then the interval's check (the profile at 3 steps both sides, and the Jacobian at
+    # the estimate).
+    from tolerax.identification.identify import LM_STEP_RUNS
+
+    runs = 20 * 2 * LM_STEP_RUNS + 6 + 2
     assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each, then "
-                    f"the intervals checked: roughly {tx.eta.human_seconds(48 * tx.eta.rough_wall(scene, 0.35))} on one core "
+                    f"the intervals checked: roughly {tx.eta.human_seconds(runs * tx.eta.rough_wall(scene, 0.35))} on one core "
                     "plus compilation"], said
     got = Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([60e-6]), covariance=np.array([[1e-14]]),
                          sigma=rec.noise, n=141, cost=140 * (rec.noise / 1e-6) ** 2, times=None, measured=None, fitted=None,

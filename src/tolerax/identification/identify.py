@@ -73,6 +73,10 @@ UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solv
 # (measured in benchmarks/identify_wall_time.py). The estimate is then checked to a tenth of a
 # standard error and polished where it is not (`identify`).
 LM_TOL = 1e-4
+# Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
+# one more, for the rough time said before the work: 7-10 timed on the lumped azimuth scan with
+# one parameter, compiled (an order of magnitude, like rough_wall's own).
+LM_STEP_RUNS = 8
 RESIDUAL_TOL = 0.2
 # Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
 # undetermined one would otherwise walk off to where the model is not physical (a stiffness of 1e51 N/m).
@@ -298,14 +302,15 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
     if say is not None:
         # The screen's batched costs, then from each kept start per width up to lm_steps
-        # Levenberg-Marquardt steps, each a forward-mode Jacobian (about a simulation per
-        # parameter and one more), then the intervals' check (each parameter's profile path at
+        # Levenberg-Marquardt steps, each LM_STEP_RUNS runs per parameter and one more (a
+        # forward-mode Jacobian through the adaptive solve, which optimistix's linearisation runs
+        # again for each product), then the intervals' check (each parameter's profile path at
         # PROFILE_STEPS both sides), at rough_wall's pace: an order of magnitude, not a bound.
         one = rough_wall(scene, duration, objective.integrator)
         screen = starts + 1 if isinstance(starts, int) else 0  # given starts are fitted as they are
         kept = min(STARTS_KEPT, screen) if screen else len(starts)
         p = len(parameters)
-        runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) + 2 * p * len(PROFILE_STEPS) + p + 1
+        runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) * LM_STEP_RUNS + 2 * p * len(PROFILE_STEPS) + p + 1
         say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
                             f"Levenberg-Marquardt from {kept} given start(s)")
             + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each, then the intervals checked"
