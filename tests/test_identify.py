@@ -379,6 +379,8 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     from the guess with one start, stopped at 1.2x with a residual 25 times the noise): the design finds the dip in its cost profile and proposes
     the plain scan instead. The sun and ring backlash are seen only as their sum by every scan
     of a lumped joint, and are named as such (the criterion then weighs the drag alone)."""
+    import dataclasses
+
     from tolerax.identification.testdesign import design_test
 
     scene = _scene()
@@ -396,6 +398,12 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     assert plan.best == plan.plain == 0 and float(plan.scene.azimuth.drive.period) == 1.0
     assert "Proposed test: a ±0.5° × 1 s scan" in plan.table() and "| 0.125 | 0.25 | " in plan.table()
     assert plan.undetermined == names[:2] and "Not determined by any candidate: azimuth.sun_backlash, azimuth.ring_backlash" in plan.table()
+    assert "another local minimum within 0.5-2x of the scene's values (last column) is not proposed" in plan.table()
+    # A proposal that determines a parameter less well than the plain scan says so (here made up:
+    # the second candidate proposed, the ring backlash 0.5 -> 0.6).
+    other = dataclasses.replace(plan, best=1, relative_error=np.array([[0.5, 0.5, 0.2], [0.5, 0.6, 0.05]]))
+    assert "determines azimuth.ring_backlash (0.833x) less well than the plain scan" in other.table()
+    assert "less well" not in plan.table()
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")
     with pytest.raises(ValueError, match="no candidate scan inside the limits"):

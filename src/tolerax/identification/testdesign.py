@@ -144,17 +144,27 @@ class TestDesign:
                  f"{self.duration:g} s, against the plain ±{scan(self.plain)}; predicted at the scene's values with "
                  f"{1e6 * self.noise:.3g} µrad of encoder noise (criterion: {self.criterion}).", "",
                  "| parameter | plain: relative standard error | proposed | sharper by |", "|---|---|---|---|"]
+        worse = []
         for j, name in enumerate(self.names):
             a, b = self.relative_error[self.plain, j], self.relative_error[self.best, j]
             lines.append(f"| {name} | {rel(a)} | {rel(b)} | {f'{a / b:.3g}x' if min(a, b) < 1 else '—'} |")
+            if a < 1 and b > a * 1.0001:
+                worse.append(f"{name} ({a / b:.3g}x)")
+        if worse and self.best != self.plain:
+            lines += ["", f"The proposed test determines {', '.join(worse)} less well than the plain scan: it is chosen for "
+                      f"the {'weakest parameter' if self.criterion == 'weakest' else 'criterion'}; record both where that one "
+                      "matters."]
         if self.undetermined:
             lines += ["", f"Not determined by any candidate: {', '.join(self.undetermined)} (no scan of this family "
                       "separates them; another measurement or a fixed value is needed)."]
         if self.rugged[self.best].any():
             lines += ["", "**Every candidate's fit is rugged** (a local minimum inside the range for "
                       f"{', '.join(n for n, r in zip(self.names, self.rugged[self.best]) if r)}): identify from several starts."]
-        lines += ["", f"| amplitude (°) | period (s) | weakest relative standard error (of those some candidate determines) | score | a local minimum within "
-                  f"{SPREAD[0]:g}-{SPREAD[1]:g}x for |", "|---|---|---|---|---|"]
+        lines += ["", f"Candidates, best score first. One whose fit has another local minimum within {SPREAD[0]:g}-{SPREAD[1]:g}x "
+                  "of the scene's values (last column) is not proposed, however well it scores: a fit of its recording can stop "
+                  "in that other basin.", "",
+                  f"| amplitude (°) | period (s) | weakest relative standard error (of those some candidate determines) | score | "
+                  f"another local minimum within {SPREAD[0]:g}-{SPREAD[1]:g}x for |", "|---|---|---|---|---|"]
         for k in np.argsort(self.score):
             mark = " (proposed)" if k == self.best else " (plain)" if k == self.plain else ""
             dips = ", ".join(n for n, r in zip(self.names, self.rugged[k]) if r) or "none"
