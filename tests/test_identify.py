@@ -60,7 +60,8 @@ def test_a_recording_round_trips_through_csv_and_netcdf_in_any_stated_unit(tmp_p
     ("time [s], azimuth measured\n0, 0\n0.1, 0\n0.2, 0\n", "states no unit"),
     ("time [s], azimuth measured [rad]\n0, 0\n0.1, 12.5\n0.2, 25\n", "is the column in degrees"),
     ("time [s], azimuth measured [rad]\n0, 0\n0.1, x\n0.2, 0\n", "not a number"),
-    ("time [s], elevation measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch"),
+    ("time [s], elevation measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch."),
+    ("time [s], azimut measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch (did you mean 'azimuth measured'?)"),
     ("time [s], azimuth measured [rad]\n0, 0, 1\n", "bad.csv:2: 3 values for 2 columns"),
 ])
 def test_a_recording_that_cannot_be_right_is_refused_with_the_reason(tmp_path, text, message):
@@ -320,6 +321,8 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances(tm
     assert float(changed.azimuth.stage.ring_mesh.stiffness) == float(scene.azimuth.stage.ring_mesh.stiffness)
     with pytest.raises(ValueError, match=r"\['pitch.drag_torque'\] are not parameters of the scene.*physical parameters: azimuth.drag_torque"):
         check_names(scene, ["pitch.drag_torque"])
+    with pytest.raises(ValueError, match=r"'azimuth.ring_backlas': did you mean 'azimuth.ring_backlash'\?"):
+        check_names(scene, ["azimuth.ring_backlas"])
     with pytest.raises(ValueError, match="named twice"):
         check_names(scene, ["azimuth.drag_torque", "azimuth.drag_torque"])
     # The identified unit as a scene file: the backlash in [design] with its zone (the file's

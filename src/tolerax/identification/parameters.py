@@ -14,6 +14,8 @@ and damping (its stage table's `sun_mesh_stiffness`, ..., `default_stage`'s keys
 names).
 """
 
+import difflib
+
 import equinox as eqx
 import jax.numpy as jnp
 
@@ -59,7 +61,9 @@ def check_names(scene, names, what: str = "identify") -> tuple[str, ...]:
     names = known[: len(design_names(scene))] if names is None else tuple(names)
     unknown = [p for p in names if p not in known]
     if unknown or not names:
-        raise ValueError(f"{what}: {unknown or 'no parameters'} are not parameters of the scene; its design features: "
+        near = [f"{p!r}: did you mean {m[0]!r}?" for p in unknown for m in [difflib.get_close_matches(p, known, n=1)] if m]
+        raise ValueError(f"{what}: {unknown or 'no parameters'} are not parameters of the scene" + (f" ({'; '.join(near)})" if near else "")
+                         + "; its design features: "
                          f"{', '.join(design_names(scene))}; its physical parameters: {', '.join(_physical(scene)) or 'none'}.")
     if len(set(names)) != len(names):
         raise ValueError(f"{what}: a parameter is named twice in {list(names)}.")

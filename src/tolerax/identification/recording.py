@@ -21,6 +21,7 @@ each with a `units` attribute as above.
 """
 
 import dataclasses
+import difflib
 import math
 import pathlib
 import re
@@ -154,8 +155,9 @@ def _from_columns(columns: dict, where: str) -> Recording:
         name, scale = _unit(header, ANGLE_UNITS, "an angle", where)
         parts = name.replace("_", " ").split()
         if len(parts) != 2 or parts[0] not in AXES or parts[1] not in ("measured", "commanded"):
+            near = difflib.get_close_matches(parts[0], AXES, n=1, cutoff=0.75) if len(parts) == 2 else []  # a misspelt axis
             raise RecordingError(f"{where}: column {header!r} is not '<axis> measured' or '<axis> commanded' with <axis> "
-                                 "azimuth or pitch.")
+                                 "azimuth or pitch" + (f" (did you mean '{near[0]} {parts[1]}'?)." if near else "."))
         found[(parts[0], parts[1])] = values * scale
     if time is None:
         raise RecordingError(f"{where}: no 'time [s]' column.")
