@@ -63,6 +63,7 @@ def test_a_recording_round_trips_through_csv_and_netcdf_in_any_stated_unit(tmp_p
     ("time [s], elevation measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch."),
     ("time [s], azimut measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch (did you mean 'azimuth measured'?)"),
     ("time [s], azimuth measured [rad]\n0, 0, 1\n", "bad.csv:2: 3 values for 2 columns"),
+    ("time [s]; azimuth measured [rad]\n0; 0\n0.1; 0\n", "bad.csv:1: the columns are separated by ';'"),
 ])
 def test_a_recording_that_cannot_be_right_is_refused_with_the_reason(tmp_path, text, message):
     path = tmp_path / "bad.csv"

@@ -190,7 +190,12 @@ def read_recording(path) -> Recording:
              if line.strip() and not line.lstrip().startswith("#")]
     if len(lines) < 2:
         raise RecordingError(f"{where}: a header row and at least one sample are needed.")
-    headers = [h.strip() for h in lines[0][1].split(",")]
+    header = lines[0][1]
+    for other in (";", "\t"):
+        if other in header and "," not in header:
+            raise RecordingError(f"{where}:{lines[0][0]}: the columns are separated by {other!r}: a recording's CSV is "
+                                 "comma-separated (time [s], azimuth measured [deg], ...).")
+    headers = [h.strip() for h in header.split(",")]
     rows = []
     for i, line in lines[1:]:
         cells = [c.strip() for c in line.split(",")]
