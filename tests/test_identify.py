@@ -62,6 +62,7 @@ def test_a_recording_round_trips_through_csv_and_netcdf_in_any_stated_unit(tmp_p
     ("time [s], azimuth measured [rad]\n0, 0\n0.1, x\n0.2, 0\n", "not a number"),
     ("time [s], elevation measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch."),
     ("time [s], azimut measured [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch (did you mean 'azimuth measured'?)"),
+    ("time [s], azimuth measurd [rad]\n0, 0\n0.1, 0\n0.2, 0\n", "azimuth or pitch (did you mean 'azimuth measured'?)"),
     ("time [s], azimuth measured [rad]\n0, 0, 1\n", "bad.csv:2: 3 values for 2 columns"),
     ("time [s]; azimuth measured [rad]\n0; 0\n0.1; 0\n", "bad.csv:1: the columns are separated by ';'"),
 ])
@@ -128,6 +129,8 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     # the intervals are stated at that floor (identify floors the residual's variance there), said.
     exact = dataclasses.replace(got, sigma=RESOLVED, cost=140 * 0.016**2, noise=None)
     assert f"Residual standard deviation 0.016 µrad over 141 samples, below what the simulation resolves (0.1 µrad" in exact.table()
+    # ... and is no misfit, though a finer noise is stated (a 26-bit encoder's 0.01 µrad).
+    assert "misses part of the unit" not in dataclasses.replace(exact, noise=0.01e-6).table()
 
 
 @pytest.mark.slow
@@ -408,6 +411,9 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     other = dataclasses.replace(plan, best=1, relative_error=np.array([[0.5, 0.5, 0.2], [0.5, 0.6, 0.05]]))
     assert "determines azimuth.ring_backlash (0.833x) less well than the plain scan" in other.table()
     assert "less well" not in plan.table()
+    # Where every candidate is rugged the best score is proposed anyway: the rule is not stated.
+    rugged = dataclasses.replace(plan, rugged=np.ones_like(plan.rugged), best=1)
+    assert "Every candidate's fit is rugged" in rugged.table() and "however well it scores" not in rugged.table()
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")
     with pytest.raises(ValueError, match="no candidate scan inside the limits"):

@@ -536,3 +536,12 @@ def test_drivers_give_tied_values_their_mean_rank():
     drivers = MonteCarloResult(ds).drivers("y")
     np.testing.assert_allclose(drivers["a"], 4 / np.sqrt(20), rtol=1e-12)
     assert drivers["b"] == 0.0
+
+
+def test_a_checkpoint_mismatch_shows_its_numbers_tidily_and_apart():
+    """The message of a resumed run whose settings differ: floats to 6 digits (a band of 20 um
+    read back is 1.9999999999999998e-05), and in full where 6 digits would show them equal."""
+    from tolerax.uncertainty.checkpoint import _differences
+
+    assert _differences({"band": [1.9999999999999998e-05]}, {"band": [1e-05]}) == ["band: [2e-05] there, [1e-05] now"]
+    assert _differences({"band": [2e-05]}, {"band": [2.0000001e-05]}) == ["band: [2e-05] there, [2.0000001e-05] now"]

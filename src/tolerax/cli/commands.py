@@ -94,7 +94,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
           + ("" if pointing.life is None else f" [life]: each unit also run at {pointing.life.points} life points (its outputs at "
              "the end of life: *_eol)" + (f"; its wear rate drawn over x{pointing.life.spread[0]:.3g} to x{pointing.life.spread[1]:.3g} "
                                           "(spread)." if pointing.uncertain_inputs else ".")))
-    if kept:
+    if kept and command == "montecarlo":  # design's --verify: its own --force means something else
         print(f"tolerax {command}: {kept} finished chunk{'s' if kept > 1 else ''} of an earlier run in {out / 'chunks'}: read back, "
               "not simulated again, where this run's settings are theirs (--force starts afresh).", flush=True)
     estimate = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
@@ -119,7 +119,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     res.save(out / "montecarlo.nc")
     summary = res.summary()
     for name, row in summary.items():  # each output's statistics in its unit, said beside them
-        row["unit"] = UNITS.get(name, "")
+        row["unit"] = pointing.units.get(name, "")
     atomic_write(out / "summary.json", json.dumps(summary, indent=2, default=float))
     fig = res.plot_histogram("pointing_rms", requirement=requirement).figure
     save_figure(fig, out / "histogram.png", dpi=120)

@@ -346,13 +346,18 @@ def scene_options(parser, what, command: str):
 
 
 def wrap(text: str) -> str:
-    """`text` wrapped as argparse wraps its options (to the terminal, at most 100 columns): for a
-    parser with `RawDescriptionHelpFormatter`, whose own paragraphs it does not wrap."""
+    """`text` wrapped to the terminal's width as argparse wraps its options (capped at 100 columns
+    on a wide terminal): for a parser with `RawDescriptionHelpFormatter`, which does not wrap its
+    own paragraphs."""
     return textwrap.fill(text, max(40, min(100, shutil.get_terminal_size().columns - 2)))
 
 
 EPILOG = ("Exit codes: 0 done, 2 bad input (the message names the scene file's key and line; an output folder refused before "
           "any work: another command's, an earlier run's without --force, or not writable), 3 a simulation failed.")
+# montecarlo: an earlier run in its folder is resumed, not refused.
+MONTECARLO_EPILOG = EPILOG.replace("an earlier run's without --force, or not writable", "or not writable; an earlier run's "
+                                   "is resumed, or extended to a larger --n, and --force starts afresh")
+assert MONTECARLO_EPILOG != EPILOG
 # design and tradeoff: also 4, the answer is not a proposal.
 DESIGN_EPILOG = EPILOG[:-1] + (", 4 the answer is not a proposal (not converged, infeasible, noise-limited, or its Monte Carlo "
                                "check missed: the report says why first; --allow-unconverged writes it as proposal.toml and exits 0).")

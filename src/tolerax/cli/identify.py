@@ -91,7 +91,7 @@ def identify_command(parser, args) -> int:
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
         "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()), "interval_holds": list(got.holds()),
-        "sigma_rad": got.sigma, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
+        "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for j, axis in enumerate(recording.axes):
         top.plot(got.times, np.degrees(got.measured[:, j]), ".", ms=3, label=f"{axis}: recording")
@@ -110,18 +110,19 @@ def identify_command(parser, args) -> int:
     return 0 if got.converged and not rugged else 3
 
 
-# What a recording holds (tolerax.identification.recording's docstring), for `identify --help`.
-RECORDING_LAYOUT = """A recording, CSV: one header row, each column's name with its unit in brackets, one row per sample:
-
-    time [s], azimuth measured [deg], azimuth commanded [deg]
-    0.000, 0.000000, 0.000000
-    ...
-
-time in s or ms; angles in rad, mrad, urad, deg or arcsec; a column `AXIS measured` for each recorded
-axis (azimuth, pitch), `AXIS commanded` optional. netCDF: a coordinate `time` and variables
-`azimuth_measured`, `azimuth_commanded`, ..., each with a `units` attribute. The unit ran SCENE's own
-drive (a test planned by `tolerax plan-test` writes it as test.toml); a synthetic recording to try
-this on: notebooks/identify_unit.ipynb writes one from a simulated unit with encoder noise."""
+# What a recording holds (tolerax.identification.recording's docstring, which is the reference),
+# for `identify --help`: the prose wrapped to the terminal, the example as it is.
+def _recording_layout() -> str:
+    example = "    time [s], azimuth measured [deg], azimuth commanded [deg]\n    0.000, 0.000000, 0.000000\n    ..."
+    return "\n\n".join([
+        wrap("A recording, CSV: one header row, each column's name with its unit in brackets, then one row per sample:"),
+        example,
+        wrap("Time in s or ms; angles in rad, mrad, urad, deg or arcsec; a column `AXIS measured` for each recorded axis "
+             "(azimuth, pitch), `AXIS commanded` optional. netCDF: a coordinate `time` and variables `azimuth_measured`, "
+             "`azimuth_commanded`, ..., each with a `units` attribute. The unit ran SCENE's own drive (a test planned by "
+             "`tolerax plan-test` is written as test.toml). To try this on a simulated unit: `tx.synthetic_recording(scene, "
+             "values, duration=..., n_save=..., noise=...)` and its `write_csv(path)`."),
+    ])
 
 
 def add_parser(sub, out_options, positive, non_negative, epilog):
@@ -132,7 +133,7 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
         "through the simulation (Levenberg-Marquardt, exact Jacobian), with 95 % intervals and which of them the "
         "recording determines. Writes identification.md, identification.json, identification.png and identified.toml "
         "(the unit as a scene file). Exits 3 where the fit did not converge or an interval does not hold (the residual "
-        "not quadratic along it: the report says which and what would change it)."), epilog=RECORDING_LAYOUT + "\n\n" + wrap(epilog),
+        "not quadratic along it: the report says which and what would change it)."), epilog=_recording_layout() + "\n\n" + wrap(epilog),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file: the model, with the test's drive")
     parser.add_argument("recording", type=pathlib.Path, help="the recording: .csv or .nc with units in its headers")

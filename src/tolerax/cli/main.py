@@ -44,7 +44,7 @@ import warnings
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
-from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
+from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, MONTECARLO_EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
                      integrator_option, scene_options, wrap)
 from .demo import demo_command
 from .identify import add_parser as identify_parser, add_plan_parser, identify_command, plan_test_command
@@ -237,7 +237,7 @@ def main(argv=None) -> int:
         "[tolerances] band, and write their pointing statistics (montecarlo.nc), a summary (summary.json, with "
         "the yield when a requirement is known) and a histogram. Chunks are checkpointed under OUT/chunks: "
         "rerun the same command to resume, or with a larger --n to extend a finished run (its first units kept, bitwise).",
-        epilog=EPILOG,
+        epilog=MONTECARLO_EPILOG,
     )
     scene_options(mc, "per-unit", "montecarlo")
     mc.add_argument("--n", type=count(1), default=64, help="manufactured units (default 64)")

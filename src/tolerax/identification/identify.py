@@ -61,7 +61,7 @@ from ..design.features import design_of, with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
-from .recording import AXES, Recording, RecordingError
+from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
 from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
@@ -432,21 +432,18 @@ def _information(jac, x, s2):
     return scaled, (values, vectors), x[:, None] * ((vectors / values) @ vectors.T) * x[None, :]
 
 
-# Factors between angle units (and time units) a header can state wrongly: deg <-> rad, mrad, arcsec.
-_SLIPS = {"deg": math.pi / 180, "mrad": 1e-3, "arcsec": math.pi / 180 / 3600}
-
-
 def _unit_slip(recorded, commanded) -> str:
-    """A sentence naming the unit slip where the recorded command is the scene's times one of
-    `_SLIPS`' factors (or its inverse) to 1 %, else ""."""
+    """A sentence naming the unit slip where the recorded command is the scene's times the factor
+    between two angle units (values in one written under the other's header) to 1 %, else ""."""
     big = np.abs(commanded) > 0.5 * np.max(np.abs(commanded))
     if not np.any(big):
         return ""
     ratio = float(np.median(recorded[big] / commanded[big]))
-    for unit, factor in _SLIPS.items():
-        for k, said in ((factor, f"values in rad under a [{unit}] header"), (1 / factor, f"values in {unit} under a [rad] header")):
-            if abs(ratio / k - 1) < 0.01:
-                return f" The two are {ratio:.4g}x apart: the header's unit is likely wrong ({said}?)."
+    units = {f: u for u, f in ANGLE_UNITS.items()}  # one name per factor (urad, not µrad as well)
+    for said, written in ((s, w) for s in units for w in units if s != w):
+        if abs(ratio / (said / written) - 1) < 0.01:
+            return (f" The two are {ratio:.4g}x apart: the header's unit is likely wrong (values in {units[written]} under a "
+                    f"[{units[said]}] header?).")
     return ""
 
 

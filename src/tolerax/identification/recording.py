@@ -155,9 +155,13 @@ def _from_columns(columns: dict, where: str) -> Recording:
         name, scale = _unit(header, ANGLE_UNITS, "an angle", where)
         parts = name.replace("_", " ").split()
         if len(parts) != 2 or parts[0] not in AXES or parts[1] not in ("measured", "commanded"):
-            near = difflib.get_close_matches(parts[0], AXES, n=1, cutoff=0.75) if len(parts) == 2 else []  # a misspelt axis
+            guess = None
+            if len(parts) == 2:  # a misspelt axis or kind: each word matched on its own
+                axis, kind = (difflib.get_close_matches(w, choices, n=1, cutoff=0.75) for w, choices in
+                              zip(parts, (AXES, ("measured", "commanded"))))
+                guess = f"{axis[0]} {kind[0]}" if axis and kind else None
             raise RecordingError(f"{where}: column {header!r} is not '<axis> measured' or '<axis> commanded' with <axis> "
-                                 "azimuth or pitch" + (f" (did you mean '{near[0]} {parts[1]}'?)." if near else "."))
+                                 "azimuth or pitch" + (f" (did you mean '{guess}'?)." if guess and guess != " ".join(parts) else "."))
         found[(parts[0], parts[1])] = values * scale
     if time is None:
         raise RecordingError(f"{where}: no 'time [s]' column.")

@@ -18,8 +18,8 @@ MISFIT = 1.5
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
 # rad: the finest residual the intervals are stated at. Below it the residual is the simulation's
-# own error, not the unit's (a noise-free recording of the model itself, fitted at another
-# smoothing width: 0.003-0.016 µrad RMS on the lumped scan at the default integration), and an
+# own error, not the unit's (noise-free recordings of the model itself: 1e-4 µrad RMS at the same
+# smoothing width, 0.003-0.016 µrad fitted at another, on the lumped scan), and an
 # interval that narrow lies inside that error: its check along the profile fails on the solve's
 # noise. No encoder records that finely (a 24-bit one's rounding alone: 0.11 µrad RMS).
 RESOLVED = 0.1e-6
@@ -214,7 +214,7 @@ class Identification:
                  f"after {self.steps} steps "
                  f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
-        misfit = bool(self.noise and self.residual_sd > MISFIT * self.noise)
+        misfit = bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))  # not below what the model resolves
         if misfit:
             notes += ["", f"**The residual ({1e6 * self.residual_sd:.3g} µrad) is {self.residual_sd / self.noise:.2g}x the recording's stated "
                       f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "

@@ -160,9 +160,9 @@ class TestDesign:
         if self.rugged[self.best].any():
             lines += ["", "**Every candidate's fit is rugged** (a local minimum inside the range for "
                       f"{', '.join(n for n, r in zip(self.names, self.rugged[self.best]) if r)}): identify from several starts."]
-        lines += ["", f"Candidates, best score first. One whose fit has another local minimum within {SPREAD[0]:g}-{SPREAD[1]:g}x "
-                  "of the scene's values (last column) is not proposed, however well it scores: a fit of its recording can stop "
-                  "in that other basin.", "",
+        lines += ["", "Candidates, best score first." + ("" if self.rugged[self.best].any() else
+                  f" One whose fit has another local minimum within {SPREAD[0]:g}-{SPREAD[1]:g}x of the scene's values (last "
+                  "column) is not proposed, however well it scores: a fit of its recording can stop in that other basin."), "",
                   f"| amplitude (°) | period (s) | weakest relative standard error (of those some candidate determines) | score | "
                   f"another local minimum within {SPREAD[0]:g}-{SPREAD[1]:g}x for |", "|---|---|---|---|---|"]
         for k in np.argsort(self.score):

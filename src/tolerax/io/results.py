@@ -214,7 +214,8 @@ def summary_md(s: dict) -> str:
             lo, hi = m[f"{joint}_angle_range_deg"]
             kind = m.get("joint_fidelity", {}).get(joint)
             force, runout = m[joint + "_output_force_peak_N"], m[joint + "_runout_peak_um"]
-            absent = f"not modelled (the {joint} joint is {kind}: its output does not translate)"
+            absent = (f"not modelled (the {joint} joint is ideal: its output does not translate)" if kind == "ideal" else
+                      f"not modelled (the {joint} joint's output support is rigid: its output does not translate)")
             proxy = (f" (the {joint} joint is lumped: its own output bearing, not read as the full stage reads it; "
                      "`[scene] fidelity = \"planetary\"` does)") if kind == "lumped" else ""
             lines += [

@@ -51,7 +51,8 @@ def _differences(there: dict, now: dict, prefix: str = "") -> list[str]:
         if isinstance(old, dict) and isinstance(new, dict):
             lines += _differences(old, new, f"{prefix}{key}.")
         elif old != new:
-            lines.append(f"{prefix}{key}: {_said(old)} there, {_said(new)} now")
+            said = (_said(old), _said(new)) if _said(old) != _said(new) else (repr(old), repr(new))  # apart below 6 digits
+            lines.append(f"{prefix}{key}: {said[0]} there, {said[1]} now")
     return lines
 
 
