@@ -74,8 +74,9 @@ UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solv
 # standard error and polished where it is not (`identify`).
 LM_TOL = 1e-4
 # Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
-# one more, for the rough time said before the work: 7-10 timed on the lumped azimuth scan with
-# one parameter, compiled (an order of magnitude, like rough_wall's own).
+# one more, for the rough time said before the work: timed on the lumped azimuth scan with one
+# parameter, compiled, 13-20 runs a step, i.e. 7-10 per (parameter + 1); the time said is the
+# steps' budget, which a fit that converges early does not use (an order of magnitude).
 LM_STEP_RUNS = 8
 RESIDUAL_TOL = 0.2
 # Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
