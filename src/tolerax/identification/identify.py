@@ -440,7 +440,7 @@ def _unit_slip(recorded, commanded) -> str:
     if not np.any(big):
         return ""
     ratio = float(np.median(recorded[big] / commanded[big]))
-    units = {f: u for u, f in ANGLE_UNITS.items()}  # one name per factor (urad, not µrad as well)
+    units = {f: u for u, f in ANGLE_UNITS.items()}  # one name per factor (µrad for urad and µrad alike)
     for said, written in ((s, w) for s in units for w in units if s != w):
         if abs(ratio / (said / written) - 1) < 0.01:
             return (f" The two are {ratio:.4g}x apart: the header's unit is likely wrong (values in {units[written]} under a "
