@@ -61,7 +61,7 @@ def check_names(scene, names, what: str = "identify") -> tuple[str, ...]:
     names = known[: len(design_names(scene))] if names is None else tuple(names)
     unknown = [p for p in names if p not in known]
     if unknown or not names:
-        near = [f"{p!r}: did you mean {m[0]!r}?" for p in unknown for m in [difflib.get_close_matches(p, known, n=1)] if m]
+        near = [f"{p!r}: did you mean {m[0]!r}?" for p in unknown for m in [difflib.get_close_matches(p, known, n=1, cutoff=0.85)] if m]
         raise ValueError(f"{what}: {unknown or 'no parameters'} are not parameters of the scene" + (f" ({'; '.join(near)})" if near else "")
                          + "; its design features: "
                          f"{', '.join(design_names(scene))}; its physical parameters: {', '.join(_physical(scene)) or 'none'}.")
