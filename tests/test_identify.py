@@ -8,6 +8,7 @@ import math
 import jax
 import numpy as np
 import pytest
+import scipy.optimize
 
 import tolerax as tx
 from tolerax.design.features import design_names, design_of
@@ -455,6 +456,60 @@ def test_the_full_stage_s_interval_is_said_not_to_hold():
     scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
     rec = synthetic_recording(scene, {"azimuth.ring_backlash": 60e-6}, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER,
                               key=jax.random.key(7))
-    got = identify(scene, rec, ["azimuth.ring_backlash"], starts=(0.62,), widths=(None,), lm_steps=3)
+    got = identify(scene, rec, ["azimuth.ring_backlash"], starts=(0.62,), widths=(None,), lm_steps=3, secant=False)
     assert got.holds() == (False,) and got.status() == ("interval does not hold",), (got.profile, got.table())
-    assert "does not hold**" in got.table()
+    assert "does not hold**" in got.table() and got.jacobian.startswith("forward mode")
+
+
+@pytest.mark.slow
+def test_the_full_stage_identifies_itself_on_central_secants():
+    """The full planetary stage identified by itself with the defaults: the forward-mode
+    Jacobian at the first start is the rattle's (orders of magnitude off the secants), so the
+    secants are chosen, and the ring backlash is recovered inside its interval, which holds along
+    its profile, the residual the encoder's. (Enlarges test_identify::test_secants_are_chosen_where_the_forward_mode_jacobian_is_not_the_residual_s;
+    several recordings: benchmarks/identify_full_stage.py.)"""
+    scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
+    rec = synthetic_recording(scene, {"azimuth.ring_backlash": 60e-6}, duration=0.35, n_save=141, noise=NOISE, quantum=ENCODER,
+                              key=jax.random.key(3000))
+    got = identify(scene, rec, ["azimuth.ring_backlash"])
+    assert got.jacobian.startswith("central secants") and "differs from them by" in got.jacobian
+    lo, hi = got.interval()
+    assert lo[0] <= 60e-6 <= hi[0] and hi[0] - lo[0] < 1e-6, (lo, hi)
+    assert got.holds() == (True,) and got.status() == ("determined",) and got.converged
+    assert got.residual_sd < 1.3 * rec.noise
+
+
+def test_secants_are_chosen_where_the_forward_mode_jacobian_is_not_the_residual_s():
+    """`secant_once`'s linearisation is the central secants (against numpy's differences of a
+    closed form, to rounding), and optimistix's Levenberg-Marquardt through it finds a closed
+    form's least squares; on a function with a fast ripple of tiny amplitude (the rattle's
+    shape: it barely moves the value, it dominates the derivative) the forward-mode Jacobian is
+    off the secants and `_choose_jacobian`'s rule takes the secants, on a smooth one forward
+    mode. (The full stage itself: the slow test above.)"""
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    from tolerax._linearise import secant_once
+    from tolerax.identification.identify import SECANT_SWITCH
+
+    t = np.linspace(0.0, 1.0, 50)
+    data = 3.0 * np.exp(-0.7 * t) + 0.01 * np.cos(5 * t)
+
+    def model(p, ripple):  # a decay with a ripple of amplitude 1e-4 at 1e5 rad per unit of p
+        return p[0] * jnp.exp(-p[1] * t) + ripple * 1e-4 * jnp.sin(1e5 * p[1] * t)
+
+    residual = lambda p, ripple: model(p, ripple) - data  # noqa: E731
+    p0, h = jnp.asarray([2.5, 0.9]), 1e-3
+    fn = secant_once(residual, h)
+    linear = jax.jacfwd(lambda p: fn(p, 1.0))(p0)
+    numpy_secants = np.stack([(np.asarray(residual(p0 + h * e, 1.0)) - np.asarray(residual(p0 - h * e, 1.0))) / (2 * h)
+                              for e in np.eye(2)], axis=1)
+    np.testing.assert_allclose(np.asarray(linear), numpy_secants, rtol=1e-12, atol=1e-14)
+    solved = optx.least_squares(lambda p, _: fn(p, 0.0), optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10), p0).value
+    reference = scipy.optimize.least_squares(lambda p: np.asarray(residual(jnp.asarray(p), 0.0)), np.asarray(p0), xtol=1e-14).x
+    np.testing.assert_allclose(np.asarray(solved), reference, rtol=1e-7)
+    for ripple, chosen in ((1.0, "secants"), (0.0, "forward")):
+        forward = np.asarray(jax.jacfwd(lambda p: residual(p, ripple))(p0))
+        central = np.asarray(jax.jacfwd(lambda p: secant_once(residual, h)(p, ripple))(p0))
+        differs = np.linalg.norm(forward - central) / np.linalg.norm(central)
+        assert (differs > SECANT_SWITCH) == (chosen == "secants"), (ripple, differs)

@@ -91,7 +91,7 @@ def identify_command(parser, args) -> int:
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
         "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()), "interval_holds": list(got.holds()),
-        "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "wall_s": wall}, indent=2) + "\n")
+        "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "jacobian": got.jacobian, "wall_s": wall}, indent=2) + "\n")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for j, axis in enumerate(recording.axes):
         top.plot(got.times, np.degrees(got.measured[:, j]), ".", ms=3, label=f"{axis}: recording")

@@ -31,14 +31,18 @@ determined; a parameter is determined itself, determined only in combination (it
 determined direction but its own interval is wide: the recording sees a sum, as the lost motion
 at a reversal sees the backlash and the pin play together), or not determined.
 
-**Where it holds.** The residual matches trajectories, so it needs a response whose derivative
-in the features the solve carries faithfully: the lumped joint's lost motion does. On the full
-planetary stage the output angle's forward-mode derivative over a window is dominated by the
-rattle (the reason the jitter design uses secants): Levenberg-Marquardt stays at the screen's
-best point, with an interval of nanometres and a residual near the misfit threshold, and the
-profile check finds the cost along that interval nowhere near its linearised rise (its status
-"interval does not hold", not written into the identified scene). A residual the rattle does
-not scramble is not built yet. Of the physical
+**Where it holds.** The residual matches trajectories, so it needs a Jacobian that reads how
+the trajectory moves with the parameters. On the lumped joint the forward-mode derivative of the
+solve does. On the full planetary stage it does not: through the rattle the trajectory's
+tangents grow with the impacts' sensitivity to every perturbation (at the first start they
+exceed the central secants by orders of magnitude), while the trajectory itself moves smoothly
+with a clearance (the cost is quadratic over +-10 % of the ring backlash about the truth). So the
+Jacobian is chosen (`identify(secant=None)`): forward mode where it agrees with the central
+secants at `SECANT_STEP`, else the secants (`tolerax._linearise.secant_once`: 2p runs a
+linearisation, in one batch), for Levenberg-Marquardt and the intervals alike. With the
+forward-mode Jacobian on the full stage Levenberg-Marquardt stalls near the screen's best point
+with an interval of nanometres, and the profile check finds the cost along it nowhere near its
+linearised rise (its status "interval does not hold", not written into the identified scene). Of the physical
 parameters, the drag is seen as the clearances are (it sets which flank the output rides); a
 mesh stiffness or damping ratio only through the output's ringing after each reversal (the
 reflector swinging on the mesh stiffness): that fit is non-convex beyond a few per cent (a unit well
@@ -46,6 +50,7 @@ below the scene's stiffness, fitted from the scene's value, ran to its bound), a
 sensitivity changes within a fraction of its standard error, so its interval is a rough guide; identify a stiffness from a close start, or leave it at its value.
 """
 
+import dataclasses
 import math
 import sys
 import time
@@ -57,6 +62,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._linearise import secant_once
 from ..design.features import design_of, with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
@@ -86,6 +92,14 @@ BOUND = 100.0
 POLISH_STEPS, POLISH_TOL = 3, 1e-7
 # Of the screened starts (`_starts`), Levenberg-Marquardt runs from this many of the lowest cost.
 STARTS_KEPT = 2
+# The Jacobian where the forward-mode one is not the residual's (`identify(secant=...)`): central
+# secants at a relative step of SECANT_STEP in each parameter (2 %: wide against the
+# trajectory's sensitivity to a perturbation through the impacts, narrow against the residual's
+# curvature, which is quadratic over +-10 % of a clearance on the full stage), chosen
+# automatically where the forward-mode Jacobian at the first start differs from the secants by
+# more than SECANT_SWITCH of their norm (on the full planetary stage by orders of magnitude: the
+# rattle scrambles the tangents; on the lumped joint they agree to rounding of the step).
+SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -100,6 +114,9 @@ class _Fit(eqx.Module):
     rows: jax.Array
     columns: jax.Array
     measured: jax.Array
+    # None: the Jacobian of forward mode through the solve; a step h: central secants at a
+    # relative step h in each parameter (`SECANT_STEP`), static (a program per choice).
+    secant: float | None = eqx.field(static=True, default=None)
 
     def run(self, x, width):
         scene = with_parameters(self.objective.scene, self.names, self.scale * x)
@@ -118,12 +135,24 @@ class _Fit(eqx.Module):
         return self.outputs(x, width)[0]
 
 
+def _bounded_residual(w, fit: "_Fit", width, centre, reach):
+    """The residual (µrad) at the optimiser's variable `w` (`_bounded`)."""
+    return fit.residual(_bounded(w, centre, reach), width)
+
+
+def _residual_in_w(fit: "_Fit"):
+    """`_bounded_residual`, linearised by central secants in `w` (a step `fit.secant` in the
+    logarithm of each parameter: relative) where the fit asks for them, else by forward mode."""
+    return _bounded_residual if fit.secant is None else secant_once(_bounded_residual, fit.secant)
+
+
 @eqx.filter_jit
 def _polish(fit: "_Fit", w0, width, centre, reach):
     """A few Gauss-Newton steps (optimistix) at a tolerance finer than `LM_TOL` from
     Levenberg-Marquardt's estimate `w0`: LM stops within its tolerance of the minimum, about
     half a standard error for a parameter the recording determines to 1e-4. (solution, cost)."""
-    fn = lambda w, width: fit.residual(_bounded(w, centre, reach), width)  # noqa: E731
+    residual = _residual_in_w(fit)
+    fn = lambda w, width: residual(w, fit, width, centre, reach)  # noqa: E731
     sol = optx.least_squares(fn, optx.GaussNewton(rtol=POLISH_TOL, atol=POLISH_TOL), w0, args=width, max_steps=POLISH_STEPS,
                              throw=False)
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
@@ -217,7 +246,8 @@ def _termination_norm(tree):
 @eqx.filter_jit
 def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
     """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
-    fn = lambda w, width: {"residual": fit.residual(_bounded(w, centre, reach), width)}  # noqa: E731
+    residual = _residual_in_w(fit)
+    fn = lambda w, width: {"residual": residual(w, fit, width, centre, reach)}  # noqa: E731
     solver = optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm)
     sol = optx.least_squares(fn, solver, w0, args=width, max_steps=max_steps, throw=False)
     return sol.value, jnp.sum(fn(sol.value, width)["residual"] ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
@@ -226,9 +256,17 @@ def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
 @eqx.filter_jit
 def _fit_and_jacobian(fit: _Fit, x, width):
     """The residual's Jacobian (µrad per unit of x), the fitted angles and the scene's commanded
-    angles (rad) at `x`, from one forward-mode solve (the angles are its primal)."""
-    jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
-    return jac, angles, commanded
+    angles (rad) at `x`: from one forward-mode solve (the angles are its primal), or where the
+    fit takes secants (`_Fit.secant`) from one batched run of `x` and the central secants at
+    $x\\,e^{\\pm h}$ in each parameter."""
+    if fit.secant is None:
+        jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
+        return jac, angles, commanded
+    n, h = x.shape[0], fit.secant
+    factors = jnp.exp(h * jnp.concatenate([jnp.eye(n), -jnp.eye(n)]))
+    residuals, (angles, commanded) = jax.vmap(lambda v: fit.outputs(v, width))(jnp.concatenate([x[None], x[None] * factors]))
+    jac = (residuals[1 : n + 1] - residuals[n + 1 :]).T / (x * (math.exp(h) - math.exp(-h)))[None, :]
+    return jac, angles[0], commanded[0]
 
 
 def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
@@ -240,7 +278,8 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=32, search: float = 2.0,
-             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, progress=False, **run) -> Identification:
+             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, secant: float | bool | None = None, progress=False,
+             **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
     **Arguments:**
@@ -270,6 +309,13 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
+    - `secant`: the residual's Jacobian, for Levenberg-Marquardt and the intervals. `None`
+      (default): chosen at the first start, the forward-mode Jacobian through the solve where it
+      agrees with the central secants at `SECANT_STEP` to `SECANT_SWITCH` of their norm, else
+      the secants (the full planetary stage: its rattle scrambles the trajectory's tangents
+      while the trajectory moves smoothly with a clearance); `False`: forward mode; a number
+      $h > 0$: central secants at a relative step $h$ in each parameter. The result's
+      `jacobian` says which, and why.
     - `progress`: True prints to stderr a rough time before any work, then a line per phase as
       it ends (the screen, each start at each width with its steps and cost, the assessment),
       with its wall time; or a callable taking those lines (an identification can take minutes
@@ -340,6 +386,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
     x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
+    fit, jacobian = _choose_jacobian(fit, x_starts[0], widths[-1], secant)
+    lap("jacobian", f"the residual's Jacobian: {jacobian}")
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -397,8 +445,31 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
-        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile,
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian,
     )
+
+
+def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
+    """The fit with the residual's Jacobian `identify(secant=...)` asks for, and that choice in
+    words: where it is automatic (`None`), the forward-mode Jacobian and the central secants at
+    `x` (the first start) compared, secants taken where they differ by more than `SECANT_SWITCH`."""
+    if secant is False:
+        return fit, "forward mode through the solve (as asked)"
+    if secant is not None:
+        if not (isinstance(secant, (int, float)) and not isinstance(secant, bool) and 0 < secant < 1):
+            raise ValueError(f"identify: secant={secant!r} must be None (chosen), False (forward mode) or a relative step in "
+                             "(0, 1), e.g. 0.02.")
+        return dataclasses.replace(fit, secant=float(secant)), f"central secants at ±{100 * secant:g} % of each parameter (as asked)"
+    secants = dataclasses.replace(fit, secant=SECANT_STEP)
+    forward = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x), width)[0])
+    central = np.asarray(_fit_and_jacobian(secants, jnp.asarray(x), width)[0])
+    scale = float(np.linalg.norm(central))
+    differs = float(np.linalg.norm(forward - central)) / scale if scale > 0 else math.inf
+    if np.isfinite(differs) and differs <= SECANT_SWITCH:
+        return fit, f"forward mode through the solve (within {differs:.2g} of the central secants at the first start)"
+    return secants, (f"central secants at ±{100 * SECANT_STEP:g} % of each parameter: the forward-mode Jacobian at the first "
+                     f"start differs from them by {differs:.3g} of their norm (through a rattling stage the trajectory's "
+                     "tangents grow with the impacts' sensitivity, while the trajectory moves smoothly with a clearance)")
 
 
 def own_width(scene) -> jax.Array:

@@ -58,6 +58,8 @@ class Identification:
       (`identify`'s `_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
       estimate along each parameter's profile path, over the rise the linearised model predicts
       there; 1 where the residual is quadratic out to there. `holds` reads it.
+    - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
+      mode through the solve, or central secants), and why, in words.
     """
 
     names: tuple[str, ...]
@@ -79,6 +81,7 @@ class Identification:
     scene: object = dataclasses.field(repr=False, default=None)
     wall: dict = dataclasses.field(default_factory=dict)
     profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    jacobian: str = ""  # the residual's Jacobian, and why (`identify(secant=...)`)
 
     @property
     def residual_sd(self) -> float:
@@ -212,7 +215,8 @@ class Identification:
                   if below else f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; ")
                  + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
-                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ")."), "", *rows, "", "Directions (relative standard error: combination):", ""]
+                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ").")
+                 + (f" The residual's Jacobian: {self.jacobian}." if self.jacobian else ""), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
         misfit = bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))  # not below what the model resolves
         if misfit:
@@ -232,10 +236,11 @@ class Identification:
                       "determines to that precision, and it is not written into the identified scene. "
                       + ("With the misfit above, free the parameter the model leaves at the scene's value (or model the unit "
                          "at its own fidelity). " if misfit else "")
-                      + "Where the residual is rugged at the interval's scale (on the full planetary stage the rattle "
-                      "scrambles the trajectory's derivative), identify with a joint whose response the parameter moves "
-                      "smoothly (the lumped joint, with its bias against the full stage in mind), or from a recording "
-                      "without rattle."]
+                      + "Where the Jacobian is not the residual's (forward mode through a rattling stage: its tangents "
+                      "are the rattle's), identify with the central secants (secant=None chooses them where they "
+                      "disagree, or give the step); where the residual itself is rugged at the interval's scale, identify "
+                      "with a joint whose response the parameter moves smoothly (the lumped joint, with its bias against the "
+                      "full stage in mind), or from a recording without rattle."]
         lines[1:1] = notes
         for se, vector in self.directions:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
