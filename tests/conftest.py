@@ -48,9 +48,9 @@ def pytest_configure(config):
 _LAST = ("test_notebooks_identify.py",)
 _LONGEST_FIRST = ("test_cli.py", "test_reliability.py", "test_life.py", "test_gradients.py", "test_scenefile.py",
                   "test_notebooks.py", "test_montecarlo.py", "test_mechanism.py", "test_loaded.py", "test_hard_cases.py",
-                  "test_notebooks_physics.py", "test_cache.py", "test_identify.py", "test_bench.py", "test_joint.py",
-                  "test_design.py", "test_planetary.py", "test_contact.py", "test_outcome.py", "test_requirements.py",
-                  "test_extending.py", "test_jitter.py", "test_optimise.py")
+                  "test_notebooks_physics.py", "test_cache.py", "test_identify.py", "test_bench.py", "test_design_values.py",
+                  "test_joint.py", "test_outcome.py", "test_design.py", "test_planetary.py", "test_contact.py",
+                  "test_requirements.py", "test_extending.py", "test_jitter.py", "test_optimise.py")
 
 
 def pytest_collection_modifyitems(config, items):

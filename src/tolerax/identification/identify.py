@@ -100,6 +100,9 @@ STARTS_KEPT = 2
 # more than SECANT_SWITCH of their norm (on the full planetary stage by orders of magnitude: the
 # rattle scrambles the tangents; on the lumped joint they agree to rounding of the step).
 SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
+# Runs of the scene a Levenberg-Marquardt step on secants costs per (parameter + 1), for the
+# revised rough time: the 2p points (one batched run) and the trial point, rounded up.
+SECANT_STEP_RUNS = 2
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -388,6 +391,13 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
     fit, jacobian = _choose_jacobian(fit, x_starts[0], widths[-1], secant)
     lap("jacobian", f"the residual's Jacobian: {jacobian}")
+    if say is not None and fit.secant is not None and one is not None:
+        # A Levenberg-Marquardt step on secants: its 2p points in one batched run, the trial point,
+        # at most SECANT_STEP_RUNS runs' time per (parameter + 1): the first estimate counted
+        # forward-mode steps.
+        runs = len(x_starts) * len(widths) * int(lm_steps) * (len(parameters) + 1) * SECANT_STEP_RUNS
+        say(f"identify: on secants the fit takes roughly {human_seconds(max(runs * one, 1.0))} on one core at most (the "
+            "first estimate counted forward-mode steps)")
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -452,7 +462,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
 def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
     """The fit with the residual's Jacobian `identify(secant=...)` asks for, and that choice in
     words: where it is automatic (`None`), the forward-mode Jacobian and the central secants at
-    `x` (the first start) compared, secants taken where they differ by more than `SECANT_SWITCH`."""
+    `x` (the first start) compared, secants taken where they differ by more than `SECANT_SWITCH`
+    (or cannot be compared: a run that failed)."""
     if secant is False:
         return fit, "forward mode through the solve (as asked)"
     if secant is not None:
@@ -461,8 +472,16 @@ def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
                              "(0, 1), e.g. 0.02.")
         return dataclasses.replace(fit, secant=float(secant)), f"central secants at ±{100 * secant:g} % of each parameter (as asked)"
     secants = dataclasses.replace(fit, secant=SECANT_STEP)
+    # Both from the forward-mode program (compiled for the assessment in any case): its
+    # Jacobian at x and its primal, the model's angles, at x e^(+-h) along each parameter.
+    x = np.asarray(x, dtype=float)
     forward = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x), width)[0])
-    central = np.asarray(_fit_and_jacobian(secants, jnp.asarray(x), width)[0])
+    columns = []
+    for j in range(x.size):
+        shifted = [x * np.exp(sign * SECANT_STEP * np.eye(x.size)[j]) for sign in (1.0, -1.0)]
+        up, down = (np.asarray(_fit_and_jacobian(fit, jnp.asarray(v), width)[1]) for v in shifted)
+        columns.append((up - down).ravel() / UNIT / (shifted[0][j] - shifted[1][j]))
+    central = np.stack(columns, axis=1)
     scale = float(np.linalg.norm(central))
     differs = float(np.linalg.norm(forward - central)) / scale if scale > 0 else math.inf
     if np.isfinite(differs) and differs <= SECANT_SWITCH:
