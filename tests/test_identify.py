@@ -402,6 +402,7 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     assert said[0].startswith("design_test [0:00] 2 candidate scans") and "roughly" in said[0] and len(said) == 3, said
     assert "candidate 1 of 2 (±0.5° × 1 s) done, about" in said[1] and said[2].endswith("candidate 2 of 2 (±0.125° × 0.25 s) done")
     assert plan.relative_error[1, 2] < plan.relative_error[0, 2] / 2 and plan.score[1] < plan.score[0], plan.table()
+    assert plan.jacobian.startswith("forward mode through the solve (within") and plan.jacobian in plan.table()  # the lumped joint's
     assert list(plan.rugged[1]) == [False, False, True] and not plan.rugged[0].any(), plan.table()
     assert plan.best == plan.plain == 0 and float(plan.scene.azimuth.drive.period) == 1.0
     assert "Proposed test: a ±0.5° × 1 s scan" in plan.table() and "| 0.125 | 0.25 | " in plan.table()

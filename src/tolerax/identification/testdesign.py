@@ -7,7 +7,9 @@ reflector's inertia too (its deflection shows the stiffness), more reversals in 
 cross the lost motion more often. `design_test` evaluates, at the scene's values (the best
 guess before the test), the Gauss-Newton information of each candidate scan over the same
 duration, encoder and saves — the relative Fisher information $D J^TJ D / \\sigma^2$ of
-`identify`, $J$ the output angles' exact forward-mode Jacobian through the solve — and proposes
+`identify`, $J$ the output angles' Jacobian as `identify` chooses it (forward mode through the
+solve, or central secants where the rattle scrambles the tangents: decided on the plain scan and
+kept for every candidate) — and proposes
 the candidate whose weakest parameter is best determined (the smallest largest relative standard
 error: `criterion="weakest"`, E-optimality on the parameters themselves) or the largest
 determinant (`criterion="D"`, D-optimality: the volume of the joint confidence region).
@@ -44,7 +46,7 @@ from ..design.objectives import PointingObjective
 from ..design.phases import Phases
 from ..eta import human_seconds, rough_wall, time_left
 from ..mechanism.drives import ScanServo
-from .identify import DETERMINED, UNIT, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
+from .identify import DETERMINED, UNIT, _choose_jacobian, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
 from .parameters import check_names, parameter_values
 from .recording import AXES
 
@@ -105,7 +107,8 @@ class TestDesign:
       candidate is not proposed (unless every candidate is).
     - `plain`: the index of the scene's own scan; `best`: of the proposed one.
     - `criterion`, `noise` (rad), `duration` (s), `settle` (s); `scene`: the scene with the
-      proposed scan; `undetermined`: the parameters no candidate determines.
+      proposed scan; `undetermined`: the parameters no candidate determines; `jacobian`: which
+      Jacobian the information rests on, and why (`identify`'s `Identification.jacobian`).
     """
 
     __test__ = False  # not a pytest class, though its name starts with "Test"
@@ -126,6 +129,7 @@ class TestDesign:
     settle: float
     undetermined: tuple[str, ...]
     scene: object = dataclasses.field(repr=False, default=None)
+    jacobian: str = ""
 
     def sharper(self) -> np.ndarray:
         """Per parameter: the plain scan's relative standard error over the proposed one's."""
@@ -142,7 +146,8 @@ class TestDesign:
         lines = [f"Proposed test: a ±{scan(self.best)} scan (peak rate "
                  f"{math.degrees(2 * math.pi * self.amplitude[self.best] / self.period[self.best]):.3g} °/s) for "
                  f"{self.duration:g} s, against the plain ±{scan(self.plain)}; predicted at the scene's values with "
-                 f"{1e6 * self.noise:.3g} µrad of encoder noise (criterion: {self.criterion}).", "",
+                 f"{1e6 * self.noise:.3g} µrad of encoder noise (criterion: {self.criterion})."
+                 + (f" The output's Jacobian: {self.jacobian}." if self.jacobian else ""), "",
                  "| parameter | plain: relative standard error | proposed | sharper by |", "|---|---|---|---|"]
         worse = []
         for j, name in enumerate(self.names):
@@ -176,7 +181,8 @@ class TestDesign:
 
 def design_test(scene, parameters, *, duration: float, n_save: int, noise: float, settle: float = 0.0,
                 max_amplitude: float | None = None, max_rate: float | None = None, amplitudes=None, periods=None,
-                criterion: str = "weakest", start: str = "steady", progress=False, **run) -> TestDesign:
+                criterion: str = "weakest", start: str = "steady", secant: float | bool | None = None, progress=False,
+                **run) -> TestDesign:
     """The scan (amplitude, period) that makes `parameters` of `scene` best determined by a
     recording of `duration` s (module docstring).
 
@@ -193,6 +199,7 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
       and times the plain scan's period (candidates beyond the limits dropped). The scene's own
       scan is always a candidate.
     - `criterion`: "weakest" (default) or "D"; `start`, `**run`: the model's run (`identify`'s).
+    - `secant`: the Jacobian, as `identify`'s (`None`: chosen on the plain scan at the guess).
     - `progress`: True prints to stderr a rough time before the candidates are evaluated (the
       simulations they need at `tolerax.eta.rough_wall`'s pace, compilation not included) and a
       line as each is done, with the time left at the pace so far; a callable receives the
@@ -247,6 +254,9 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     for k, (a, t) in enumerate(grid):  # one compiled program for all: the scan's amplitude and period are arrays of the scene
         candidate = eqx.tree_at(lambda o: o.scene, objective, with_scan(scene, a, t))
         fit = _Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured)
+        if k == 0:  # the plain scan: the Jacobian chosen once for every candidate (one compiled program)
+            chosen, jacobian = _choose_jacobian(fit, x, width, secant)
+        fit = dataclasses.replace(fit, secant=chosen.secant)
         jac, angles, _ = _fit_and_jacobian(fit, jnp.asarray(x), width)
         jac = np.asarray(jac)
         # The noise-free recording at the guess, and the fit's cost profile of each parameter over the range.
@@ -271,4 +281,4 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
                       relative_error=errors, rugged=rugged, score=score, plain=0, best=best, criterion=criterion, noise=float(noise),
                       duration=float(duration), settle=float(settle),
                       undetermined=tuple(n for n, s in zip(parameters, seen) if not s),
-                      scene=with_scan(scene, amplitude[best], period[best]))
+                      scene=with_scan(scene, amplitude[best], period[best]), jacobian=jacobian)
