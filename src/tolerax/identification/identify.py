@@ -36,7 +36,7 @@ the trajectory moves with the parameters. On the lumped joint the forward-mode d
 solve does. On the full planetary stage it does not: through the rattle the trajectory's
 tangents grow with the impacts' sensitivity to every perturbation (at the first start they
 exceed the central secants by orders of magnitude), while the trajectory itself moves smoothly
-with a clearance (the cost is quadratic over +-10 % of the ring backlash about the truth). So the
+with a clearance (the cost is close to quadratic in the ring backlash about the truth). So the
 Jacobian is chosen (`identify(secant=None)`): forward mode where it agrees with the central
 secants at `SECANT_STEP`, else the secants (`tolerax._linearise.secant_once`: 2p runs a
 linearisation, in one batch), for Levenberg-Marquardt and the intervals alike. With the
@@ -95,10 +95,10 @@ STARTS_KEPT = 2
 # The Jacobian where the forward-mode one is not the residual's (`identify(secant=...)`): central
 # secants at a relative step of SECANT_STEP in each parameter (2 %: wide against the
 # trajectory's sensitivity to a perturbation through the impacts, narrow against the residual's
-# curvature, which is quadratic over +-10 % of a clearance on the full stage), chosen
+# curvature in a clearance), chosen
 # automatically where the forward-mode Jacobian at the first start differs from the secants by
 # more than SECANT_SWITCH of their norm (on the full planetary stage by orders of magnitude: the
-# rattle scrambles the tangents; on the lumped joint they agree to rounding of the step).
+# rattle scrambles the tangents; on the lumped joint they agree to the step's truncation error).
 SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
 # Runs of the scene a Levenberg-Marquardt step on secants costs per (parameter + 1), for the
 # revised rough time: the 2p points (one batched run) and the trial point, rounded up.
