@@ -15,11 +15,9 @@ import jax
 import jax.numpy as jnp
 
 
-def jacobian_once(fn):
-    """`fn(x, *rest) -> array` (x a 1-D array) with the same values and a custom JVP: in `x`,
-    its Jacobian from one forward-mode pass times the tangent; in `rest` (any pytrees: a scene,
-    states, widths), their own forward-mode tangent, so a derivative through the solver
-    (optimistix's implicit function theorem) stays exact."""
+def _linearised_by(fn, jacobian):
+    """`fn(x, *rest)` with a custom JVP: in `x`, `jacobian(x, rest) -> (J, fn(x, *rest))` times
+    the tangent; in `rest`, their own forward-mode tangent (`jacobian_once`, `secant_once`)."""
 
     @eqx.filter_custom_jvp
     def once(x, *rest):
@@ -28,13 +26,25 @@ def jacobian_once(fn):
     @once.def_jvp
     def _jvp(primals, tangents):
         (x, *rest), (dx, *drest) = primals, tangents
-        jac, y = jax.jacfwd(lambda v: (lambda out: (out, out))(fn(v, *rest)), has_aux=True)(x)
-        dy = jnp.zeros_like(y) if dx is None else jac @ dx
+        if dx is None:
+            y = fn(x, *rest)
+            dy = jnp.zeros_like(y)
+        else:
+            jac, y = jacobian(x, rest)
+            dy = jac @ dx
         if jax.tree.leaves(drest):
             dy = dy + eqx.filter_jvp(lambda r: fn(x, *r), (tuple(rest),), (tuple(drest),))[1]
         return y, dy
 
     return once
+
+
+def jacobian_once(fn):
+    """`fn(x, *rest) -> array` (x a 1-D array) with the same values and a custom JVP: in `x`,
+    its Jacobian from one forward-mode pass times the tangent; in `rest` (any pytrees: a scene,
+    states, widths), their own forward-mode tangent, so a derivative through the solver
+    (optimistix's implicit function theorem) stays exact."""
+    return _linearised_by(fn, lambda x, rest: jax.jacfwd(lambda v: (lambda out: (out, out))(fn(v, *rest)), has_aux=True)(x))
 
 
 def secant_once(fn, step: float):
@@ -49,23 +59,10 @@ def secant_once(fn, step: float):
     trajectory grow with the impacts' sensitivity to every perturbation, while the trajectory
     itself moves smoothly with a clearance (`tolerax.identification.identify`)."""
 
-    @eqx.filter_custom_jvp
-    def once(x, *rest):
-        return fn(x, *rest)
+    def secants(x, rest):
+        n = x.shape[0]
+        shift = step * jnp.eye(n, dtype=x.dtype)
+        values = jax.vmap(lambda v: fn(v, *rest))(jnp.concatenate([x + shift, x - shift]))
+        return ((values[:n] - values[n:]) / (2.0 * step)).T, fn(x, *rest)
 
-    @once.def_jvp
-    def _jvp(primals, tangents):
-        (x, *rest), (dx, *drest) = primals, tangents
-        y = fn(x, *rest)
-        if dx is None:
-            dy = jnp.zeros_like(y)
-        else:
-            n = x.shape[0]
-            shift = step * jnp.eye(n, dtype=x.dtype)
-            values = jax.vmap(lambda v: fn(v, *rest))(jnp.concatenate([x + shift, x - shift]))
-            dy = ((values[:n] - values[n:]) / (2.0 * step)).T @ dx
-        if jax.tree.leaves(drest):
-            dy = dy + eqx.filter_jvp(lambda r: fn(x, *r), (tuple(rest),), (tuple(drest),))[1]
-        return y, dy
-
-    return once
+    return _linearised_by(fn, secants)
