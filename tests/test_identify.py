@@ -3,6 +3,7 @@ reason, and the clearances and backlash of synthetic recordings (made by the mod
 values, with encoder noise and quantisation) recovered inside their stated intervals; the
 coverage of those intervals is measured over recordings (`-m slow`), not assumed."""
 
+import dataclasses
 import math
 
 import jax
@@ -110,15 +111,17 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     slipped = Recording(rec.time, rec.measured * math.pi / 180, rec.axes, rec.commanded * math.pi / 180, source="unit8.csv")
     with pytest.raises(RecordingError, match=r"0.01745x apart: the header's unit is likely wrong \(values in rad under a \[deg\] header"):
         identify(scene, slipped, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
-    # A rough time is said before any work (the command line prints it): 20 steps of LM_STEP_RUNS
-    # x 2 runs, then the interval's check (the profile at 3 steps both sides, and the Jacobian at
-    # the estimate).
-    from tolerax.identification.identify import LM_STEP_RUNS
+    # A rough time is said before any work (the command line prints it): 20 steps of
+    # SECANT_STEP_RUNS (central secants) or LM_STEP_RUNS (forward mode) x 2 runs, then the
+    # interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate);
+    # both, since the Jacobian is chosen after it (at the first start).
+    from tolerax.identification.identify import LM_STEP_RUNS, SECANT_STEP_RUNS
 
-    runs = 20 * 2 * LM_STEP_RUNS + 6 + 2
+    one = tx.eta.rough_wall(scene, 0.35)
+    secants, forward = (tx.eta.human_seconds((20 * 2 * k + 6 + 2) * one) for k in (SECANT_STEP_RUNS, LM_STEP_RUNS))
     assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each, then "
-                    f"the intervals checked: roughly {tx.eta.human_seconds(runs * tx.eta.rough_wall(scene, 0.35))} on one core "
-                    "plus compilation"], said
+                    f"the intervals checked: roughly {secants} on one core on central secants, {forward} with forward mode's "
+                    "Jacobian (chosen at the first start) plus compilation"], said
     got = Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([60e-6]), covariance=np.array([[1e-14]]),
                          sigma=rec.noise, n=141, cost=140 * (rec.noise / 1e-6) ** 2, times=None, measured=None, fitted=None,
                          directions=((0.002, np.ones(1)),), steps=5, converged=True, starts=(1.0,), screened=0, noise=rec.noise,
@@ -514,3 +517,46 @@ def test_secants_are_chosen_where_the_forward_mode_jacobian_is_not_the_residual_
         central = np.asarray(jax.jacfwd(lambda p: secant_once(residual, h)(p, ripple))(p0))
         differs = np.linalg.norm(forward - central) / np.linalg.norm(central)
         assert (differs > SECANT_SWITCH) == (chosen == "secants"), (ripple, differs)
+
+
+def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
+    """`_choose_jacobian` itself (what `identify(secant=None)` runs at its first start) on a
+    closed-form `_Fit` (the same decay-with-ripple as above, in place of a simulated scene): with
+    the ripple it takes the central secants and says by how much forward mode differs, without it
+    keeps forward mode; the fit it returns then linearises by `_fit_and_jacobian`'s secant branch,
+    which equals numpy's central differences at x e^(+-h) (the relative step), and `False` / a
+    step are taken as asked. (The full stage itself: the slow test above.)"""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from tolerax.identification.identify import SECANT_STEP, UNIT, _choose_jacobian, _Fit, _fit_and_jacobian
+
+    t = np.linspace(0.0, 1.0, 50)
+
+    class Closed(_Fit):  # the model's output angle (rad) at the recording's 50 saves, one axis
+        ripple: float = eqx.field(static=True, default=0.0)
+
+        def outputs(self, x, width):
+            angles = UNIT * (x[0] * jnp.exp(-x[1] * t) + self.ripple * 1e-4 * jnp.sin(1e5 * x[1] * t))[:, None]
+            return ((angles - self.measured) / UNIT).ravel(), (angles, jnp.zeros_like(angles))
+
+    measured = UNIT * (3.0 * np.exp(-0.7 * t) + 0.01 * np.cos(5 * t))[:, None]
+    x = np.array([2.5, 0.9])
+    for ripple, chosen in ((1.0, "central secants"), (0.0, "forward mode")):
+        fit = Closed(objective=None, names=("a", "b"), scale=jnp.ones(2), rows=jnp.arange(50), columns=jnp.arange(1),
+                     measured=jnp.asarray(measured), ripple=ripple)
+        got, said = _choose_jacobian(fit, x, 0.0, None)
+        assert said.startswith(chosen), said
+        assert got.secant == (SECANT_STEP if ripple else None)
+    assert "differs from them by" in _choose_jacobian(dataclasses.replace(fit, ripple=1.0), x, 0.0, None)[1]
+    secants = dataclasses.replace(fit, ripple=1.0, secant=SECANT_STEP)
+    jac = np.asarray(_fit_and_jacobian(secants, jnp.asarray(x), 0.0)[0])
+    residual = lambda v: np.asarray(secants.outputs(jnp.asarray(v), 0.0)[0])  # noqa: E731
+    numpy_secants = np.stack([(residual(x * np.exp(SECANT_STEP * e)) - residual(x * np.exp(-SECANT_STEP * e)))
+                              / (x @ e * (np.exp(SECANT_STEP) - np.exp(-SECANT_STEP))) for e in np.eye(2)], axis=1)
+    np.testing.assert_allclose(jac, numpy_secants, rtol=1e-10, atol=1e-12)
+    forced, said = _choose_jacobian(dataclasses.replace(fit, ripple=1.0), x, 0.0, False)  # where secants would be chosen
+    assert forced.secant is None and said == "forward mode through the solve (as asked)"
+    assert _choose_jacobian(fit, x, 0.0, 0.05)[0].secant == 0.05
+    with pytest.raises(ValueError, match="relative step"):
+        _choose_jacobian(fit, x, 0.0, 2.0)

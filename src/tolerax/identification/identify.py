@@ -101,7 +101,7 @@ STARTS_KEPT = 2
 # rattle scrambles the tangents; on the lumped joint they agree to the step's truncation error).
 SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
 # Runs of the scene a Levenberg-Marquardt step on secants costs per (parameter + 1), for the
-# revised rough time: the 2p points (one batched run) and the trial point, rounded up.
+# rough time: the 2p points (one batched run) and the trial point, rounded up.
 SECANT_STEP_RUNS = 2
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
@@ -265,11 +265,24 @@ def _fit_and_jacobian(fit: _Fit, x, width):
     if fit.secant is None:
         jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
         return jac, angles, commanded
-    n, h = x.shape[0], fit.secant
-    factors = jnp.exp(h * jnp.concatenate([jnp.eye(n), -jnp.eye(n)]))
-    residuals, (angles, commanded) = jax.vmap(lambda v: fit.outputs(v, width))(jnp.concatenate([x[None], x[None] * factors]))
-    jac = (residuals[1 : n + 1] - residuals[n + 1 :]).T / (x * (math.exp(h) - math.exp(-h)))[None, :]
-    return jac, angles[0], commanded[0]
+    points, span = _secant_points(x, fit.secant)
+    residuals, (angles, commanded) = jax.vmap(lambda v: fit.outputs(v, width))(jnp.concatenate([x[None], points]))
+    return _central(residuals[1:], span), angles[0], commanded[0]
+
+
+def _secant_points(x, h: float):
+    """The $2n$ points $x\\,e^{\\pm h}$ along each parameter of `x` (shape `(n,)`; first the $n$
+    raised, then the $n$ lowered: relative steps, the parameters' scales differ by orders of
+    magnitude) and each pair's span $x_j(e^h - e^{-h})$."""
+    n = x.shape[0]
+    return x[None] * jnp.exp(h * jnp.concatenate([jnp.eye(n), -jnp.eye(n)])), x * (math.exp(h) - math.exp(-h))
+
+
+def _central(values, span):
+    """The central secants (one column per parameter) from `values` at `_secant_points`' $2n$
+    points (leading axis) and their spans."""
+    n = span.shape[0]
+    return (values[:n] - values[n:]).reshape(n, -1).T / span[None, :]
 
 
 def _model_times(recording: Recording, duration: float, n_save: int | None) -> tuple[int, np.ndarray]:
@@ -356,15 +369,25 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         # forward-mode Jacobian through the adaptive solve, which optimistix's linearisation runs
         # again for each product), then the intervals' check (each parameter's profile path at
         # PROFILE_STEPS both sides), at rough_wall's pace: an order of magnitude, not a bound.
+        # A step on central secants instead: SECANT_STEP_RUNS runs per (parameter + 1). Where the
+        # Jacobian is chosen (secant=None) both are said: the choice is made at the first start.
         one = rough_wall(scene, duration, objective.integrator)
         screen = starts + 1 if isinstance(starts, int) else 0  # given starts are fitted as they are
         kept = min(STARTS_KEPT, screen) if screen else len(starts)
         p = len(parameters)
-        runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) * LM_STEP_RUNS + 2 * p * len(PROFILE_STEPS) + p + 1
+
+        def rough(step_runs):
+            runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1
+            return human_seconds(max(runs * one, 1.0))
+
+        guess = ("" if one is None else f": roughly {rough(LM_STEP_RUNS)} on one core" if secant is False else
+                 f": roughly {rough(SECANT_STEP_RUNS)} on one core" if secant is not None else
+                 f": roughly {rough(SECANT_STEP_RUNS)} on one core on central secants, {rough(LM_STEP_RUNS)} with forward mode's "
+                 "Jacobian (chosen at the first start)")
         say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
                             f"Levenberg-Marquardt from {kept} given start(s)")
             + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each, then the intervals checked"
-            + ("" if one is None else f": roughly {human_seconds(max(runs * one, 1.0))} on one core") + " plus compilation")
+            + guess + " plus compilation")
 
     def lap(phase, line=None):
         nonlocal clock
@@ -391,13 +414,6 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
     fit, jacobian = _choose_jacobian(fit, x_starts[0], widths[-1], secant)
     lap("jacobian", f"the residual's Jacobian: {jacobian}")
-    if say is not None and fit.secant is not None and one is not None:
-        # A Levenberg-Marquardt step on secants: its 2p points in one batched run, the trial point,
-        # at most SECANT_STEP_RUNS runs' time per (parameter + 1): the first estimate counted
-        # forward-mode steps.
-        runs = len(x_starts) * len(widths) * int(lm_steps) * (len(parameters) + 1) * SECANT_STEP_RUNS
-        say(f"identify: on secants the fit takes roughly {human_seconds(max(runs * one, 1.0))} on one core at most (the "
-            "first estimate counted forward-mode steps)")
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -476,12 +492,9 @@ def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
     # Jacobian at x and its primal, the model's angles, at x e^(+-h) along each parameter.
     x = np.asarray(x, dtype=float)
     forward = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x), width)[0])
-    columns = []
-    for j in range(x.size):
-        shifted = [x * np.exp(sign * SECANT_STEP * np.eye(x.size)[j]) for sign in (1.0, -1.0)]
-        up, down = (np.asarray(_fit_and_jacobian(fit, jnp.asarray(v), width)[1]) for v in shifted)
-        columns.append((up - down).ravel() / UNIT / (shifted[0][j] - shifted[1][j]))
-    central = np.stack(columns, axis=1)
+    points, span = _secant_points(jnp.asarray(x), SECANT_STEP)
+    angles = np.stack([np.asarray(_fit_and_jacobian(fit, point, width)[1]) for point in points])
+    central = np.asarray(_central(angles / UNIT, span))
     scale = float(np.linalg.norm(central))
     differs = float(np.linalg.norm(forward - central)) / scale if scale > 0 else math.inf
     if np.isfinite(differs) and differs <= SECANT_SWITCH:
