@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import tolerax as tx
-from tolerax.identification import identify as I
+from tolerax.identification import fit as F, identify as I
 from tolerax.identification.parameters import parameter_values
 
 ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6  # rad
@@ -41,12 +41,12 @@ def _model_costs(scene, rec, names):
     units, scale = I._scales(scene, names)
     x0 = np.asarray(parameter_values(scene, names)) / scale
     window = times >= 0.0
-    fit = I._Fit(fit_scene, tuple(names), jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray([0]),
+    fit = F._Fit(fit_scene, tuple(names), jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray([0]),
                  jnp.asarray(rec.at(times[window])))
     width = I.own_width(scene)
     outputs = jax.jit(lambda x, w: fit.outputs(x, w)[0])
     out = []
-    for program in (outputs, lambda x, w: I._fit_and_jacobian(fit, x, w)[0]):
+    for program in (outputs, lambda x, w: F._fit_and_jacobian(fit, x, w)[0]):
         jax.block_until_ready(program(jnp.asarray(x0), width))  # compile
         start = time.perf_counter()
         for _ in range(3):
@@ -80,13 +80,13 @@ def main(argv=None) -> int:
     both = ("azimuth.ring_backlash", "azimuth.drag_torque")
     # The lumped case also with Levenberg-Marquardt's termination as it was before RESIDUAL_TOL
     # (every residual's change below LM_TOL (1 + |r|) µrad: under the solve's noise), in the same run.
-    cases = [("lumped", lumped, both, I.RESIDUAL_TOL), ("lumped, residual tolerance 1e-4 (before)", lumped, both, I.LM_TOL)]
+    cases = [("lumped", lumped, both, F.RESIDUAL_TOL), ("lumped, residual tolerance 1e-4 (before)", lumped, both, F.LM_TOL)]
     if not args.skip_planetary:
         cases.append(("full planetary", tx.scan("azimuth", fidelity=("planetary", "ideal")), ("azimuth.ring_backlash",),
-                      I.RESIDUAL_TOL))
-    table, costs, kept = [], {}, I.RESIDUAL_TOL
+                      F.RESIDUAL_TOL))
+    table, costs, kept = [], {}, F.RESIDUAL_TOL
     for label, scene, names, residual_tol in cases:
-        I.RESIDUAL_TOL = residual_tol
+        F.RESIDUAL_TOL = residual_tol
         jax.clear_caches()  # the programs are traced again with this tolerance
         truth = {"azimuth.ring_backlash": 60e-6}
         if "azimuth.drag_torque" in names:
@@ -96,7 +96,7 @@ def main(argv=None) -> int:
             costs[label] = _model_costs(scene, rec, names)
             print(label, "one simulation %.3f s, one Jacobian %.3f s" % tuple(costs[label]), flush=True)
         table += [(r, truth) for r in rows]
-    I.RESIDUAL_TOL = kept
+    F.RESIDUAL_TOL = kept
     lines = [
         "# Identification: wall time and where it goes", "",
         f"`taskset -c 1 python benchmarks/identify_wall_time.py` (one core); load average "

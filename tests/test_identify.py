@@ -494,7 +494,7 @@ def test_secants_are_chosen_where_the_forward_mode_jacobian_is_not_the_residual_
     import optimistix as optx
 
     from tolerax._linearise import secant_once
-    from tolerax.identification.identify import SECANT_SWITCH
+    from tolerax.identification.fit import SECANT_SWITCH
 
     t = np.linspace(0.0, 1.0, 50)
     data = 3.0 * np.exp(-0.7 * t) + 0.01 * np.cos(5 * t)
@@ -529,7 +529,7 @@ def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
     import equinox as eqx
     import jax.numpy as jnp
 
-    from tolerax.identification.identify import SECANT_STEP, UNIT, _choose_jacobian, _Fit, _fit_and_jacobian
+    from tolerax.identification.fit import SECANT_STEP, UNIT, _choose_jacobian, _Fit, _fit_and_jacobian
 
     t = np.linspace(0.0, 1.0, 50)
 

@@ -46,9 +46,11 @@ from ..design.objectives import PointingObjective
 from ..design.phases import Phases
 from ..eta import human_seconds, rough_wall, time_left
 from ..mechanism.drives import ScanServo
-from .identify import DETERMINED, UNIT, _choose_jacobian, _costs, _Fit, _fit_and_jacobian, _information, _scales, own_width
+from .fit import UNIT, _choose_jacobian, _costs, _Fit, _fit_and_jacobian, _information
+from .identify import _scales, own_width
 from .parameters import check_names, parameter_values
 from .recording import AXES
+from .result import DETERMINED
 
 CRITERIA = ("weakest", "D")
 # The prior range a unit's values may lie in, as factors of the guess, and the points of each

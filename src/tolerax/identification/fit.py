@@ -1,0 +1,272 @@
+"""The least-squares problem `tolerax.identification.identify` solves: the residual of a
+recording against the model at the parameters $x$ (`_Fit`, µrad), its Jacobian (forward mode
+through the solve, or central secants where the forward-mode one is not the residual's:
+`_choose_jacobian`), the bounded Levenberg-Marquardt solve and Gauss-Newton polish on
+optimistix, the screen of starts, the relative Fisher information and the intervals' check
+along their profiles. Each program is module-level and takes the problem's data as arrays: one
+compilation per scene structure and parameter names, whichever recording, start or width."""
+
+import dataclasses
+import math
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+
+from .._linearise import secant_once
+from ..design.features import design_of
+from ..design.objectives import PointingObjective
+from .parameters import with_parameters
+from .result import PROFILE_STEPS
+
+UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
+# Levenberg-Marquardt's relative and absolute tolerance on the step (log µm, log of the scene's
+# value); it stops where an accepted step moves the parameters less than that and changes no
+# residual by more than RESIDUAL_TOL (1 + |r|) µrad (`_termination_norm`). A finer residual
+# tolerance is below the adaptive solve's own noise in the residual: at the cost floor every
+# further step is rejected on that noise and the solve runs to its step limit for no gain
+# (measured in benchmarks/identify_wall_time.py). The estimate is then checked to a tenth of a
+# standard error and polished where it is not (`identify`).
+LM_TOL = 1e-4
+RESIDUAL_TOL = 0.2
+# Each parameter is kept within this factor of the scene's value either side (`_bounded`): an
+# undetermined one would otherwise walk off to where the model is not physical (a stiffness of 1e51 N/m).
+BOUND = 100.0
+# The Gauss-Newton polish after it (`_polish`): steps and tolerance.
+POLISH_STEPS, POLISH_TOL = 3, 1e-7
+# Of the screened starts (`_starts`), Levenberg-Marquardt runs from this many of the lowest cost.
+STARTS_KEPT = 2
+# The Jacobian where the forward-mode one is not the residual's (`identify(secant=...)`): central
+# secants at a relative step of SECANT_STEP in each parameter (2 %: wide against the
+# trajectory's sensitivity to a perturbation through the impacts, narrow against the residual's
+# curvature in a clearance), chosen
+# automatically where the forward-mode Jacobian at the first start differs from the secants by
+# more than SECANT_SWITCH of their norm (on the full planetary stage by orders of magnitude: the
+# rattle scrambles the tangents; on the lumped joint they agree to the step's truncation error).
+SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
+
+
+class _Fit(eqx.Module):
+    """The residual of `identify`: the model's output angles at the recording's saves (`rows`)
+    and axes (`columns`) with the parameters `names` at `scale * x` (SI units) over `measured`
+    (rad), in µrad."""
+
+    objective: PointingObjective
+    names: tuple[str, ...] = eqx.field(static=True)
+    scale: jax.Array
+    rows: jax.Array
+    columns: jax.Array
+    measured: jax.Array
+    # None: the Jacobian of forward mode through the solve; a step h: central secants at a
+    # relative step h in each parameter (`SECANT_STEP`), static (a program per choice).
+    secant: float | None = eqx.field(static=True, default=None)
+
+    def run(self, x, width):
+        scene = with_parameters(self.objective.scene, self.names, self.scale * x)
+        return eqx.tree_at(lambda o: o.scene, self.objective, scene).run(design_of(scene), width)
+
+    def outputs(self, x, width):
+        """`(residual, (model angles, commanded angles))` at `x`: the residual (µrad) and, from
+        the same solve, the model's output and commanded angles (rad) at the fitted saves."""
+        res = self.run(x, width)
+        ok = res.result == diffrax.RESULTS.successful
+        angles = jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan)
+        residual = jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+        return residual, (angles, res.commanded_angle[self.rows][:, self.columns])
+
+    def residual(self, x, width):
+        return self.outputs(x, width)[0]
+
+
+def _bounded_residual(w, fit: "_Fit", width, centre, reach):
+    """The residual (µrad) at the optimiser's variable `w` (`_bounded`)."""
+    return fit.residual(_bounded(w, centre, reach), width)
+
+
+def _residual_in_w(fit: "_Fit"):
+    """`_bounded_residual`, linearised by central secants in `w` (a step `fit.secant` in the
+    logarithm of each parameter: relative) where the fit asks for them, else by forward mode."""
+    return _bounded_residual if fit.secant is None else secant_once(_bounded_residual, fit.secant)
+
+
+@eqx.filter_jit
+def _polish(fit: "_Fit", w0, width, centre, reach):
+    """A few Gauss-Newton steps (optimistix) at a tolerance finer than `LM_TOL` from
+    Levenberg-Marquardt's estimate `w0`: LM stops within its tolerance of the minimum, about
+    half a standard error for a parameter the recording determines to 1e-4. (solution, cost)."""
+    residual = _residual_in_w(fit)
+    fn = lambda w, width: residual(w, fit, width, centre, reach)  # noqa: E731
+    sol = optx.least_squares(fn, optx.GaussNewton(rtol=POLISH_TOL, atol=POLISH_TOL), w0, args=width, max_steps=POLISH_STEPS,
+                             throw=False)
+    return sol.value, jnp.sum(fn(sol.value, width) ** 2)
+
+
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: float) -> np.ndarray:
+    """The linearised intervals checked against the residual itself: for each parameter $j$ the
+    cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the linearised profile path: the other parameters
+    at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
+    `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1 where the cost is quadratic out to there.
+    `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
+    is not finite. Costed in batches of `batch` (the screen's: its compiled program), or where
+    no screen ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
+    assessment already: no program compiled for the check), against `cost`, the assessment's own
+    at `x` from that program (µrad²)."""
+    se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
+    ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
+    if not (math.isfinite(s2) and s2 > 0):  # a residual of exactly zero: no scale to check against
+        return ratio
+    points, where = [x], []
+    for j in range(x.size):
+        if not (np.isfinite(se[j]) and se[j] > 0):
+            continue
+        for side, sign in enumerate((-1.0, 1.0)):
+            for m, k in enumerate(PROFILE_STEPS):
+                point = x + sign * k * cov_x[:, j] / se[j]
+                if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
+                    points.append(point)
+                    where.append((j, side, m, k))
+    if batch is None:
+        costs = [cost] + [float(jnp.sum(((_fit_and_jacobian(fit, jnp.asarray(p), width)[1] - fit.measured) / UNIT) ** 2))
+                          for p in points[1:]]
+    else:
+        points = np.vstack(points + [x] * (-len(points) % batch))
+        costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width))
+                                for i in range(0, len(points), batch)])
+    for (j, side, m, k), c in zip(where, costs[1:]):
+        ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
+    return ratio
+
+
+def _unbounded(x, centre, reach):
+    """The optimiser's variable at `x` (`_bounded`'s inverse; `x` inside the bounds)."""
+    return reach * np.arctanh(np.clip((np.log(x) - centre) / reach, -1 + 1e-12, 1 - 1e-12))
+
+
+@eqx.filter_jit
+def _costs(fit: "_Fit", points, width):
+    """$\\lVert r\\rVert^2$ (µrad²) at each row of `points` (x), in one batched run."""
+    return eqx.filter_vmap(lambda v: jnp.sum(fit.residual(v, width) ** 2))(points)
+
+
+def _starts(fit, x0, width, starts, search: float):
+    """The Levenberg-Marquardt starts (x): `starts` multiples of `x0` as given, or (an int) the
+    `STARTS_KEPT` lowest-cost of `starts` points of a scrambled Sobol sequence over the box
+    $[x_0/s, s\\,x_0]$ (log-uniform, $s$ = `search`) and `x0` itself, costed against the recording
+    in one batched run at the scene's width. Returns `(starts, screened)`, `screened` the number
+    of points costed (0 where the starts were given)."""
+    if isinstance(starts, int):
+        from scipy.stats import qmc
+
+        if starts < 1 or not 1 < search < BOUND:
+            raise ValueError(f"identify: starts={starts!r} must be >= 1 and search={search!r} in (1, {BOUND:g}).")
+        unit = qmc.Sobol(len(x0), scramble=True, seed=0).random(starts)
+        points = np.vstack([x0, x0 * search ** (2 * unit - 1)])
+        cost = np.asarray(_costs(fit, jnp.asarray(points), width))
+        cost = np.where(np.isfinite(cost), cost, np.inf)
+        return points[np.argsort(cost)[:STARTS_KEPT]], len(points)
+    out = []
+    for factor in starts:
+        if not 1 / BOUND < float(factor) < BOUND:
+            raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
+                             "either side): start nearer.")
+        out.append(x0 * float(factor))
+    return out, 0
+
+
+def _bounded(w, centre, reach):
+    """x from the optimiser's unbounded variable `w`: $\\log x = c + R\\tanh(w/R)$, inside a factor
+    $e^R$ either side of the scene's value $e^c$ (`BOUND`); $w = \\log x - c$ near the centre."""
+    return jnp.exp(centre + reach * jnp.tanh(w / reach))
+
+
+def _termination_norm(tree):
+    """The norm of Levenberg-Marquardt's Cauchy termination (optimistix's `norm`: it measures the
+    step in the parameters and the change in the residual, each divided by `LM_TOL` (1 + |.|)):
+    the max norm, the residual's (the `{"residual": r}` of `_solve`) read at `RESIDUAL_TOL`."""
+    return optx.max_norm(tree) * (LM_TOL / RESIDUAL_TOL if isinstance(tree, dict) else 1.0)
+
+
+@eqx.filter_jit
+def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
+    """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
+    residual = _residual_in_w(fit)
+    fn = lambda w, width: {"residual": residual(w, fit, width, centre, reach)}  # noqa: E731
+    solver = optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm)
+    sol = optx.least_squares(fn, solver, w0, args=width, max_steps=max_steps, throw=False)
+    return sol.value, jnp.sum(fn(sol.value, width)["residual"] ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
+
+
+@eqx.filter_jit
+def _fit_and_jacobian(fit: _Fit, x, width):
+    """The residual's Jacobian (µrad per unit of x), the fitted angles and the scene's commanded
+    angles (rad) at `x`: from one forward-mode solve (the angles are its primal), or where the
+    fit takes secants (`_Fit.secant`) from one batched run of `x` and the central secants at
+    $x\\,e^{\\pm h}$ in each parameter."""
+    if fit.secant is None:
+        jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
+        return jac, angles, commanded
+    points, span = _secant_points(x, fit.secant)
+    residuals, (angles, commanded) = jax.vmap(lambda v: fit.outputs(v, width))(jnp.concatenate([x[None], points]))
+    return _central(residuals[1:], span), angles[0], commanded[0]
+
+
+def _secant_points(x, h: float):
+    """The $2n$ points $x\\,e^{\\pm h}$ along each parameter of `x` (shape `(n,)`; first the $n$
+    raised, then the $n$ lowered: relative steps, the parameters' scales differ by orders of
+    magnitude) and each pair's span $x_j(e^h - e^{-h})$."""
+    n = x.shape[0]
+    return x[None] * jnp.exp(h * jnp.concatenate([jnp.eye(n), -jnp.eye(n)])), x * (math.exp(h) - math.exp(-h))
+
+
+def _central(values, span):
+    """The central secants (one column per parameter) from `values` at `_secant_points`' $2n$
+    points (leading axis) and their spans."""
+    n = span.shape[0]
+    return (values[:n] - values[n:]).reshape(n, -1).T / span[None, :]
+
+
+def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
+    """The fit with the residual's Jacobian `identify(secant=...)` asks for, and that choice in
+    words: where it is automatic (`None`), the forward-mode Jacobian and the central secants at
+    `x` (the first start) compared, secants taken where they differ by more than `SECANT_SWITCH`
+    (or cannot be compared: a run that failed)."""
+    if secant is False:
+        return fit, "forward mode through the solve (as asked)"
+    if secant is not None:
+        if not (isinstance(secant, (int, float)) and not isinstance(secant, bool) and 0 < secant < 1):
+            raise ValueError(f"identify: secant={secant!r} must be None (chosen), False (forward mode) or a relative step in "
+                             "(0, 1), e.g. 0.02.")
+        return dataclasses.replace(fit, secant=float(secant)), f"central secants at ±{100 * secant:g} % of each parameter (as asked)"
+    secants = dataclasses.replace(fit, secant=SECANT_STEP)
+    # Both from the forward-mode program (compiled for the assessment in any case): its
+    # Jacobian at x and its primal, the model's angles, at x e^(+-h) along each parameter.
+    x = np.asarray(x, dtype=float)
+    forward = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x), width)[0])
+    points, span = _secant_points(jnp.asarray(x), SECANT_STEP)
+    angles = np.stack([np.asarray(_fit_and_jacobian(fit, point, width)[1]) for point in points])
+    central = np.asarray(_central(angles / UNIT, span))
+    scale = float(np.linalg.norm(central))
+    differs = float(np.linalg.norm(forward - central)) / scale if scale > 0 else math.inf
+    if np.isfinite(differs) and differs <= SECANT_SWITCH:
+        return fit, f"forward mode through the solve (within {differs:.2g} of the central secants at the first start)"
+    return secants, (f"central secants at ±{100 * SECANT_STEP:g} % of each parameter: the forward-mode Jacobian at the first "
+                     f"start differs from them by {differs:.3g} of their norm (through a rattling stage the trajectory's "
+                     "tangents grow with the impacts' sensitivity, while the trajectory moves smoothly with a clearance)")
+
+
+def _information(jac, x, s2):
+    """The relative Fisher information $D J^TJ D / s^2$ ($D$ = `x`, the values the Jacobian
+    `jac` is taken at, in its units) in its eigenvectors, and the covariance of `x`:
+    `(scaled Jacobian, (eigenvalues, eigenvectors), covariance)`. A direction the recording does
+    not see has an eigenvalue at rounding level: floored there, its variance is huge, not
+    dropped (a pseudo-inverse would drop it and report the parameters that load on it as sharply
+    determined)."""
+    scaled = jac * x[None, :]
+    values, vectors = np.linalg.eigh(scaled.T @ scaled / s2)
+    if not float(values.max()) > 1e-200:  # the recording sees none of them (no reversal, a joint that does not move)
+        return scaled, (np.full_like(values, 1e-200), vectors), np.full((x.size, x.size), np.inf)
+    values = np.maximum(values, float(values.max()) * 1e-15)
+    return scaled, (values, vectors), x[:, None] * ((vectors / values) @ vectors.T) * x[None, :]
