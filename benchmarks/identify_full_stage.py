@@ -7,7 +7,9 @@ steady start, one reversal) with ring backlash `--truth` µm and every other cle
 scene's 100 µm, recorded through a 20-bit encoder with 2 µrad of noise (`--n` recordings, each
 its own noise). Reported per recording: the estimate, its 95 % interval and whether it holds the
 truth, whether the interval holds along its profile, the residual against the encoder's noise,
-the Jacobian chosen and the wall time. `--forward` also identifies the first recording with the
+the Jacobian chosen and the wall time (and by phase). `--dual`: the dual scan with both joints at
+full planetary fidelity (`tx.scan("dual", fidelity="planetary")`), recorded by both
+encoders, both ring backlashes identified at once (azimuth `--truth`, pitch 130 µm). `--forward` also identifies the first recording with the
 forward-mode Jacobian (`secant=False`), the former default, for contrast. The coverage of the
 intervals is measured, not assumed: over 20 recordings about 19 should hold the truth.
 
@@ -17,6 +19,8 @@ Each run appends its rows to `--rows` (JSON lines), so recordings can be split o
     taskset -c 0 python benchmarks/identify_full_stage.py --first 0 --n 10 --forward --rows /tmp/ifs.jsonl &
     taskset -c 1 python benchmarks/identify_full_stage.py --first 10 --n 10 --rows /tmp/ifs.jsonl
     python benchmarks/identify_full_stage.py --merge --rows /tmp/ifs.jsonl --out benchmarks/results/identify_full_stage.md
+    taskset -c 1 python benchmarks/identify_full_stage.py --dual --first 0 --n 10 --rows benchmarks/results/identify_full_stage_dual.jsonl
+    python benchmarks/identify_full_stage.py --merge --rows benchmarks/results/identify_full_stage_dual.jsonl --out benchmarks/results/identify_full_stage_dual.md
 """
 
 import argparse
@@ -35,13 +39,23 @@ import tolerax as tx
 
 ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6
 DURATION, N_SAVE = 0.35, 141
-NAMES = ("azimuth.ring_backlash",)
+PITCH_TRUTH = 130.0  # µm: --dual's pitch ring backlash (as identify_coverage.py --dual)
+
+
+def _unit(dual: bool, truth: float):
+    """The scene, the encoders recorded, the parameters identified and their true values (µm)."""
+    if dual:
+        return (tx.scan("dual", fidelity="planetary"), ("azimuth", "pitch"), ("azimuth.ring_backlash", "pitch.ring_backlash"),
+                (truth, PITCH_TRUTH))
+    return tx.scan("azimuth", fidelity=("planetary", "ideal")), ("azimuth",), ("azimuth.ring_backlash",), (truth,)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=4, help="recordings (default 4)")
-    parser.add_argument("--truth", type=float, default=60.0, help="the unit's ring backlash, µm (default 60)")
+    parser.add_argument("--truth", type=float, default=60.0, help="the unit's (azimuth) ring backlash, µm (default 60)")
+    parser.add_argument("--dual", action="store_true", help=f"the full planetary dual scan recorded by both encoders: both "
+                        f"ring backlashes (azimuth --truth, pitch {PITCH_TRUTH:g} µm)")
     parser.add_argument("--forward", action="store_true", help="also the first recording with secant=False (forward mode)")
     parser.add_argument("--first", type=int, default=0, help="the first recording's seed offset (default 0)")
     parser.add_argument("--rows", type=pathlib.Path, default=None, help="append each recording's row here (JSON lines)")
@@ -51,21 +65,22 @@ def main(argv=None) -> int:
     if args.merge:
         rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
         return _write(sorted(rows, key=lambda r: (r["asked"] != "default", r["seed"])), args)
-    full = tx.scan("azimuth", fidelity=("planetary", "ideal"))
-    truth = args.truth * 1e-6
+    full, axes, names, truths = _unit(args.dual, args.truth)
     rows = []
     runs = [(args.first + k, None) for k in range(args.n)] + ([(args.first, False)] if args.forward else [])
     for seed, secant in runs:
-        rec = tx.synthetic_recording(full, {NAMES[0]: truth}, duration=DURATION, n_save=N_SAVE, noise=NOISE, quantum=ENCODER,
-                                     key=jax.random.key(3000 + seed))
+        rec = tx.synthetic_recording(full, {n: 1e-6 * v for n, v in zip(names, truths)}, duration=DURATION, n_save=N_SAVE,
+                                     noise=NOISE, quantum=ENCODER, key=jax.random.key(3000 + seed), axes=axes)
         start = time.perf_counter()
-        got = tx.identify(full, rec, NAMES, secant=secant)
+        got = tx.identify(full, rec, names, secant=secant)
         wall = time.perf_counter() - start
         lo, hi = got.interval()
-        rows.append(dict(seed=seed, asked="default" if secant is None else "secant=False", estimate=1e6 * got.estimate[0],
-                         lo=1e6 * lo[0], hi=1e6 * hi[0], hit=bool(lo[0] <= truth <= hi[0]), holds=got.holds()[0],
-                         status=got.status()[0], sd=1e6 * got.residual_sd, converged=got.converged, wall=wall,
-                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], truth=args.truth))
+        rows.append(dict(seed=seed, asked="default" if secant is None else "secant=False", names=names, truth=truths,
+                         estimate=[1e6 * v for v in got.estimate], lo=[1e6 * v for v in lo], hi=[1e6 * v for v in hi],
+                         hit=[bool(a <= 1e-6 * t <= b) for a, b, t in zip(lo, hi, truths)], holds=list(got.holds()),
+                         status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
+                         wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
+                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -75,30 +90,49 @@ def main(argv=None) -> int:
 
 def _write(rows, args) -> int:
     sigma = math.hypot(NOISE, ENCODER / math.sqrt(12))
+    names, truths, dual = rows[0]["names"], rows[0]["truth"], rows[0]["dual"]
     default = [r for r in rows if r["asked"] == "default"]
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    table = [f"| {r['seed']} | {r['asked']} | {r['estimate']:.3f} | {r['lo']:.3f} – {r['hi']:.3f} | {'yes' if r['hit'] else 'NO'} | "
-             f"{r['holds']} | {r['status']} | {r['sd']:.2f} | {'yes' if r['converged'] else 'no'} | {r['jacobian']} | {r['wall']:.0f} |"
-             for r in rows]
+    cells = lambda r, j: (f"{r['estimate'][j]:.3f} | {r['lo'][j]:.3f} – {r['hi'][j]:.3f} | {'yes' if r['hit'][j] else 'NO'} | "  # noqa: E731
+                          f"{r['holds'][j]} | {r['status'][j]}")
+    table = [f"| {r['seed']} | {r['asked']} | " + " | ".join(cells(r, j) for j in range(len(names))) + f" | {r['sd']:.2f} | "
+             f"{'yes' if r['converged'] else 'no'} | {r['jacobian']} | {r['wall']:.0f} |" for r in rows]
+    hits = sum(sum(r["hit"]) for r in default)
+    intervals = len(default) * len(names)
+    per = []
+    for j, (name, truth) in enumerate(zip(names, truths)):
+        est = [r["estimate"][j] for r in default]
+        per.append(f"{name}: {sum(r['hit'][j] for r in default)}/{len(default)} hold the truth {truth:g} µm, estimates "
+                   f"{np.mean(est):.3f} µm on average, their spread {np.std(est, ddof=1) if len(est) > 1 else float('nan'):.3f} µm "
+                   f"against a stated standard error of {np.mean([(r['hi'][j] - r['lo'][j]) / 3.92 for r in default]):.3f}, "
+                   f"{sum(r['holds'][j] is True for r in default)}/{len(default)} hold along their profiles")
+    phases = {k: np.median([r["phases"].get(k, 0.0) for r in default]) for k in default[0]["phases"]} if default else {}
+    unit = ("Dual scan, both joints at full planetary fidelity, recorded by both encoders" if dual else
+            "Azimuth scan at full planetary fidelity")
+    backlash = (f"ring backlash {truths[0]:g} µm (azimuth) and {truths[1]:g} µm (pitch)" if dual else f"ring backlash {truths[0]:g} µm")
     text = "\n".join([
-        "# Identifying the full planetary stage with the full stage", "",
-        f"`python benchmarks/identify_full_stage.py` over {len(default)} recordings (seeds 3000-{3000 + max(r['seed'] for r in rows)}), "
-        f"split over processes as the script's docstring shows (tolerax at {commit}, jax {jax.__version__}; {os.cpu_count()} cores, "
-        f"one per process; load average {min(r['load'] for r in rows):.2f}-{max(r['load'] for r in rows):.2f} at the rows' ends).", "",
-        f"Azimuth scan at full planetary fidelity, {DURATION:g} s from a steady start, {N_SAVE} samples; the unit's ring "
-        f"backlash {rows[0]['truth']:g} µm, every other clearance the scene's 100 µm; a 20-bit encoder and 2 µrad of noise "
-        f"({1e6 * sigma:.2f} µrad together); identified by the same full-stage model with `identify`'s defaults (the best 2 of "
-        "32 screened starts within 2x of the scene's values, smoothing widths 1 µm then the scene's).", "",
-        f"- default: intervals holding the truth {sum(r['hit'] for r in default)}/{len(default)} (binomial P(X <= "
-        f"{sum(r['hit'] for r in default)}) = {binom.cdf(sum(r['hit'] for r in default), len(default), 0.95):.2f} at a true 95 %); estimates "
-        f"{np.mean([r['estimate'] for r in default]):.3f} µm on average, their spread {np.std([r['estimate'] for r in default], ddof=1):.3f} "
-        f"µm against a stated standard error of {np.mean([(r['hi'] - r['lo']) / 3.92 for r in default]):.3f}; intervals holding along "
-        f"their profiles {sum(r['holds'] is True for r in default)}/{len(default)}; converged "
-        f"{sum(r['converged'] for r in default)}/{len(default)}; residual sd {min(r['sd'] for r in default):.2f}-"
-        f"{max(r['sd'] for r in default):.2f} µrad against the encoder's {1e6 * sigma:.2f}; wall "
-        f"{min(r['wall'] for r in default):.0f}-{max(r['wall'] for r in default):.0f} s (compilation in the first).", "",
-        "| recording | Jacobian asked | estimate (µm) | 95 % interval (µm) | holds the truth | holds along its profile | status | "
-        "residual sd (µrad) | converged | Jacobian used | wall (s) |", "|---|---|---|---|---|---|---|---|---|---|---|", *table])
+        "# Identifying the full planetary stage with the full stage" + (": the dual axis" if dual else ""), "",
+        f"`python benchmarks/identify_full_stage.py{' --dual' if dual else ''}` over {len(default)} recordings (seeds "
+        f"{', '.join(str(3000 + r['seed']) for r in default)}), split over processes as the script's docstring shows (tolerax "
+        f"at {commit}, jax {jax.__version__}; {os.cpu_count()} cores, one per process; load average "
+        f"{min(r['load'] for r in rows):.2f}-{max(r['load'] for r in rows):.2f} at the rows' ends).", "",
+        f"{unit}, {DURATION:g} s from a steady start, {N_SAVE} samples; the unit's {backlash}, every other clearance the "
+        f"scene's 100 µm; a 20-bit encoder and 2 µrad of noise ({1e6 * sigma:.2f} µrad together); identified by the same "
+        "full-stage model with `identify`'s defaults (the best 2 of 32 screened starts within 2x of the scene's values; on "
+        "central secants, as chosen here, at the scene's own smoothing width alone).", "",
+        f"- default: **intervals holding the truth {hits}/{intervals}** (binomial P(X <= {hits}) = "
+        f"{binom.cdf(hits, intervals, 0.95):.2f} at a true 95 %); converged {sum(r['converged'] for r in default)}/{len(default)}; "
+        f"Levenberg-Marquardt steps {min(r['steps'] for r in default)}-{max(r['steps'] for r in default)} (the best start's); "
+        f"residual sd {min(r['sd'] for r in default):.2f}-{max(r['sd'] for r in default):.2f} µrad against the encoder's "
+        f"{1e6 * sigma:.2f}; wall {min(r['wall'] for r in default):.0f}-{max(r['wall'] for r in default):.0f} s (compilation in "
+        "each process's first).",
+        *(f"- {line}." for line in per),
+        "- where the wall time goes (median seconds per phase, `Identification.wall`): "
+        + ", ".join(f"{k} {v:.0f}" for k, v in phases.items()) + ".", "",
+        "| recording | Jacobian asked | " + " | ".join(
+            f"{n.split('.')[0] + ': ' if dual else ''}estimate (µm) | 95 % interval (µm) | holds the truth | holds along its "
+            "profile | status" for n in names) + " | residual sd (µrad) | converged | Jacobian used | wall (s) |",
+        "|---|---|" + "---|---|---|---|---|" * len(names) + "---|---|---|---|", *table])
     print(text)
     if args.out:
         args.out.write_text(text + "\n")

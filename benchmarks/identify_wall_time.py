@@ -7,14 +7,20 @@ best 2 run by Levenberg-Marquardt through the widths 1 µm then the scene's own)
 first call (every program traced and compiled) and a second on another recording of the same
 unit (the compiled programs reused). Each call's wall time by phase (`Identification.wall`),
 and beside them the cost of the model it is made of, measured in the same run: one simulation
-of the recording's window and one forward-mode Jacobian (the simulation with its tangents), so
-that a phase's time reads as a number of solves.
+of the recording's window, one forward-mode Jacobian (the simulation with its tangents) and one
+Jacobian by central secants (the 2p + 1 simulations in one batched run: what `identify` uses
+where it chooses secants), so that a phase's time reads as a number of solves; and how far the
+forward-mode Jacobian is from the secants at the scene's values (the number `identify`'s choice
+reads at its first start: `tolerax.identification.fit.SECANT_SWITCH`).
 
     taskset -c 1 python benchmarks/identify_wall_time.py --out benchmarks/results/identify_wall_time.md
 
-The full planetary stage is timed, not trusted: its estimate is printed beside the truth (the
-trajectory's derivative through the rattle does not carry the backlash: `tolerax.identification.identify`).
+The full planetary stage is identified on central secants (chosen automatically: the
+trajectory's forward-mode derivative through the rattle does not carry the backlash,
+`tolerax.identification.fit._choose_jacobian`); its estimate is printed beside the truth.
 """
+
+import dataclasses
 
 import argparse
 import math
@@ -31,11 +37,13 @@ from tolerax.identification import fit as F, identify as I
 from tolerax.identification.parameters import parameter_values
 
 ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6  # rad
-PHASES = ("check", "screen", "fit", "assess")
+PHASES = ("check", "screen", "jacobian", "fit", "assess")
 
 
 def _model_costs(scene, rec, names):
-    """(one simulation, one Jacobian) of the identification's window, s, compiled programs warm."""
+    """(one simulation, one forward-mode Jacobian, one Jacobian by central secants) of the
+    identification's window, s, compiled programs warm, and the forward-mode Jacobian's distance
+    from the secants at the scene's values (relative to their norm)."""
     fit_scene = tx.PointingObjective(scene, duration=0.35, settle=0.0, n_save=141, start="steady", rtol=1e-6, atol=1e-9).forward_mode()
     n_save, times = I._model_times(rec, 0.35, None)
     units, scale = I._scales(scene, names)
@@ -45,14 +53,16 @@ def _model_costs(scene, rec, names):
                  jnp.asarray(rec.at(times[window])))
     width = I.own_width(scene)
     outputs = jax.jit(lambda x, w: fit.outputs(x, w)[0])
-    out = []
-    for program in (outputs, lambda x, w: F._fit_and_jacobian(fit, x, w)[0]):
-        jax.block_until_ready(program(jnp.asarray(x0), width))  # compile
+    secants = dataclasses.replace(fit, secant=F.SECANT_STEP)
+    out, jacobians = [], []
+    for program in (outputs, lambda x, w: F._fit_and_jacobian(fit, x, w)[0], lambda x, w: F._fit_and_jacobian(secants, x, w)[0]):
+        jacobians.append(np.asarray(program(jnp.asarray(x0), width)))  # compile
         start = time.perf_counter()
         for _ in range(3):
             jax.block_until_ready(program(jnp.asarray(x0 * 1.01), width))
         out.append((time.perf_counter() - start) / 3)
-    return out
+    forward, central = jacobians[1:]
+    return out + [float(np.linalg.norm(forward - central) / np.linalg.norm(central))]
 
 
 def run(label, scene, truth, names, seeds):
@@ -94,7 +104,8 @@ def main(argv=None) -> int:
         rows, rec = run(label, scene, truth, names, (11, 12))
         if residual_tol == kept:
             costs[label] = _model_costs(scene, rec, names)
-            print(label, "one simulation %.3f s, one Jacobian %.3f s" % tuple(costs[label]), flush=True)
+            print(label, "one simulation %.3f s, one forward-mode Jacobian %.3f s, one by secants %.3f s, forward mode "
+                  "off the secants by %.3g" % tuple(costs[label]), flush=True)
         table += [(r, truth) for r in rows]
     F.RESIDUAL_TOL = kept
     lines = [
@@ -108,19 +119,22 @@ def main(argv=None) -> int:
         "1e-4 (1 + |z|) and changes no residual by more than 0.2 (1 + |r|) µrad) and as it was (1e-4 (1 + |r|) µrad "
         "for the residual too: below the adaptive solve's own noise in it, so at the cost floor every step is "
         "rejected until the step limit).", "",
-        "| model | call | wall (s) | check | screen | fit | assess | LM steps (last width) | estimate (95 % interval) | truth | residual (µrad) |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---|---|---:|",
+        "| model | call | wall (s) | check | screen | jacobian | fit | assess | LM steps (last width) | estimate (95 % interval) | truth | residual (µrad) |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|---:|",
     ]
     for (label, call, total, wall, got, shown), truth in table:
         t = ", ".join(f"{n.split('.')[-1]} {I.show(v, 'm' if n.endswith('backlash') else 'N m')}" for n, v in truth.items())
         lines.append(f"| {label} | {call} | {total:.1f} | " + " | ".join(f"{wall.get(p, 0.0):.1f}" for p in PHASES)
                      + f" | {got.steps} | {shown} | {t} | {1e6 * got.sigma:.2f} |")
     lines += ["", "The model the phases are made of (compiled, the mean of 3 calls):", "",
-              "| model | one simulation of the window (s) | one forward-mode Jacobian (s) | second call's wall in Jacobians |",
-              "|---|---:|---:|---:|"]
-    for label, (sim, jac) in costs.items():
-        second = [total for (lab, call, total, *_), _ in table if lab == label and call.startswith("second")][0]
-        lines.append(f"| {label} | {sim:.3f} | {jac:.3f} | {second / jac:.0f} |")
+              "| model | one simulation of the window (s) | one forward-mode Jacobian (s) | one Jacobian by central secants (s) | "
+              "forward mode off the secants (of their norm) | Jacobian identify used | second call's wall in those Jacobians |",
+              "|---|---:|---:|---:|---:|---|---:|"]
+    for label, (sim, jac, sec, differs) in costs.items():
+        second, got = [(total, got) for (lab, call, total, _, got, _), _ in table if lab == label and call.startswith("second")][0]
+        used = sec if got.jacobian.startswith("central secants") else jac
+        lines.append(f"| {label} | {sim:.3f} | {jac:.3f} | {sec:.3f} | {differs:.3g} | {got.jacobian.split(':')[0].split(' (')[0]} "
+                     f"| {second / used:.0f} |")
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:

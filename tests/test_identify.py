@@ -548,7 +548,16 @@ def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
         got, said = _choose_jacobian(fit, x, 0.0, None)
         assert said.startswith(chosen), said
         assert got.secant == (SECANT_STEP if ripple else None)
-    assert "differs from them by" in _choose_jacobian(dataclasses.replace(fit, ripple=1.0), x, 0.0, None)[1]
+    secants_chosen = _choose_jacobian(dataclasses.replace(fit, ripple=1.0), x, 0.0, None)
+    assert "differs from them by" in secants_chosen[1]
+    # The default continuation: WIDE then the scene's width on forward mode, the scene's alone on
+    # secants (the wide width's residual is rugged through a rattling stage); given widths as given.
+    from tolerax.identification.identify import WIDE, _continuation
+
+    final = jnp.asarray(1e-9)
+    assert [float(w) for w in _continuation(None, fit, final)] == [WIDE, 1e-9]
+    assert [float(w) for w in _continuation(None, secants_chosen[0], final)] == [1e-9]
+    assert _continuation([final], fit, final) == [final]
     secants = dataclasses.replace(fit, ripple=1.0, secant=SECANT_STEP)
     jac = np.asarray(_fit_and_jacobian(secants, jnp.asarray(x), 0.0)[0])
     residual = lambda v: np.asarray(secants.outputs(jnp.asarray(v), 0.0)[0])  # noqa: E731

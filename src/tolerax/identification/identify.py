@@ -11,7 +11,7 @@ over the saves in `[settle, duration]` and the recorded axes, minimised by Leven
 (`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The
 parameters are optimised as $\\log(\\theta / 1\\,\\mu m)$ (a clearance or backlash) or
 $\\log(\\theta / \\theta_{\\text{scene}})$ (a physical parameter), so they stay positive; the contacts' smoothing
-width is continued from wide to narrow (`widths`), and several starts are run because
+width is continued from wide to narrow (`widths`; on central secants the scene's own alone), and several starts are run because
 clearances and drag make the residual non-convex (the best of a Sobol screen over the prior box,
 `starts`, `search`); the lowest residual wins.
 
@@ -75,6 +75,8 @@ LM_STEP_RUNS = 8
 # Runs of the scene a Levenberg-Marquardt step on secants costs per (parameter + 1), for the
 # rough time: the 2p points (one batched run) and the trial point, rounded up.
 SECANT_STEP_RUNS = 2
+# The wide smoothing width (m) of the default continuation (`_continuation`).
+WIDE = 1e-6
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -86,7 +88,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
-             n_save: int | None = None, start: str = "steady", widths=(1e-6, None), starts=32, search: float = 2.0,
+             n_save: int | None = None, start: str = "steady", widths=None, starts=32, search: float = 2.0,
              lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, secant: float | bool | None = None, progress=False,
              **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
@@ -103,8 +105,10 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     - `settle` (s): residuals from this time on; `duration` (s): the model's run, default the
       recording's length; `n_save`: the model's saves over it (default: the recording's rate,
       at most 2001). `start`: the model's initial state (`simulate`).
-    - `widths`: the smoothing widths (m) continued through, `None` the scene's own; the
-      estimate, its covariance and the fit are the last width's.
+    - `widths`: the smoothing widths (m) continued through, `None` in it the scene's own; the
+      estimate, its covariance and the fit are the last width's. Default (`None`): `WIDE` then
+      the scene's own where the Jacobian is forward mode's, the scene's own alone on central
+      secants (`_continuation`).
     - `starts`: an int (default 32): that many points of a Sobol sequence over the box within a
       factor `search` (2) of the scene's values either side, and the scene's values, costed
       against the recording in one batched run; Levenberg-Marquardt runs from the `STARTS_KEPT`
@@ -152,7 +156,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
     fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
                jnp.asarray(measured))
-    widths = [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
+    given = None if widths is None else [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
+    final = own_width(scene) if given is None else given[-1]  # the estimate's width: the check, screen and choice run at it
     clock = time.perf_counter()
     wall = {}
     say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
@@ -169,17 +174,21 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         kept = min(STARTS_KEPT, screen) if screen else len(starts)
         p = len(parameters)
 
-        def rough(step_runs):
-            runs = screen + kept * len(widths) * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1
+        def rough(step_runs, n_widths):
+            runs = screen + kept * n_widths * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1
             return human_seconds(max(runs * one, 1.0))
 
-        guess = ("" if one is None else f": roughly {rough(LM_STEP_RUNS)} on one core" if secant is False else
-                 f": roughly {rough(SECANT_STEP_RUNS)} on one core" if secant is not None else
-                 f": roughly {rough(SECANT_STEP_RUNS)} on one core on central secants, {rough(LM_STEP_RUNS)} with forward mode's "
-                 "Jacobian (chosen at the first start)")
+        n_forward, n_secant = (2, 1) if given is None else (len(given), len(given))
+
+        guess = ("" if one is None else f": roughly {rough(LM_STEP_RUNS, n_forward)} on one core" if secant is False else
+                 f": roughly {rough(SECANT_STEP_RUNS, n_secant)} on one core" if secant is not None else
+                 f": roughly {rough(SECANT_STEP_RUNS, n_secant)} on one core on central secants, "
+                 f"{rough(LM_STEP_RUNS, n_forward)} with forward mode's Jacobian (chosen at the first start)")
+        n_widths = (f"{n_forward}" if secant is False else f"{n_secant}" if secant is not None or n_forward == n_secant else
+                    f"{n_forward} ({n_secant} on central secants)")
         say("identify: " + (f"{screen} starting points screened, then Levenberg-Marquardt from the best {kept}" if screen else
                             f"Levenberg-Marquardt from {kept} given start(s)")
-            + f" at {len(widths)} smoothing width(s), at most {int(lm_steps)} steps each, then the intervals checked"
+            + f" at {n_widths} smoothing width(s), at most {int(lm_steps)} steps each, then the intervals checked"
             + guess + " plus compilation")
 
     def lap(phase, line=None):
@@ -191,7 +200,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         clock = now
 
     if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
-        commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), widths[-1])[2])
+        commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), final)[2])
         recorded = recording.at(times[window], "commanded")
         off = np.abs(recorded - commanded)
         if np.max(off) > max(COMMAND_TOLERANCE, 0.01 * float(np.max(np.abs(commanded)))):
@@ -203,10 +212,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 "is fitted as clearance." + _unit_slip(recorded[:, j], commanded[:, j]))
     lap("check", "the recording's command checked against the scene's" if recording.commanded is not None else None)
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
-    x_starts, screened = _starts(fit, x0, widths[-1], starts, search)
+    x_starts, screened = _starts(fit, x0, final, starts, search)
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
-    fit, jacobian = _choose_jacobian(fit, x_starts[0], widths[-1], secant)
+    fit, jacobian = _choose_jacobian(fit, x_starts[0], final, secant)
     lap("jacobian", f"the residual's Jacobian: {jacobian}")
+    widths = _continuation(given, fit, final)
     # A physical parameter is held at its start while the contacts are smoothed wider than the
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
@@ -266,6 +276,21 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian,
     )
+
+
+def _continuation(given, fit: _Fit, final) -> list:
+    """The smoothing widths (m) Levenberg-Marquardt runs through: `given` where given, else
+    `WIDE` then `final` (the scene's) where the Jacobian is forward mode's (the continuation
+    the lumped joint's identifications are measured with), `final` alone on central secants.
+    Through a rattling stage (where secants are chosen) the residual at a wide width is rugged
+    at the secants' scale, its cost jumping between neighbouring points, and its minimum is not
+    the scene's: Levenberg-Marquardt spends its steps there rejecting its own (its damping grows
+    by a constant factor per rejection, slowly against the residual's scale), while at the
+    scene's own width the cost is close to quadratic about the estimate and the fit converges
+    from the screened start in a few steps."""
+    if given is not None:
+        return given
+    return [jnp.asarray(WIDE, dtype=float), final] if fit.secant is None else [final]
 
 
 def own_width(scene) -> jax.Array:
