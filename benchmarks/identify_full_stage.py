@@ -66,6 +66,7 @@ def main(argv=None) -> int:
         rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line.strip()]
         return _write(sorted(rows, key=lambda r: (r["asked"] != "default", r["seed"])), args)
     full, axes, names, truths = _unit(args.dual, args.truth)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     rows = []
     runs = [(args.first + k, None) for k in range(args.n)] + ([(args.first, False)] if args.forward else [])
     for seed, secant in runs:
@@ -80,7 +81,7 @@ def main(argv=None) -> int:
                          hit=[bool(a <= 1e-6 * t <= b) for a, b, t in zip(lo, hi, truths)], holds=list(got.holds()),
                          status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
-                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual))
+                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -92,7 +93,8 @@ def _write(rows, args) -> int:
     sigma = math.hypot(NOISE, ENCODER / math.sqrt(12))
     names, truths, dual = rows[0]["names"], rows[0]["truth"], rows[0]["dual"]
     default = [r for r in rows if r["asked"] == "default"]
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    commit = ", ".join(sorted({r["commit"] for r in rows if "commit" in r})) or subprocess.run(  # the runs' own, else the merge's
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     cells = lambda r, j: (f"{r['estimate'][j]:.3f} | {r['lo'][j]:.3f} – {r['hi'][j]:.3f} | {'yes' if r['hit'][j] else 'NO'} | "  # noqa: E731
                           f"{r['holds'][j]} | {r['status'][j]}")
     table = [f"| {r['seed']} | {r['asked']} | " + " | ".join(cells(r, j) for j in range(len(names))) + f" | {r['sd']:.2f} | "
