@@ -81,7 +81,7 @@ def main(argv=None) -> int:
                          hit=[bool(a <= 1e-6 * t <= b) for a, b, t in zip(lo, hi, truths)], holds=list(got.holds()),
                          status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
-                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit))
+                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened)))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -120,7 +120,8 @@ def _write(rows, args) -> int:
         f"{min(r['load'] for r in rows):.2f}-{max(r['load'] for r in rows):.2f} at the rows' ends).", "",
         f"{unit}, {DURATION:g} s from a steady start, {N_SAVE} samples; the unit's {backlash}, every other clearance the "
         f"scene's 100 µm; a 20-bit encoder and 2 µrad of noise ({1e6 * sigma:.2f} µrad together); identified by the same "
-        "full-stage model with `identify`'s defaults (the best 2 of 32 screened starts within 2x of the scene's values; on "
+        f"full-stage model with `identify`'s defaults (the best 2 of {rows[0].get('screened', 33) - 1} screened starts and the "
+        "scene's values, within 2x of them; on "
         "central secants, as chosen here, at the scene's own smoothing width alone).", "",
         f"- default: **intervals holding the truth {hits}/{intervals}** (binomial P(X <= {hits}) = "
         f"{binom.cdf(hits, intervals, 0.95):.2f} at a true 95 %); converged {sum(r['converged'] for r in default)}/{len(default)}; "

@@ -145,7 +145,7 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
     parser.add_argument("--duration", type=positive, default=None, help="the model's run, s (default the recording's length)")
     parser.add_argument("--starts", type=positive, nargs="+", default=None,
                         help="starting points as multiples of the scene's values (default: the best 2 of 32 points screened "
-                        "within --search of them)")
+                        "within --search of them, doubled for each further parameter)")
     parser.add_argument("--search", type=float, default=2.0,
                         help="the screened box: within this factor of the scene's values either side (default 2)")
     parser.add_argument("--noise", type=positive, default=None,

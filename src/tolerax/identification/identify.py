@@ -75,6 +75,9 @@ LM_STEP_RUNS = 8
 # Runs of the scene a Levenberg-Marquardt step on secants costs per (parameter + 1), for the
 # rough time: the 2p points (one batched run) and the trial point, rounded up.
 SECANT_STEP_RUNS = 2
+# The default screen (`identify(starts=None)`): SCREEN Sobol points for one parameter, doubled
+# for each further one (a power of 2 keeps the sequence balanced), at most SCREEN_MAX.
+SCREEN, SCREEN_MAX = 32, 256
 # The wide smoothing width (m) of the default continuation (`_continuation`).
 WIDE = 1e-6
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
@@ -88,7 +91,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
-             n_save: int | None = None, start: str = "steady", widths=None, starts=32, search: float = 2.0,
+             n_save: int | None = None, start: str = "steady", widths=None, starts=None, search: float = 2.0,
              lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, secant: float | bool | None = None, progress=False,
              **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
@@ -109,11 +112,15 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       estimate, its covariance and the fit are the last width's. Default (`None`): `WIDE` then
       the scene's own where the Jacobian is forward mode's, the scene's own alone on central
       secants (`_continuation`).
-    - `starts`: an int (default 32): that many points of a Sobol sequence over the box within a
-      factor `search` (2) of the scene's values either side, and the scene's values, costed
-      against the recording in one batched run; Levenberg-Marquardt runs from the `STARTS_KEPT`
-      (2) best. The fit of a clearance or a drag is not convex: from a start 40 % off it can
-      stop in another basin with a residual many times the noise. Or a tuple: the starts, as
+    - `starts`: an int: that many points of a Sobol sequence over the box within a factor
+      `search` (2) of the scene's values either side, and the scene's values, costed against the
+      recording in one batched run; Levenberg-Marquardt runs from the `STARTS_KEPT` (2) best.
+      Default (`None`): `SCREEN` (32) points for one parameter, doubled for each further one,
+      at most `SCREEN_MAX`: the box's volume grows with the parameters while a basin's width in
+      each does not. The fit of a clearance or a drag is not convex: from a start 40 % off it
+      can stop in another basin with a residual many times the noise (the full stage's pitch
+      backlash: a plateau at larger backlash, its residual above the noise, beside the truth's
+      narrow basin). Or a tuple: the starts, as
       multiples of the scene's values. Every parameter is kept within a factor `BOUND` (100)
       of the scene's value either side: an estimate at that bound is one the recording does not
       determine (the table says so).
@@ -140,6 +147,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     value that is not > 0, or starts outside the bounds.
     """
     parameters = check_names(scene, parameters)
+    if starts is None:
+        starts = min(SCREEN * 2 ** (len(parameters) - 1), SCREEN_MAX)
     duration = recording.duration if duration is None else float(duration)
     if duration > recording.duration + 1e-12:
         raise RecordingError(f"{recording.source}: the recording lasts {recording.duration:g} s, shorter than the model's "
