@@ -69,7 +69,7 @@ def main(argv=None) -> int:
         f"used; load average {os.getloadavg()[0]:.2f} at the end.", "",
         f"Azimuth scan, {DURATION:g} s from a steady start, {N_SAVE} samples; the unit's ring backlash {args.truth:g} µm, "
         "every other clearance the scene's 100 µm; 20-bit encoder and 2 µrad of noise; identified by the lumped joint with "
-        "`identify`'s defaults (the best 2 of 32 screened starts within 2x of the scene's values).", "", *summary, "",
+        "`identify`'s defaults (the best 2 of its screened starts within 2x of the scene's values: 32 for one parameter, 64 for two).", "", *summary, "",
         "| recorded by | recording | estimate (µm) | 95 % interval (µm) | holds the truth | residual sd (µrad) | converged | "
         "identification wall (s) |", "|---|---|---|---|---|---|---|---|", *table, "",
         "Recording wall time (the model run once, compilation included in the first): " + ", ".join(

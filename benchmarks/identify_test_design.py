@@ -6,7 +6,7 @@ information of each candidate. This checks the prediction where it matters: a un
 values are not the guess (`--truth`: ring backlash 0.8x the scene's 100 µm, drag 1.2x its
 0.05 N m) is recorded `--n` times through each test (a 20-bit
 encoder, 6.0 µrad steps, and 2 µrad of noise; the same noise draws for both), each recording
-identified with `identify`'s defaults (the best 2 of 32 starts screened within 2x of the scene's values). The mechanism may run
+identified with `identify`'s defaults (the best 2 of its screened starts within 2x of the scene's values: 32 for one parameter, 64 for two). The mechanism may run
 twice the plain scan's peak rate and four times its amplitude. Reported per parameter and test:
 the intervals' stated relative standard error (mean), the estimates' spread over the recordings
 (what the stated error claims to be), how many 95 % intervals hold the truth, and the measured

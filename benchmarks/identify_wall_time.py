@@ -2,7 +2,7 @@
 
 For each scene, a unit (ring backlash 60 µm, the scene says 100; on the lumped joint its drag at
 1.4x the scene's as well) recorded over 0.35 s (a reversal at 0.25 s, 141 saves) through a 20-bit
-encoder with 2 µrad of noise, identified with `tx.identify`'s defaults (32 screened starts, the
+encoder with 2 µrad of noise, identified with `tx.identify`'s defaults (32 screened starts for one parameter, 64 for two, the
 best 2 run by Levenberg-Marquardt through the widths 1 µm then the scene's own, on central
 secants the scene's own alone), twice: a
 first call (every program traced and compiled) and a second on another recording of the same
@@ -114,7 +114,7 @@ def main(argv=None) -> int:
         f"`taskset -c 1 python benchmarks/identify_wall_time.py` (one core); {os.cpu_count()} cores, load average "
         f"{os.getloadavg()[0]:.2f} at the end. The lumped azimuth scan and the full planetary one (pitch ideal), 0.35 s at "
         "141 saves, each unit recorded through a 20-bit encoder with 2 µrad of noise; `tx.identify` with its defaults "
-        "(32 screened starts, the best 2 through the widths 1 µm and the scene's own on forward mode, the scene's own alone on "
+        "(32 screened starts for one parameter, 64 for two, the best 2 through the widths 1 µm and the scene's own on forward mode, the scene's own alone on "
         "central secants). A first call traces and compiles "
         "every program; the second identifies another recording of the same unit with them compiled. The lumped case "
         "twice: with Levenberg-Marquardt's termination as it is (an accepted step that moves the parameters less than "
