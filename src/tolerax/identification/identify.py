@@ -50,6 +50,7 @@ below the scene's stiffness, fitted from the scene's value, ran to its bound), a
 sensitivity changes within a fraction of its standard error, so its interval is a rough guide; identify a stiffness from a close start, or leave it at its value.
 """
 
+import dataclasses
 import math
 import sys
 import time
@@ -61,8 +62,8 @@ import numpy as np
 from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
-from .fit import (BOUND, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information, _polish, _profile,
-                  _solve, _starts, _unbounded)
+from .fit import (BOUND, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
+                  _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
 from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
@@ -187,7 +188,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
             runs = screen + kept * n_widths * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1
             return human_seconds(max(runs * one, 1.0))
 
-        n_forward, n_secant = (2, 1) if given is None else (len(given), len(given))
+        # The widths each Jacobian would run through (`_continuation`: the choice comes later).
+        n_forward, n_secant = (len(_continuation(given, f, final)) for f in (fit, dataclasses.replace(fit, secant=SECANT_STEP)))
 
         guess = ("" if one is None else f": roughly {rough(LM_STEP_RUNS, n_forward)} on one core" if secant is False else
                  f": roughly {rough(SECANT_STEP_RUNS, n_secant)} on one core" if secant is not None else
