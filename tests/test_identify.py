@@ -569,3 +569,45 @@ def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
     assert _choose_jacobian(fit, x, 0.0, 0.05)[0].secant == 0.05
     with pytest.raises(ValueError, match="relative step"):
         _choose_jacobian(fit, x, 0.0, 2.0)
+
+
+def test_levenberg_marquardt_starts_on_the_residual_s_own_scale():
+    r"""`_solve`'s Levenberg-Marquardt takes Marquardt's first damping, a fraction of the
+    largest diagonal of $J^TJ$ at the start (`fit._LevenbergMarquardt`): the same closed-form fit
+    with its residual in units 1e4 times smaller (a µrad residual's curvature is ~1e4-1e10 per
+    unit of log x) takes the same steps to the same least squares as SciPy's, where optimistix's
+    own, whose first damping is 1 whatever the residual's scale, needs more (each rejected step
+    raises its damping only fourfold)."""
+    import math
+
+    import equinox as eqx
+    import jax.numpy as jnp
+    import optimistix as optx
+
+    from tolerax.identification.fit import BOUND, LM_TOL, UNIT, _bounded, _Fit, _solve, _termination_norm, _unbounded
+
+    t = np.linspace(0.0, 1.0, 50)
+
+    class Closed(_Fit):  # a decay, its output angles `gain` µrad per unit of x[0]
+        gain: float = eqx.field(static=True, default=1.0)
+
+        def outputs(self, x, width):
+            angles = UNIT * self.gain * (x[0] * jnp.exp(-x[1] * t))[:, None]
+            return ((angles - self.measured) / UNIT).ravel(), (angles, jnp.zeros_like(angles))
+
+    x0 = np.array([1.0, 3.0])
+    centre, reach = jnp.asarray(np.log(x0)), jnp.full(2, math.log(BOUND))
+    w0 = jnp.asarray(_unbounded(x0, np.asarray(centre), np.asarray(reach)))
+    data = 3.0 * np.exp(-0.7 * t) + 0.01 * np.cos(5 * t)
+    reference = scipy.optimize.least_squares(lambda p: p[0] * np.exp(-p[1] * t) - data, x0, xtol=1e-14).x
+    steps = {}
+    for gain in (1.0, 1e4):
+        fit = Closed(objective=None, names=("a", "b"), scale=jnp.ones(2), rows=jnp.arange(50), columns=jnp.arange(1),
+                     measured=jnp.asarray(UNIT * gain * data[:, None]), gain=gain)
+        w, _, n, converged = _solve(fit, w0, 0.0, 50, centre, reach)
+        np.testing.assert_allclose(np.asarray(_bounded(w, centre, reach)), reference, rtol=1e-5)
+        steps[gain] = (int(n), bool(converged))
+    assert steps[1.0] == steps[1e4] and steps[1.0][1], steps
+    fn = lambda w, _: {"residual": fit.residual(_bounded(w, centre, reach), 0.0)}  # noqa: E731  (gain 1e4)
+    plain = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm), w0, max_steps=50)
+    assert int(plain.stats["num_steps"]) > steps[1e4][0], (plain.stats["num_steps"], steps)

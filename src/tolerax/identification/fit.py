@@ -8,6 +8,7 @@ compilation per scene structure and parameter names, whichever recording, start 
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import diffrax
 import equinox as eqx
@@ -189,12 +190,55 @@ def _termination_norm(tree):
     return optx.max_norm(tree) * (LM_TOL / RESIDUAL_TOL if isinstance(tree, dict) else 1.0)
 
 
+class _FirstDamping(optx.AbstractSearch):
+    """optimistix's classical trust region (`optx.ClassicalTrustRegion`: the step size x3.5
+    after a good step, x0.25 after a rejected one), its first step size `first` in place of 1.
+    Levenberg-Marquardt's damping is $\\lambda$ = 1 / step size, against the curvature $J^TJ$ in
+    the residual's units: µrad per unit of log x, ~1e4-1e10, so a first damping of 1 is no
+    damping, and each rejection raises it fourfold only (a dozen rejections to reach the
+    curvature's scale)."""
+
+    inner: optx.ClassicalTrustRegion
+    first: jax.Array
+
+    def init(self, y, f_info_struct):
+        return eqx.tree_at(lambda s: s.step_size, self.inner.init(y, f_info_struct), self.first)
+
+    def step(self, first_step, y, y_eval, f_info, f_eval_info, state):
+        return self.inner.step(first_step, y, y_eval, f_info, f_eval_info, state)
+
+
+def _quiet(**_):
+    """No step-by-step log (optimistix's `verbose=False`)."""
+
+
+class _LevenbergMarquardt(optx.AbstractGaussNewton):
+    """`optx.LevenbergMarquardt` (the damped Newton descent in its trust region), its first
+    damping Marquardt's: $\\lambda_0 = \\tau \\max_j (J^TJ)_{jj}$ at the start, $\\tau$ =
+    `DAMPING` (Madsen, Nielsen & Tingleff, *Methods for non-linear least squares problems*,
+    DTU 2004, eq. 3.14), so that it starts on the residual's own scale."""
+
+    rtol: float
+    atol: float
+    norm: Callable
+    descent: optx.DampedNewtonDescent
+    search: _FirstDamping
+    verbose: Callable = _quiet  # optimistix's hook for a step-by-step log
+
+
+# Marquardt's tau: the first damping as a fraction of the largest diagonal of J^TJ (`_LevenbergMarquardt`).
+DAMPING = 1e-3
+
+
 @eqx.filter_jit
 def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
     """Levenberg-Marquardt on `w` (`_bounded`) from `w0`: (solution, cost, steps, converged)."""
     residual = _residual_in_w(fit)
     fn = lambda w, width: {"residual": residual(w, fit, width, centre, reach)}  # noqa: E731
-    solver = optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm)
+    curvature = jnp.sum(jax.jacfwd(lambda w: fn(w, width)["residual"])(w0) ** 2, axis=0)  # diag(J^TJ) at the start
+    first = 1.0 / (DAMPING * jnp.maximum(jnp.max(jnp.where(jnp.isfinite(curvature), curvature, 0.0)), 1e-12))
+    solver = _LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm, descent=optx.DampedNewtonDescent(),
+                                 search=_FirstDamping(optx.ClassicalTrustRegion(), first))
     sol = optx.least_squares(fn, solver, w0, args=width, max_steps=max_steps, throw=False)
     return sol.value, jnp.sum(fn(sol.value, width)["residual"] ** 2), sol.stats["num_steps"], sol.result == optx.RESULTS.successful
 
