@@ -574,8 +574,8 @@ def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
 def test_levenberg_marquardt_starts_on_the_residual_s_own_scale():
     r"""`_solve`'s Levenberg-Marquardt takes Marquardt's first damping, a fraction of the
     largest diagonal of $J^TJ$ at the start (`fit._LevenbergMarquardt`): the same closed-form fit
-    with its residual in units 1e4 times smaller (a µrad residual's curvature is ~1e4-1e10 per
-    unit of log x) takes the same steps to the same least squares as SciPy's, where optimistix's
+    with its residual in units 1e4 times smaller (a µrad residual's curvature is ~1e6-1e7 per
+    unit of log x squared) takes the same steps to the same least squares as SciPy's, where optimistix's
     own, whose first damping is 1 whatever the residual's scale, needs more (each rejected step
     raises its damping only fourfold)."""
     import math

@@ -194,9 +194,10 @@ class _FirstDamping(optx.AbstractSearch):
     """optimistix's classical trust region (`optx.ClassicalTrustRegion`: the step size x3.5
     after a good step, x0.25 after a rejected one), its first step size `first` in place of 1.
     Levenberg-Marquardt's damping is $\\lambda$ = 1 / step size, against the curvature $J^TJ$ in
-    the residual's units: µrad per unit of log x, ~1e4-1e10, so a first damping of 1 is no
-    damping, and each rejection raises it fourfold only (a dozen rejections to reach the
-    curvature's scale)."""
+    the residual's units (µrad² per unit of log x squared: the noise variance over the squared
+    relative standard error, ~1e6-1e7 for a clearance a recording determines to 0.1 %), so a
+    first damping of 1 is no damping, and each rejection raises it fourfold only (a dozen
+    rejections to reach the curvature's scale)."""
 
     inner: optx.ClassicalTrustRegion
     first: jax.Array

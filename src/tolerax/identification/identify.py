@@ -125,7 +125,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       multiples of the scene's values. Every parameter is kept within a factor `BOUND` (100)
       of the scene's value either side: an estimate at that bound is one the recording does not
       determine (the table says so).
-    - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its tolerance: `LM_TOL`; then
+    - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its first damping Marquardt's,
+      `DAMPING` of the largest diagonal of $J^TJ$ at the start; its tolerance: `LM_TOL`; then
       where the best is not within a tenth of a standard error, `POLISH_STEPS` Gauss-Newton steps
       at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
