@@ -32,6 +32,8 @@ def _run_settings(scene_file) -> dict:
 
 
 def identify_command(parser, args) -> int:
+    import dataclasses
+
     import matplotlib.pyplot as plt
     import numpy as np
 
@@ -45,11 +47,13 @@ def identify_command(parser, args) -> int:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
     if args.noise is not None or args.encoder_bits is not None:  # the encoder's stated noise: the misfit is judged against it
-        import dataclasses
         import math
 
         step = 0.0 if args.encoder_bits is None else 2 * math.pi / 2**args.encoder_bits
         recording = dataclasses.replace(recording, noise=math.hypot(1e-6 * (args.noise or 0.0), step / math.sqrt(12)))
+    if recording.torque is not None and (args.angles_only or args.torque_noise is not None):
+        recording = dataclasses.replace(recording, torque=None) if args.angles_only else dataclasses.replace(
+            recording, torque_noise=1e-3 * args.torque_noise)
     read = _scene_and_parameters(parser, args)
     if read is None:
         return 2
@@ -66,7 +70,8 @@ def identify_command(parser, args) -> int:
         got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search,
                        progress=not args.quiet, **starts, **run)
     except (RecordingError, ValueError) as err:
-        print(f"tolerax identify: {err}", file=sys.stderr)
+        print(f"tolerax identify: {err}" + (" On the command line: --torque-noise MNM with --noise or --encoder-bits, or "
+                                            "--angles-only." if "torque" in str(err) else ""), file=sys.stderr)
         return 2
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)
@@ -91,8 +96,16 @@ def identify_command(parser, args) -> int:
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
         "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()), "interval_holds": list(got.holds()),
-        "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "jacobian": got.jacobian, "wall_s": wall}, indent=2) + "\n")
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "jacobian": got.jacobian, "wall_s": wall}
+        | ({} if got.torque_fitted is None else {"torque_residual_sd_n_m": float(np.std(got.torque_fitted - got.torque_measured)),
+                                                 "torque_noise_n_m": recording.torque_noise}), indent=2) + "\n")
+    torque = got.torque_fitted is not None
+    fig, (top, bottom, *more) = plt.subplots(2 + torque, 1, figsize=(8, 6 + 2 * torque), sharex=True)
+    for j, axis in enumerate(recording.axes if torque else ()):
+        more[0].plot(got.times, 1e3 * got.torque_measured[:, j], ".", ms=3, label=f"{axis}: recording")
+        more[0].plot(got.times, 1e3 * got.torque_fitted[:, j], "-", lw=1, label=f"{axis}: identified model")
+        more[0].set_ylabel("motor torque (mN m)")
+        more[0].legend(fontsize=8)
     for j, axis in enumerate(recording.axes):
         top.plot(got.times, np.degrees(got.measured[:, j]), ".", ms=3, label=f"{axis}: recording")
         top.plot(got.times, np.degrees(got.fitted[:, j]), "-", lw=1, label=f"{axis}: identified model")
@@ -100,7 +113,7 @@ def identify_command(parser, args) -> int:
     top.set_ylabel("output angle (deg)")
     top.legend(fontsize=8)
     bottom.set_ylabel("model - recording (µrad)")
-    bottom.set_xlabel("time (s)")
+    (more[0] if torque else bottom).set_xlabel("time (s)")
     top.set_title(f"{scene_file.title}: identified " + ", ".join(f"{n.split('.')[-1]} {show(e, u)}"
                                                                  for n, u, e in zip(got.names, got.units, got.estimate)),
                   fontsize=9)
@@ -152,6 +165,10 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
                         help="the encoder's noise, µrad standard deviation: with it (or --encoder-bits) the report says "
                         "where the residual exceeds what the encoder explains (a model that misses part of the unit)")
     parser.add_argument("--encoder-bits", type=int, default=None, help="the encoder's resolution, bits per turn (its rounding)")
+    parser.add_argument("--torque-noise", type=positive, default=None, metavar="MNM",
+                        help="the recorded motor torque's noise, mN m standard deviation: a recording with '<axis> torque' "
+                        "columns is fitted in its torque too, weighed against the encoder's noise (--noise or --encoder-bits)")
+    parser.add_argument("--angles-only", action="store_true", help="fit the encoder's angles alone, not a recorded motor torque")
     parser.add_argument("--quiet", action="store_true", help="no time estimate or phase lines while it runs (the report and errors are still printed)")
     out_options(parser, "identify")
     return parser

@@ -53,7 +53,9 @@ SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
 class _Fit(eqx.Module):
     """The residual of `identify`: the model's output angles at the recording's saves (`rows`)
     and axes (`columns`) with the parameters `names` at `scale * x` (SI units) over `measured`
-    (rad), in µrad."""
+    (rad), in µrad; then, where the recording has the motor torque of `torque_axes`, the model's
+    (`AbstractJoint.motor_torque`, N m) over `torque_measured`, times `torque_weight` (µrad per
+    N m: the encoder's noise over the torque's, so that both parts carry the same noise)."""
 
     objective: PointingObjective
     names: tuple[str, ...] = eqx.field(static=True)
@@ -64,6 +66,9 @@ class _Fit(eqx.Module):
     # None: the Jacobian of forward mode through the solve; a step h: central secants at a
     # relative step h in each parameter (`SECANT_STEP`), static (a program per choice).
     secant: float | None = eqx.field(static=True, default=None)
+    torque_axes: tuple[str, ...] = eqx.field(static=True, default=())
+    torque_measured: jax.Array | None = None
+    torque_weight: jax.Array | None = None
 
     def run(self, x, width):
         scene = with_parameters(self.objective.scene, self.names, self.scale * x)
@@ -76,10 +81,22 @@ class _Fit(eqx.Module):
         ok = res.result == diffrax.RESULTS.successful
         angles = jnp.where(ok, res.joint_angle[self.rows][:, self.columns], jnp.nan)
         residual = jnp.where(ok, (angles - self.measured) / UNIT, 1e6).ravel()
+        if self.torque_axes:
+            scene, (q, u) = with_parameters(self.objective.scene, self.names, self.scale * x), res.states[:2]
+            torque = jax.vmap(lambda qi, ui, ti: _motor_torques(scene, qi, ui, ti, self.torque_axes))(
+                q[self.rows], u[self.rows], res.ts[self.rows])
+            residual = jnp.concatenate([residual, jnp.where(ok, (torque - self.torque_measured) * self.torque_weight, 1e6).ravel()])
         return residual, (angles, res.commanded_angle[self.rows][:, self.columns])
 
     def residual(self, x, width):
         return self.outputs(x, width)[0]
+
+
+def _motor_torques(scene, q, u, t, axes):
+    """The motor torque (N m) of each joint in `axes` of `scene` (a `Mechanism`) at coordinates
+    `q`, speeds `u`, time `t` (`AbstractJoint.motor_torque`)."""
+    joints = dict(zip(scene.JOINTS, scene.joints()))
+    return jnp.stack([joints[a][0].motor_torque(q[joints[a][1]], u[joints[a][2]], t) for a in axes])
 
 
 def _bounded_residual(w, fit: "_Fit", width, centre, reach):
@@ -130,8 +147,7 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
                     points.append(point)
                     where.append((j, side, m, k))
     if batch is None:
-        costs = [cost] + [float(jnp.sum(((_fit_and_jacobian(fit, jnp.asarray(p), width)[1] - fit.measured) / UNIT) ** 2))
-                          for p in points[1:]]
+        costs = [cost] + [float(jnp.sum(_fit_and_jacobian(fit, jnp.asarray(p), width)[3] ** 2)) for p in points[1:]]
     else:
         points = np.vstack(points + [x] * (-len(points) % batch))
         costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width))
@@ -247,15 +263,16 @@ def _solve(fit: _Fit, w0, width, max_steps: int, centre, reach):
 @eqx.filter_jit
 def _fit_and_jacobian(fit: _Fit, x, width):
     """The residual's Jacobian (µrad per unit of x), the fitted angles and the scene's commanded
-    angles (rad) at `x`: from one forward-mode solve (the angles are its primal), or where the
-    fit takes secants (`_Fit.secant`) from one batched run of `x` and the central secants at
-    $x\\,e^{\\pm h}$ in each parameter."""
+    angles (rad) and the residual (µrad) at `x`: from one forward-mode solve (the angles are its
+    primal), or where the fit takes secants (`_Fit.secant`) from one batched run of `x` and the
+    central secants at $x\\,e^{\\pm h}$ in each parameter."""
     if fit.secant is None:
-        jac, (angles, commanded) = jax.jacfwd(lambda v: fit.outputs(v, width), has_aux=True)(x)
-        return jac, angles, commanded
+        jac, (residual, (angles, commanded)) = jax.jacfwd(lambda v: (lambda r, aux: (r, (r, aux)))(*fit.outputs(v, width)),
+                                                          has_aux=True)(x)
+        return jac, angles, commanded, residual
     points, span = _secant_points(x, fit.secant)
     residuals, (angles, commanded) = jax.vmap(lambda v: fit.outputs(v, width))(jnp.concatenate([x[None], points]))
-    return _central(residuals[1:], span), angles[0], commanded[0]
+    return _central(residuals[1:], span), angles[0], commanded[0], residuals[0]
 
 
 def _secant_points(x, h: float):
@@ -287,12 +304,12 @@ def _choose_jacobian(fit: _Fit, x, width, secant) -> tuple[_Fit, str]:
         return dataclasses.replace(fit, secant=float(secant)), f"central secants at ±{100 * secant:g} % of each parameter (as asked)"
     secants = dataclasses.replace(fit, secant=SECANT_STEP)
     # Both from the forward-mode program (compiled for the assessment in any case): its
-    # Jacobian at x and its primal, the model's angles, at x e^(+-h) along each parameter.
+    # Jacobian at x and its primal, the residual, at x e^(+-h) along each parameter.
     x = np.asarray(x, dtype=float)
     forward = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x), width)[0])
     points, span = _secant_points(jnp.asarray(x), SECANT_STEP)
-    angles = np.stack([np.asarray(_fit_and_jacobian(fit, point, width)[1]) for point in points])
-    central = np.asarray(_central(angles / UNIT, span))
+    residuals = np.stack([np.asarray(_fit_and_jacobian(fit, point, width)[3]) for point in points])
+    central = np.asarray(_central(residuals, span))
     scale = float(np.linalg.norm(central))
     differs = float(np.linalg.norm(forward - central)) / scale if scale > 0 else math.inf
     if np.isfinite(differs) and differs <= SECANT_SWITCH:

@@ -7,7 +7,9 @@ the residual is the model's output angle at the recording's times minus the meas
 
 $$r_i(\\theta) = \\frac{\\phi_i^{\\text{model}}(\\theta) - \\phi_i^{\\text{measured}}}{1\\,\\mu\\text{rad}},$$
 
-over the saves in `[settle, duration]` and the recorded axes, minimised by Levenberg-Marquardt
+over the saves in `[settle, duration]` and the recorded axes (and, where the recording has the
+motor torque, each torque's misfit times $\\sigma_\\phi / \\sigma_T$, the encoder's noise over the
+torque's: weighted least squares of the two channels), minimised by Levenberg-Marquardt
 (`optimistix`) with the exact Jacobian of the solve (forward mode through diffrax). The
 parameters are optimised as $\\log(\\theta / 1\\,\\mu m)$ (a clearance or backlash) or
 $\\log(\\theta / \\theta_{\\text{scene}})$ (a physical parameter), so they stay positive; the contacts' smoothing
@@ -101,7 +103,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
 
     - `scene`: the model (a `Mechanism` or `TestBench`) whose drive is the one the recording
       was made with; its other parameters stay at its values.
-    - `recording`: a `Recording` (`read_recording`); its axes must be joints of the scene.
+    - `recording`: a `Recording` (`read_recording`); its axes must be joints of the scene. Where
+      it has a motor torque, the residual holds the torque's misfit too (`AbstractJoint.motor_torque`,
+      weighed by `noise / torque_noise`, both of which it must then state; a `Mechanism` scene,
+      its recorded joints lumped or planetary); to fit the angles alone, give it without
+      (`dataclasses.replace(recording, torque=None)`).
     - `parameters`: names from `parameter_names(scene)`: its design features (clearances and
       backlash, m) and its joints' physical parameters (`azimuth.drag_torque`, N m;
       `azimuth.sun_mesh_stiffness`, N/m; damping ratios: `tolerax.identification.parameters`);
@@ -166,7 +172,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # The problem's data as arrays (traced): one compiled program per scene structure, parameter
     # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
     fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
-               jnp.asarray(measured))
+               jnp.asarray(measured), **_torque_channel(scene, recording, times[window]))
     given = None if widths is None else [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
     final = own_width(scene) if given is None else given[-1]  # the estimate's width: the check, screen and choice run at it
     clock = time.perf_counter()
@@ -254,8 +260,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         """The fit at `z` (the last width's: every parameter free) and the Gauss-Newton step left
         from it along each direction the recording determines, in that direction's standard errors."""
         x = np.asarray(_bounded(z, centre, reach))
-        jac, fitted, _ = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(x), widths[-1]))
-        r = ((fitted - measured) / UNIT).ravel()
+        jac, fitted, _, r = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(x), widths[-1]))
+        r = r if np.all(np.isfinite(fitted)) else np.full_like(r, np.nan)  # a failed run: no residual (not the fit's 1e6)
         s2 = max(float(np.sum(r**2)) / max(r.size - len(parameters), 1), (RESOLVED / UNIT) ** 2)  # floored: result.RESOLVED
         scaled, (values, vectors), cov_x = _information(jac, x, s2)
         remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
@@ -282,12 +288,41 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
+    torque = {} if not fit.torque_axes else {  # the torque part of the residual, back in N m
+        "torque_measured": np.asarray(fit.torque_measured),
+        "torque_fitted": np.asarray(fit.torque_measured) + r[measured.size:].reshape(-1, len(fit.torque_axes)) / float(fit.torque_weight)}
     return Identification(
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
-        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian,
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,
     )
+
+
+def _torque_channel(scene, recording: Recording, times) -> dict:
+    """`_Fit`'s torque fields for a recording with a motor torque (none without): its torque at
+    `times` and its weight, the encoder's noise over the torque's (µrad per N m). Refused where
+    the recording does not state both noises (the two channels cannot be weighed against each
+    other otherwise) or the scene has no motor to read a torque from."""
+    if recording.torque is None:
+        return {}
+    if recording.noise is None or recording.torque_noise is None:
+        raise RecordingError(f"{recording.source}: the recording has a motor torque but does not state "
+                             + ("its noise" if recording.torque_noise is None else "the encoder's noise")
+                             + " (Recording.noise, rad; Recording.torque_noise, N m; the command line's --noise, --encoder-bits "
+                             "and --torque-noise): the fit weighs the angles and the torque by their noises. State them, or "
+                             "identify from the angles alone (dataclasses.replace(recording, torque=None)).")
+    from ..mechanism.mechanism import Mechanism
+
+    if not isinstance(scene, Mechanism):
+        raise RecordingError(f"{recording.source}: a motor torque is fitted on a Mechanism scene only; this one is a "
+                             f"{type(scene).__name__}: identify from the angles alone (dataclasses.replace(recording, torque=None)).")
+    for axis, (joint, _, _, _) in zip(scene.JOINTS, scene.joints()):
+        if axis in recording.axes and joint.motor_torque(jnp.zeros(joint.layout.size), jnp.zeros(joint.layout.size), 0.0) is None:
+            raise RecordingError(f"{recording.source}: the {axis} joint is ideal under a servo (its motion is prescribed): it "
+                                 "has no motor torque to fit; model it lumped or planetary, or drop the torque.")
+    return {"torque_axes": tuple(recording.axes), "torque_measured": jnp.asarray(recording.at(times, "torque")),
+            "torque_weight": jnp.asarray(recording.noise / recording.torque_noise / UNIT)}
 
 
 def _continuation(given, fit: _Fit, final) -> list:
@@ -338,11 +373,14 @@ def _unit_slip(recorded, commanded) -> str:
 
 
 def synthetic_recording(scene, values=None, *, duration: float, n_save: int, start: str = "steady", noise: float = 0.0,
-                        quantum: float = 0.0, key=None, axes=("azimuth",), **run) -> Recording:
+                        quantum: float = 0.0, key=None, axes=("azimuth",), torque_noise: float | None = None,
+                        **run) -> Recording:
     """A recording the model makes of itself: `scene` at `values` (its design vector, m, or a
     `{parameter: value}` dict of any of `parameter_names(scene)`, SI; default its own) run for `duration` (s) with `n_save` saves, its output angles plus encoder noise (standard
     deviation `noise`, rad, drawn with `key`) and quantisation to steps of `quantum` (rad; 0:
-    none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad)."""
+    none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad). `torque_noise` (N m): with it, each
+    axis's motor torque too (`AbstractJoint.motor_torque`, a `Mechanism` scene), plus noise of
+    that standard deviation (drawn with a key split from `key`)."""
     from ..mechanism.scene import simulate
 
     if isinstance(values, dict):
@@ -357,5 +395,14 @@ def synthetic_recording(scene, values=None, *, duration: float, n_save: int, sta
         angles = angles + noise * np.asarray(jax.random.normal(jax.random.key(0) if key is None else key, angles.shape))
     if quantum > 0:
         angles = quantum * np.round(angles / quantum)
+    torque = None
+    if torque_noise is not None:
+        from .fit import _motor_torques
+
+        q, u = res.states[:2]
+        torque = np.asarray(jax.vmap(lambda qi, ui, ti: _motor_torques(unit, qi, ui, ti, tuple(axes)))(q, u, res.ts))
+        key = jax.random.key(0) if key is None else key
+        torque = torque + torque_noise * np.asarray(jax.random.normal(jax.random.fold_in(key, 1), torque.shape))
     return Recording(np.asarray(res.ts), angles, tuple(axes), np.asarray(res.commanded_angle)[:, columns],
-                     noise=math.hypot(noise, quantum / math.sqrt(12)) or None, source="synthetic")
+                     noise=math.hypot(noise, quantum / math.sqrt(12)) or None, source="synthetic", torque=torque,
+                     torque_noise=torque_noise)

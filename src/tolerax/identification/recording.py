@@ -1,7 +1,8 @@
 """Test recordings of a drive as data: the encoder angles of a unit's acceptance test.
 
 A `Recording` holds the save times (s), the measured output angle of each recorded axis (rad,
-the joint's output encoder) and optionally the commanded angle (rad). It is read from CSV or
+the joint's output encoder) and optionally the commanded angle (rad) and the motor torque (N m:
+the motor current times its torque constant). It is read from CSV or
 netCDF with its units stated (`read_recording`), refused with the reason where it cannot be right
 (times that do not increase, a missing value, a unit that is not an angle, angles no joint turns
 through in radians), and resampled onto a model's save times by linear interpolation
@@ -9,15 +10,16 @@ through in radians), and resampled onto a model's save times by linear interpola
 
 **CSV**: one header row, each column's name with its unit in brackets, then one row per sample::
 
-    time [s], azimuth measured [deg], azimuth commanded [deg]
-    0.000, 0.000000, 0.000000
+    time [s], azimuth measured [deg], azimuth commanded [deg], azimuth torque [N m]
+    0.000, 0.000000, 0.000000, 0.0123
     ...
 
-Time in s or ms; angles in rad, mrad, urad (or µrad), deg or arcsec. Columns `<axis> measured`
-(required for each axis) and `<axis> commanded` (optional), `<axis>` one of `azimuth`, `pitch`.
+Time in s or ms; angles in rad, mrad, urad (or µrad), deg or arcsec; torques in N m or mN m.
+Columns `<axis> measured` (required for each axis), `<axis> commanded` and `<axis> torque`
+(optional, for every recorded axis or none), `<axis>` one of `azimuth`, `pitch`.
 
 **netCDF** (`xarray`): a coordinate `time` and variables `<axis>_measured`, `<axis>_commanded`,
-each with a `units` attribute as above.
+`<axis>_torque`, each with a `units` attribute as above.
 """
 
 import dataclasses
@@ -30,6 +32,7 @@ import numpy as np
 
 AXES = ("azimuth", "pitch")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3}
+TORQUE_UNITS = {"N m": 1.0, "N·m": 1.0, "Nm": 1.0, "mN m": 1e-3, "mN·m": 1e-3, "mNm": 1e-3}
 ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "µrad": 1e-6, "deg": math.pi / 180, "arcsec": math.pi / 180 / 3600}
 MAX_ANGLE = 2 * math.pi  # rad: an output angle beyond a full turn is a unit slip (degrees read as radians)
 
@@ -49,6 +52,9 @@ class Recording:
     - `noise` (rad) or None: the encoder's noise standard deviation where known (the
       identification estimates it from the residual otherwise).
     - `source`: where it came from (a path), for messages.
+    - `torque` (N m, (n, k)) or None: each axis's motor torque (`AbstractJoint.motor_torque`);
+      `torque_noise` (N m): its noise standard deviation, which an identification fitting the
+      torque needs beside `noise` (the two channels are weighed by their noises).
     """
 
     time: np.ndarray
@@ -57,6 +63,8 @@ class Recording:
     commanded: np.ndarray | None = None
     noise: float | None = None
     source: str = "<arrays>"
+    torque: np.ndarray | None = None
+    torque_noise: float | None = None
 
     def __post_init__(self):
         time = np.asarray(self.time, dtype=float)
@@ -68,6 +76,9 @@ class Recording:
         if self.commanded is not None:
             commanded = np.asarray(self.commanded, dtype=float)
             object.__setattr__(self, "commanded", commanded[:, None] if commanded.ndim == 1 else commanded)
+        if self.torque is not None:
+            torque = np.asarray(self.torque, dtype=float)
+            object.__setattr__(self, "torque", torque[:, None] if torque.ndim == 1 else torque)
         _check(self)
 
     @property
@@ -76,8 +87,9 @@ class Recording:
         return float(self.time[-1])
 
     def at(self, times, which: str = "measured") -> np.ndarray:
-        """The `which` ("measured" or "commanded") angles (rad, (len(times), k)) at `times` (s),
-        linearly interpolated; `RecordingError` where a time lies outside the recording."""
+        """The `which` ("measured" or "commanded" angles, rad; "torque", N m) at `times` (s),
+        `(len(times), k)`, linearly interpolated; `RecordingError` where a time lies outside the
+        recording."""
         times = np.asarray(times, dtype=float)
         if times.min() < self.time[0] - 1e-12 or times.max() > self.time[-1] + 1e-12:
             raise RecordingError(f"{self.source}: the recording covers {self.time[0]:g} to {self.time[-1]:g} s; the model's "
@@ -86,13 +98,16 @@ class Recording:
         return np.stack([np.interp(times, self.time, values[:, j]) for j in range(len(self.axes))], axis=1)
 
     def write_csv(self, path) -> pathlib.Path:
-        """This recording as CSV (time in s, angles in rad), readable by `read_recording`."""
+        """This recording as CSV (time in s, angles in rad, torques in N m), readable by
+        `read_recording` (the noises are not written: a file states them elsewhere)."""
         path = pathlib.Path(path)
         columns = [("time [s]", self.time)]
         for j, axis in enumerate(self.axes):
             columns.append((f"{axis} measured [rad]", self.measured[:, j]))
             if self.commanded is not None:
                 columns.append((f"{axis} commanded [rad]", self.commanded[:, j]))
+            if self.torque is not None:
+                columns.append((f"{axis} torque [N m]", self.torque[:, j]))
         rows = [", ".join(name for name, _ in columns)]
         rows += [", ".join(f"{values[i]:.17g}" for _, values in columns) for i in range(self.time.size)]
         path.write_text("\n".join(rows) + "\n")
@@ -105,11 +120,12 @@ def _check(rec: Recording) -> None:
         raise RecordingError(f"{where}: a recording needs at least 3 samples of one time column, got shape {rec.time.shape}.")
     if not rec.axes or any(a not in AXES for a in rec.axes) or list(rec.axes) != [a for a in AXES if a in rec.axes]:
         raise RecordingError(f"{where}: axes must be 'azimuth', 'pitch' or both in that order, got {rec.axes!r}.")
-    for name, values in (("measured", rec.measured), ("commanded", rec.commanded)):
+    for name, values in (("measured", rec.measured), ("commanded", rec.commanded), ("torque", rec.torque)):
         if values is not None and values.shape != (rec.time.size, len(rec.axes)):
             raise RecordingError(f"{where}: {name} must have one row per sample and one column per axis "
                                  f"({rec.time.size}, {len(rec.axes)}), got {values.shape}.")
-    for name, values in (("time", rec.time[:, None]), ("measured", rec.measured), ("commanded", rec.commanded)):
+    for name, values in (("time", rec.time[:, None]), ("measured", rec.measured), ("commanded", rec.commanded),
+                         ("torque", rec.torque)):
         if values is not None and not np.all(np.isfinite(values)):
             row, col = np.argwhere(~np.isfinite(values))[0]
             raise RecordingError(f"{where}: sample {row + 1} of {name}"
@@ -127,6 +143,8 @@ def _check(rec: Recording) -> None:
                                  "the column in degrees (say so in its header: [deg])?")
     if rec.noise is not None and not (math.isfinite(rec.noise) and rec.noise > 0):
         raise RecordingError(f"{where}: noise must be a standard deviation > 0 (rad), got {rec.noise!r}.")
+    if rec.torque_noise is not None and not (math.isfinite(rec.torque_noise) and rec.torque_noise > 0):
+        raise RecordingError(f"{where}: torque_noise must be a standard deviation > 0 (N m), got {rec.torque_noise!r}.")
 
 
 _COLUMN = re.compile(r"^\s*(.+?)\s*\[\s*([^\]]+?)\s*\]\s*$")
@@ -152,15 +170,16 @@ def _from_columns(columns: dict, where: str) -> Recording:
             _, scale = _unit(header, TIME_UNITS, "a time", where)
             time = values * scale
             continue
-        name, scale = _unit(header, ANGLE_UNITS, "an angle", where)
+        torque = "torque" in header.lower().split("[")[0]
+        name, scale = _unit(header, TORQUE_UNITS, "a torque", where) if torque else _unit(header, ANGLE_UNITS, "an angle", where)
         parts = name.replace("_", " ").split()
-        if len(parts) != 2 or parts[0] not in AXES or parts[1] not in ("measured", "commanded"):
+        if len(parts) != 2 or parts[0] not in AXES or parts[1] not in ("measured", "commanded", "torque"):
             guess = None
             if len(parts) == 2:  # a misspelt axis or kind: each word matched on its own
                 axis, kind = (difflib.get_close_matches(w, choices, n=1, cutoff=0.75) for w, choices in
-                              zip(parts, (AXES, ("measured", "commanded"))))
+                              zip(parts, (AXES, ("measured", "commanded", "torque"))))
                 guess = f"{axis[0]} {kind[0]}" if axis and kind else None
-            raise RecordingError(f"{where}: column {header!r} is not '<axis> measured' or '<axis> commanded' with <axis> "
+            raise RecordingError(f"{where}: column {header!r} is not '<axis> measured', '<axis> commanded' or '<axis> torque' with <axis> "
                                  "azimuth or pitch" + (f" (did you mean '{guess}'?)." if guess and guess != " ".join(parts) else "."))
         found[(parts[0], parts[1])] = values * scale
     if time is None:
@@ -170,7 +189,12 @@ def _from_columns(columns: dict, where: str) -> Recording:
         raise RecordingError(f"{where}: no '<axis> measured [unit]' column (azimuth or pitch).")
     measured = np.stack([found[(a, "measured")] for a in axes], axis=1)
     commanded = np.stack([found[(a, "commanded")] for a in axes], axis=1) if all((a, "commanded") in found for a in axes) else None
-    return Recording(time, measured, axes, commanded, source=where)
+    torques = [a for a in axes if (a, "torque") in found]
+    if torques and len(torques) != len(axes):
+        raise RecordingError(f"{where}: a torque column for {', '.join(torques)} but not for "
+                             f"{', '.join(a for a in axes if a not in torques)}: give every recorded axis its torque, or none.")
+    torque = np.stack([found[(a, "torque")] for a in axes], axis=1) if torques else None
+    return Recording(time, measured, axes, commanded, source=where, torque=torque)
 
 
 def read_recording(path) -> Recording:

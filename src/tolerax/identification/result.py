@@ -60,6 +60,9 @@ class Identification:
       there; 1 where the residual is quadratic out to there. `holds` reads it.
     - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
       mode through the solve, or central secants), and why, in words.
+    - `torque_measured`, `torque_fitted` (N m, (saves, axes)) where the recording had a motor
+      torque (its part of the residual, weighed by the noises, is in `n` and `cost`; `residual`
+      is the angles').
     """
 
     names: tuple[str, ...]
@@ -82,6 +85,8 @@ class Identification:
     wall: dict = dataclasses.field(default_factory=dict)
     profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
     jacobian: str = ""  # the residual's Jacobian, and why (`identify(secant=...)`)
+    torque_measured: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    torque_fitted: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
     @property
     def residual_sd(self) -> float:

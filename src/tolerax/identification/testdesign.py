@@ -259,7 +259,7 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
         if k == 0:  # the plain scan: the Jacobian chosen once for every candidate (one compiled program)
             chosen, jacobian = _choose_jacobian(fit, x, width, secant)
         fit = dataclasses.replace(fit, secant=chosen.secant)
-        jac, angles, _ = _fit_and_jacobian(fit, jnp.asarray(x), width)
+        jac, angles, _, _ = _fit_and_jacobian(fit, jnp.asarray(x), width)
         jac = np.asarray(jac)
         # The noise-free recording at the guess, and the fit's cost profile of each parameter over the range.
         truth = eqx.tree_at(lambda f: f.measured, fit, angles)

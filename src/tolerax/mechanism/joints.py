@@ -179,6 +179,20 @@ class AbstractJoint(eqx.Module):
             force = force.at[lay.sun].add(self.drive.torque(self.stage.ratio, t, qj[lay.sun], uj[lay.sun]))
         return force.at[lay.carrier].add(-drag(self.drag_torque, uj[lay.carrier]))
 
+    def motor_torque(self, qj, uj, t):
+        """The torque the drive applies on its motor shaft (N m), as a test records it (the motor
+        current times its torque constant): a servo's on the sun, a torque drive's through the
+        ratio ($T/i$ on the sun; $T$ at the output of a joint with no sun coordinate). `None` where
+        the model has no motor to read it from (an ideal joint under a servo: its motion is
+        prescribed)."""
+        lay = self.layout
+        if isinstance(self.drive, TorqueDrive):
+            torque = self.drive.torque(t)
+            return torque if lay.sun is None else torque / self.stage.ratio
+        if lay.sun is None:
+            return None
+        return self.drive.torque(self.stage.ratio, t, qj[lay.sun], uj[lay.sun])
+
     def forces(self, qj, uj, vj, t):
         """`(Q_j, contact forces)`: generalised forces on the joint's coordinates (N m or N) and
         the normal force of each of its clearance contacts (N, `contact_names` order)."""
