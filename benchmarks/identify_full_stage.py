@@ -4,7 +4,7 @@ chosen automatically: central secants where the forward-mode one is scrambled by
 
 The unit: the azimuth scan (`tx.scan("azimuth", fidelity=("planetary", "ideal"))`, 0.35 s from a
 steady start, one reversal) with ring backlash `--truth` µm and every other clearance at the
-scene's 100 µm, recorded through a 20-bit encoder with 2 µrad of noise (`--n` recordings, each
+scene's 100 µm, recorded through a 20-bit encoder (`--bits`) with 2 µrad of noise (`--n` recordings, each
 its own noise). Reported per recording: the estimate, its 95 % interval and whether it holds the
 truth, whether the interval holds along its profile, the residual against the encoder's noise,
 the Jacobian chosen and the wall time (and by phase). `--dual`: the dual scan with both joints at
@@ -37,7 +37,7 @@ from scipy.stats import binom
 
 import tolerax as tx
 
-ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6
+NOISE = 2e-6  # rad: the encoders' noise (their steps: --bits)
 DURATION, N_SAVE = 0.35, 141
 PITCH_TRUTH = 130.0  # µm: --dual's pitch ring backlash (as identify_coverage.py --dual)
 
@@ -59,6 +59,7 @@ def main(argv=None) -> int:
     parser.add_argument("--forward", action="store_true", help="also the first recording with secant=False (forward mode)")
     parser.add_argument("--first", type=int, default=0, help="the first recording's seed offset (default 0)")
     parser.add_argument("--rows", type=pathlib.Path, default=None, help="append each recording's row here (JSON lines)")
+    parser.add_argument("--bits", type=int, default=20, help="the encoders' bits per turn (default 20: 6.0 µrad steps; 24: 0.37)")
     parser.add_argument("--merge", action="store_true", help="run nothing: write the table from --rows")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
@@ -71,7 +72,7 @@ def main(argv=None) -> int:
     runs = [(args.first + k, None) for k in range(args.n)] + ([(args.first, False)] if args.forward else [])
     for seed, secant in runs:
         rec = tx.synthetic_recording(full, {n: 1e-6 * v for n, v in zip(names, truths)}, duration=DURATION, n_save=N_SAVE,
-                                     noise=NOISE, quantum=ENCODER, key=jax.random.key(3000 + seed), axes=axes)
+                                     noise=NOISE, quantum=2 * math.pi / 2**args.bits, key=jax.random.key(3000 + seed), axes=axes)
         start = time.perf_counter()
         got = tx.identify(full, rec, names, secant=secant)
         wall = time.perf_counter() - start
@@ -81,7 +82,8 @@ def main(argv=None) -> int:
                          hit=[bool(a <= 1e-6 * t <= b) for a, b, t in zip(lo, hi, truths)], holds=list(got.holds()),
                          status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
-                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened)))
+                         jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened),
+                         bits=args.bits, profile=np.asarray(got.profile).tolist()))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -90,7 +92,7 @@ def main(argv=None) -> int:
 
 
 def _write(rows, args) -> int:
-    sigma = math.hypot(NOISE, ENCODER / math.sqrt(12))
+    sigma = math.hypot(NOISE, 2 * math.pi / 2 ** rows[0].get("bits", 20) / math.sqrt(12))
     names, truths, dual = rows[0]["names"], rows[0]["truth"], rows[0]["dual"]
     default = [r for r in rows if r["asked"] == "default"]
     commit = ", ".join(sorted({r["commit"] for r in rows if "commit" in r})) or subprocess.run(  # the runs' own, else the merge's
@@ -119,7 +121,7 @@ def _write(rows, args) -> int:
         f"at {commit}, jax {jax.__version__}; {os.cpu_count()} cores, one per process; load average "
         f"{min(r['load'] for r in rows):.2f}-{max(r['load'] for r in rows):.2f} at the rows' ends).", "",
         f"{unit}, {DURATION:g} s from a steady start, {N_SAVE} samples; the unit's {backlash}, every other clearance the "
-        f"scene's 100 µm; a 20-bit encoder and 2 µrad of noise ({1e6 * sigma:.2f} µrad together); identified by the same "
+        f"scene's 100 µm; a {rows[0].get('bits', 20)}-bit encoder and 2 µrad of noise ({1e6 * sigma:.2f} µrad together); identified by the same "
         f"full-stage model with `identify`'s defaults (the best 2 of {rows[0].get('screened', 33) - 1} screened starts and the "
         "scene's values, within 2x of them; on "
         "central secants, as chosen here, at the scene's own smoothing width alone).", "",
