@@ -71,7 +71,7 @@ def identify_command(parser, args) -> int:
                        progress=not args.quiet, **starts, **run)
     except (RecordingError, ValueError) as err:
         print(f"tolerax identify: {err}" + (" On the command line: --torque-noise MNM with --noise or --encoder-bits, or "
-                                            "--angles-only." if "torque" in str(err) else ""), file=sys.stderr)
+                                            "--angles-only." if "motor torque" in str(err) else ""), file=sys.stderr)
         return 2
     wall = time.perf_counter() - start
     claim_out(out, "identify", fresh=args.force)

@@ -378,7 +378,7 @@ def synthetic_recording(scene, values=None, *, duration: float, n_save: int, sta
     """A recording the model makes of itself: `scene` at `values` (its design vector, m, or a
     `{parameter: value}` dict of any of `parameter_names(scene)`, SI; default its own) run for `duration` (s) with `n_save` saves, its output angles plus encoder noise (standard
     deviation `noise`, rad, drawn with `key`) and quantisation to steps of `quantum` (rad; 0:
-    none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad). `torque_noise` (N m): with it, each
+    none; a 20-bit encoder: $2\\pi / 2^{20}$ = 6.0 µrad). `torque_noise` (N m, > 0): with it, each
     axis's motor torque too (`AbstractJoint.motor_torque`, a `Mechanism` scene), plus noise of
     that standard deviation (drawn with a key split from `key`)."""
     from ..mechanism.scene import simulate
