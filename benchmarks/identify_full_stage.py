@@ -83,7 +83,7 @@ def main(argv=None) -> int:
                          status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
                          jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened),
-                         bits=args.bits, profile=np.asarray(got.profile).tolist(), restarts=int(getattr(got, "restarts", 0))))
+                         bits=args.bits, profile=np.asarray(got.profile).tolist()))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:

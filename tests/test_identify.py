@@ -701,33 +701,3 @@ def test_the_motor_torque_sharpens_the_backlash_and_the_drag():
     assert np.all((lo <= list(truth.values())) & (list(truth.values()) <= hi)), (both.estimate, lo, hi)
     assert both.n == 2 * angles.n and np.std(both.torque_fitted - both.torque_measured) < 1.3e-3
     assert np.all(both.standard_error < angles.standard_error), (both.standard_error, angles.standard_error)
-
-
-def test_the_intervals_check_hands_back_a_lower_point_for_a_restart():
-    """`_profile` (the intervals' check along each parameter's profile path) returns, beside its
-    ratios, the lowest-cost point it costed: on a closed-form fit whose minimum is at 3, checked
-    from 3.5 with a standard error of 0.2, the point 1.96 standard errors towards the minimum,
-    its cost below the estimate's (what `identify` restarts Levenberg-Marquardt from, where it
-    lies `RESTART_DROP` residual variances lower); checked from the minimum itself, the estimate
-    and its own cost."""
-    import jax.numpy as jnp
-
-    from tolerax.identification.fit import UNIT, _Fit, _profile
-
-    t = np.linspace(0.0, 1.0, 50)
-
-    class Closed(_Fit):  # output angles x[0] * (1 + t) µrad against a recording of 3 (1 + t) plus a ripple
-        def outputs(self, x, width):
-            angles = UNIT * (x[0] * (1 + t))[:, None]
-            return ((angles - self.measured) / UNIT).ravel(), (angles, jnp.zeros_like(angles))
-
-    measured = UNIT * (3.0 * (1 + t) + 0.1 * np.sin(40 * t))[:, None]
-    fit = Closed(objective=None, names=("a",), scale=jnp.ones(1), rows=jnp.arange(50), columns=jnp.arange(1),
-                 measured=jnp.asarray(measured))
-    cost = lambda x: float(np.sum(np.asarray(fit.residual(jnp.asarray([x]), 0.0)) ** 2))  # noqa: E731
-    ratio, point, lowest = _profile(fit, np.array([3.5]), np.array([1.0]), np.array([[0.04]]), 0.005, 0.0, None, cost(3.5))
-    assert ratio.shape == (1, 2, 3) and point[0] == pytest.approx(3.5 - 1.96 * 0.2) and lowest == pytest.approx(cost(point[0]))
-    assert lowest < cost(3.5)
-    best = float(scipy.optimize.minimize_scalar(cost).x)
-    _, point, lowest = _profile(fit, np.array([best]), np.array([1.0]), np.array([[0.04]]), 0.005, 0.0, None, cost(best))
-    assert point[0] == best and lowest == cost(best)

@@ -137,9 +137,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its first damping Marquardt's,
       `DAMPING` of the largest diagonal of $J^TJ$ at the start; its tolerance: `LM_TOL`; then
       where the best is not within a tenth of a standard error, `POLISH_STEPS` Gauss-Newton steps
-      at `POLISH_TOL`, kept if they lower the cost; and where the intervals' check finds a cost
-      `RESTART_DROP` residual variances below the estimate's, again from there, up to `RESTARTS`
-      times: in a residual rugged at the intervals' scale the first stop can be a dip);
+      at `POLISH_TOL`, kept if they lower the cost);
       `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
       `max_steps`, ...), as a scene file's `[run]` holds them.
     - `secant`: the residual's Jacobian, for Levenberg-Marquardt and the intervals. `None`
