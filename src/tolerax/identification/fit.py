@@ -128,15 +128,14 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
     at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
     `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1 where the cost is quadratic out to there.
     `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
-    is not finite; with it the lowest-cost point checked and its cost (`(ratio, point, cost)`;
-    the estimate itself and `cost` where none was checked). Costed in batches of `batch` (the screen's: its compiled program), or where
+    is not finite. Costed in batches of `batch` (the screen's: its compiled program), or where
     no screen ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
     assessment already: no program compiled for the check), against `cost`, the assessment's own
     at `x` from that program (µrad²)."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
     if not (math.isfinite(s2) and s2 > 0):  # a residual of exactly zero: no scale to check against
-        return ratio, x, cost
+        return ratio
     points, where = [x], []
     for j in range(x.size):
         if not (np.isfinite(se[j]) and se[j] > 0):
@@ -155,8 +154,7 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
                                 for i in range(0, len(points), batch)])
     for (j, side, m, k), c in zip(where, costs[1:]):
         ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
-    lowest = int(np.argmin(costs[:len(where) + 1]))  # the padding repeats x
-    return ratio, np.asarray(points[lowest]), float(costs[lowest])
+    return ratio
 
 
 def _unbounded(x, centre, reach):

@@ -83,9 +83,6 @@ SECANT_STEP_RUNS = 2
 SCREEN, SCREEN_MAX = 32, 256
 # The wide smoothing width (m) of the default continuation (`_continuation`).
 WIDE = 1e-6
-# Levenberg-Marquardt is run again from the intervals' check's lowest point where it lies this
-# many residual variances (s^2) below the estimate's cost, at most RESTARTS times (`identify`).
-RESTART_DROP, RESTARTS = 1.0, 3
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
 
 
@@ -276,35 +273,18 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # in the cost). Where it is not, a Gauss-Newton polish; where that cannot lower the cost, the
     # estimate is at the cost's numerical floor, and within one standard error counts: the step
     # left is then the solve's noise in the Jacobian, not a distance to the minimum.
-    def finish(z, cost):
-        assessed = assess(z)
-        converged = bool(np.all(assessed[-1] <= 0.1))
-        if not converged:
-            polished, polished_cost = _polish(fit, jnp.asarray(z), widths[-1], centre, reach)
-            if float(polished_cost) < cost:  # kept only where it lowers the cost
-                assessed = assess(polished)
-                converged = bool(np.all(assessed[-1] <= 0.1))
-            else:
-                converged = bool(np.all(assessed[-1] <= 1.0))
-        return assessed, converged and math.isfinite(assessed[3])
-
-    (estimate_x, fitted, r, s2, values, vectors, cov_x, left), converged = finish(z, cost)
-    profile, lower, lower_cost = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)))
+    estimate_x, fitted, r, s2, values, vectors, cov_x, left = assess(z)
+    converged = bool(np.all(left <= 0.1))
+    if not converged:
+        polished, polished_cost = _polish(fit, jnp.asarray(z), widths[-1], centre, reach)
+        if float(polished_cost) < cost:  # kept only where it lowers the cost
+            estimate_x, fitted, r, s2, values, vectors, cov_x, left = assess(polished)
+            converged = bool(np.all(left <= 0.1))
+        else:
+            converged = bool(np.all(left <= 1.0))
+    converged = converged and math.isfinite(s2)
+    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)))
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles")
-    # Where the intervals' check found a cost lower than the estimate's by more than RESTART_DROP
-    # residual variances, the estimate is not the minimum at the intervals' scale (a residual
-    # rugged there, as through a rattling full stage: Levenberg-Marquardt on secants follows the
-    # smoothed slope and stops in a dip): Levenberg-Marquardt again from that point, at most
-    # RESTARTS times, each lowering the cost.
-    restarts = 0
-    while restarts < RESTARTS and lower_cost < float(np.sum(r**2)) - RESTART_DROP * s2:
-        z, cost, steps, _ = _solve(fit, jnp.asarray(_unbounded(lower, centre, reach)), widths[-1], int(lm_steps), centre, reach)
-        cost, steps, restarts = float(cost), int(steps), restarts + 1
-        lap("fit", f"from the intervals' check's lower point ({lower_cost:.6g} against {float(np.sum(r**2)):.6g} µrad²): "
-                   f"{steps} steps, residual {math.sqrt(cost / measured.size):.3g} µrad rms")
-        (estimate_x, fitted, r, s2, values, vectors, cov_x, left), converged = finish(z, cost)
-        profile, lower, lower_cost = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)))
-        lap("assess", "the estimate assessed and its intervals checked again")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
@@ -314,7 +294,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     return Identification(
         names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
-        steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise, restarts=restarts,
+        steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,
     )
 

@@ -85,7 +85,6 @@ class Identification:
     wall: dict = dataclasses.field(default_factory=dict)
     profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
     jacobian: str = ""  # the residual's Jacobian, and why (`identify(secant=...)`)
-    restarts: int = 0  # Levenberg-Marquardt runs from a lower point the intervals' check found (`identify`'s RESTARTS)
     torque_measured: np.ndarray | None = dataclasses.field(repr=False, default=None)
     torque_fitted: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
@@ -221,8 +220,7 @@ class Identification:
                   if below else f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; ")
                  + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
-                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened" if self.screened else "")
-                 + (f"; then {self.restarts} more from lower points its intervals' check found" if self.restarts else "") + ")."
+                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ").")
                  + (f" The residual's Jacobian: {self.jacobian}." if self.jacobian else ""), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
         misfit = bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))  # not below what the model resolves
