@@ -169,14 +169,8 @@ class AbstractJoint(eqx.Module):
         force = jnp.zeros(lay.size)
         if lay.size == 0:
             return force
-        if isinstance(self.drive, TorqueDrive):
-            torque = self.drive.torque(t)
-            if lay.sun is None:  # rigid gear train: the output torque acts directly
-                force = force.at[lay.carrier].add(torque)
-            else:
-                force = force.at[lay.sun].add(torque / self.stage.ratio)
-        else:
-            force = force.at[lay.sun].add(self.drive.torque(self.stage.ratio, t, qj[lay.sun], uj[lay.sun]))
+        # The drive's torque on the sun, or on the output of a rigid gear train (no sun coordinate).
+        force = force.at[lay.carrier if lay.sun is None else lay.sun].add(self.motor_torque(qj, uj, t))
         return force.at[lay.carrier].add(-drag(self.drag_torque, uj[lay.carrier]))
 
     def motor_torque(self, qj, uj, t):
