@@ -9,7 +9,11 @@ its own noise). Reported per recording: the estimate, its 95 % interval and whet
 truth, whether the interval holds along its profile, the residual against the encoder's noise,
 the Jacobian chosen and the wall time (and by phase). `--dual`: the dual scan with both joints at
 full planetary fidelity (`tx.scan("dual", fidelity="planetary")`), recorded by both
-encoders, both ring backlashes identified at once (azimuth `--truth`, pitch 130 µm). `--forward` also identifies the first recording with the
+encoders, both ring backlashes identified at once (azimuth `--truth`, pitch 130 µm). `--spread S`:
+each recording's unit its own, its backlashes drawn uniformly within S µm of those (with the
+recording's seed): where the model does not reproduce its own run, recordings of one unit share
+one realisation of the model's error, so their coverage measures that one draw (the dual's
+pitch: all low), not the intervals'. `--forward` also identifies the first recording with the
 forward-mode Jacobian (`secant=False`), the former default, for contrast. The coverage of the
 intervals is measured, not assumed: over 20 recordings about 19 should hold the truth.
 
@@ -60,6 +64,8 @@ def main(argv=None) -> int:
     parser.add_argument("--first", type=int, default=0, help="the first recording's seed offset (default 0)")
     parser.add_argument("--rows", type=pathlib.Path, default=None, help="append each recording's row here (JSON lines)")
     parser.add_argument("--bits", type=int, default=20, help="the encoders' bits per turn (default 20: 6.0 µrad steps; 24: 0.37)")
+    parser.add_argument("--spread", type=float, default=0.0, help="each recording's unit its own: its backlashes drawn uniformly "
+                        "within this many µm of --truth (and the pitch's) with the recording's seed (default 0: one unit)")
     parser.add_argument("--merge", action="store_true", help="run nothing: write the table from --rows")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
@@ -70,7 +76,10 @@ def main(argv=None) -> int:
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     rows = []
     runs = [(args.first + k, None) for k in range(args.n)] + ([(args.first, False)] if args.forward else [])
+    nominal = truths
     for seed, secant in runs:
+        draw = np.random.default_rng(3000 + seed).uniform(-1.0, 1.0, len(names))
+        truths = tuple(float(v + args.spread * u) for v, u in zip(nominal, draw))
         rec = tx.synthetic_recording(full, {n: 1e-6 * v for n, v in zip(names, truths)}, duration=DURATION, n_save=N_SAVE,
                                      noise=NOISE, quantum=2 * math.pi / 2**args.bits, key=jax.random.key(3000 + seed), axes=axes)
         start = time.perf_counter()
@@ -83,7 +92,8 @@ def main(argv=None) -> int:
                          status=list(got.status()), sd=1e6 * got.residual_sd, converged=got.converged, steps=int(got.steps),
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
                          jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened),
-                         bits=args.bits, profile=np.asarray(got.profile).tolist()))
+                         bits=args.bits, profile=np.asarray(got.profile).tolist(), model_share=got.model_share().tolist(),
+                         model_rms=1e6 * got.model_rms, spread=args.spread))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -97,19 +107,26 @@ def _write(rows, args) -> int:
     default = [r for r in rows if r["asked"] == "default"]
     commit = ", ".join(sorted({r["commit"] for r in rows if "commit" in r})) or subprocess.run(  # the runs' own, else the merge's
         ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    cells = lambda r, j: (f"{r['estimate'][j]:.3f} | {r['lo'][j]:.3f} – {r['hi'][j]:.3f} | {'yes' if r['hit'][j] else 'NO'} | "  # noqa: E731
-                          f"{r['holds'][j]} | {r['status'][j]}")
+    spread = max(r.get("spread", 0.0) for r in rows)  # > 0: each recording's unit drawn (--spread)
+    cells = lambda r, j: ((f"{r['truth'][j]:.3f} | " if spread else "")  # noqa: E731
+                          + f"{r['estimate'][j]:.3f} | {r['lo'][j]:.3f} – {r['hi'][j]:.3f} | {'yes' if r['hit'][j] else 'NO'} | "
+                          f"{r['holds'][j]} | {r['status'][j]}" + (f" | {100 * r['model_share'][j]:.0f}" if "model_share" in r else " | –"))
     table = [f"| {r['seed']} | {r['asked']} | " + " | ".join(cells(r, j) for j in range(len(names))) + f" | {r['sd']:.2f} | "
              f"{'yes' if r['converged'] else 'no'} | {r['jacobian']} | {r['wall']:.0f} |" for r in rows]
     hits = sum(sum(r["hit"]) for r in default)
     intervals = len(default) * len(names)
     per = []
     for j, (name, truth) in enumerate(zip(names, truths)):
-        est = [r["estimate"][j] for r in default]
-        per.append(f"{name}: {sum(r['hit'][j] for r in default)}/{len(default)} hold the truth {truth:g} µm, estimates "
-                   f"{np.mean(est):.3f} µm on average, their spread {np.std(est, ddof=1) if len(est) > 1 else float('nan'):.3f} µm "
-                   f"against a stated standard error of {np.mean([(r['hi'][j] - r['lo'][j]) / 3.92 for r in default]):.3f}, "
-                   f"{sum(r['holds'][j] is True for r in default)}/{len(default)} hold along their profiles")
+        err = [r["estimate"][j] - r["truth"][j] for r in default]
+        shares = [r["model_share"][j] for r in default if "model_share" in r]
+        per.append(f"{name}: {sum(r['hit'][j] for r in default)}/{len(default)} hold the truth "
+                   + (f"(drawn within ±{spread:g} µm of {truth:g})" if spread else f"{truth:g} µm")
+                   + f", estimates {np.mean(err):+.3f} µm from it on average, their errors' spread "
+                   f"{np.std(err, ddof=1) if len(err) > 1 else float('nan'):.3f} µm "
+                   f"against a stated standard error of {np.mean([(r['hi'][j] - r['lo'][j]) / 3.92 for r in default]):.3f}"
+                   + (f" ({100 * np.mean(shares):.0f} % of its variance the model's own realisations', on average over "
+                      f"{len(shares)})" if shares else "")
+                   + f", {sum(r['holds'][j] is True for r in default)}/{len(default)} hold along their profiles")
     phases = {k: np.median([r["phases"].get(k, 0.0) for r in default]) for k in default[0]["phases"]} if default else {}
     unit = ("Dual scan, both joints at full planetary fidelity, recorded by both encoders" if dual else
             "Azimuth scan at full planetary fidelity")
@@ -135,9 +152,10 @@ def _write(rows, args) -> int:
         "- where the wall time goes (median seconds per phase, `Identification.wall`): "
         + ", ".join(f"{k} {v:.0f}" for k, v in phases.items()) + ".", "",
         "| recording | Jacobian asked | " + " | ".join(
-            f"{n.split('.')[0] + ': ' if dual else ''}estimate (µm) | 95 % interval (µm) | holds the truth | holds along its "
-            "profile | status" for n in names) + " | residual sd (µrad) | converged | Jacobian used | wall (s) |",
-        "|---|---|" + "---|---|---|---|---|" * len(names) + "---|---|---|---|", *table])
+            f"{n.split('.')[0] + ': ' if dual else ''}" + ("truth (µm) | " if spread else "") + "estimate (µm) | 95 % interval "
+            "(µm) | holds the truth | holds along its profile | status | the model's share of the variance (%)" for n in names)
+        + " | residual sd (µrad) | converged | Jacobian used | wall (s) |",
+        "|---|---|" + ("---|" * (7 if spread else 6)) * len(names) + "---|---|---|---|", *table])
     print(text)
     if args.out:
         args.out.write_text(text + "\n")

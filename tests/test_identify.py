@@ -154,6 +154,8 @@ def test_a_noise_free_recording_is_identified_at_what_the_simulation_resolves():
     assert got.converged and got.holds() == (True,) and got.status() == ("determined",), got.table()
     lo, hi = got.interval()
     assert lo[0] <= 60e-6 <= hi[0] and "below what the simulation resolves" in got.table()
+    # The lumped joint reproduces its own run: its realisations 1e-9 apart add nothing to the interval.
+    assert got.model_rms < 0.01 * RESOLVED and got.model_share()[0] < 1e-3, (got.model_rms, got.model_share())
 
 
 @pytest.mark.slow
@@ -615,6 +617,75 @@ def test_levenberg_marquardt_starts_on_the_residual_s_own_scale():
     fn = lambda w, _: {"residual": fit.residual(_bounded(w, centre, reach), 0.0)}  # noqa: E731  (gain 1e4)
     plain = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=LM_TOL, atol=LM_TOL, norm=_termination_norm), w0, max_steps=50)
     assert int(plain.stats["num_steps"]) > steps[1e4][0], (plain.stats["num_steps"], steps)
+
+
+def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
+    r"""`fit._model_noise` on a closed-form fit whose output carries a term that a perturbation at
+    rounding level scrambles ($a\sin(10^{13} x\cdot w_i)$ per sample: what a rattling stage's impacts
+    do to its run): the estimate's covariance over the model's realisations, from the
+    intervals' check's batch (`_profile`), against the spread of the least-squares estimates
+    themselves over 400 realisations (numpy's lstsq on each; two realisations' estimates differ
+    with covariance $a^2 (A^TA)^{-1}$); without the term, zero to rounding. The check along the
+    profile reads a rise only where it exceeds the cost's spread over the realisations: at 1.96
+    standard errors not at all, at 100 as the linear model's. And the table says what share of
+    each variance is the model's. (The lumped joint's: ~0, test_a_noise_free_recording_...; the
+    full stage's: benchmarks/identify_full_stage.py --dual.)"""
+    import equinox as eqx
+    import jax.numpy as jnp
+
+    from tolerax.identification.fit import UNIT, _Fit, _information, _model_noise, _profile, _realisation_points, _residuals
+    from tolerax.identification.result import Identification
+
+    rng = np.random.default_rng(1)
+    t, weights = np.linspace(0.0, 1.0, 60), rng.standard_normal((60, 2))
+    A = np.stack([np.ones_like(t), np.exp(-2.0 * t)], axis=1) * 3.0  # µrad per unit of x
+    truth = np.array([1.5, 2.5])
+
+    class Scrambled(_Fit):  # the model's output angle (rad) at 60 saves, one axis
+        amplitude: float = eqx.field(static=True, default=0.0)
+
+        def outputs(self, x, width):
+            angles = UNIT * (jnp.asarray(A) @ x + self.amplitude * jnp.sin(1e13 * (jnp.asarray(weights) @ x)))[:, None]
+            return ((angles - self.measured) / UNIT).ravel(), (angles, jnp.zeros_like(angles))
+
+    measured = UNIT * (A @ truth + rng.normal(0.0, 0.05, 60))[:, None]
+    x0 = truth * 1.1
+    for amplitude in (0.0, 0.05):
+        fit = Scrambled(objective=None, names=("a", "b"), scale=jnp.ones(2), rows=jnp.arange(60), columns=jnp.arange(1),
+                        measured=jnp.asarray(measured), amplitude=amplitude)
+        x = np.linalg.lstsq(A, measured[:, 0] / UNIT, rcond=None)[0]
+        r = np.asarray(fit.residual(jnp.asarray(x), 0.0))
+        s2 = float(np.sum(r**2)) / (r.size - 2)
+        _, _, cov_x = _information(A, x, s2)
+        profile, points, realised = _profile(fit, x, x0, cov_x, s2, 0.0, 65, float(np.sum(r**2)), r)
+        assert len(points) == 65 - 13 + 1  # the batch's rest after the check's 13 points, and x in the batch's program
+        model, rms = _model_noise(A, x, r, points, realised, cov_x, s2)
+        if amplitude == 0.0:
+            assert np.max(np.abs(model)) < 1e-12 * np.max(np.abs(cov_x)) and rms < 1e-6
+            assert np.all(np.isfinite(profile)) and np.allclose(profile, 1.0, atol=1e-6)
+            continue
+        phases = rng.uniform(0.0, 1e13, (400, 2))  # 400 realisations of the scrambled term
+        estimates = np.stack([np.linalg.lstsq(A, measured[:, 0] / UNIT - amplitude * np.sin(weights @ p), rcond=None)[0]
+                              for p in phases])
+        reference = 2.0 * np.cov(estimates, rowvar=False)
+        np.testing.assert_allclose(reference, amplitude**2 * np.linalg.inv(A.T @ A), rtol=0.2, atol=0.2 * np.max(np.abs(reference)))
+        assert rms == pytest.approx(amplitude, rel=0.25)  # two realisations apart: a sqrt(2) sin's rms
+        # From the batch's rest (53 realisations) a variance is off by ~0.2 of itself (1 sd; this
+        # seed's: 1.5x and 1.75x the reference); the same function over 2000 realisations is the
+        # comparison that can tell a factor of 2.
+        many = _realisation_points(x, 2000)
+        assert np.all(np.diag(model) / np.diag(reference) > 0.5) and np.all(np.diag(model) / np.diag(reference) < 2.0)
+        model_many = _model_noise(A, x, r, many, np.asarray(_residuals(fit, jnp.asarray(many), 0.0)), cov_x, s2)[0]
+        np.testing.assert_allclose(model_many, reference, rtol=0.15, atol=0.15 * np.max(np.abs(reference)))
+        assert np.all(np.isnan(profile[:, :, 0])) and np.allclose(profile[:, :, 2], 1.0, atol=0.05), profile
+    se = np.sqrt(np.diag(cov_x + model))
+    got = Identification(names=("a", "b"), units=("1", "1"), estimate=x, covariance=cov_x + model, model_covariance=model,
+                         model_rms=rms * UNIT, sigma=math.sqrt(s2) * UNIT, n=60, cost=float(np.sum(r**2)), times=t,
+                         measured=measured, fitted=measured, directions=((0.01, np.array([1.0, 0.0])), (0.02, np.array([0.0, 1.0]))),
+                         steps=1, converged=True, starts=(0.0,), screened=65, profile=profile)
+    share = got.model_share()
+    np.testing.assert_allclose(share, np.diag(model) / se**2)
+    assert "The model does not reproduce its own run" in got.table() and f"a {100 * share[0]:.0f} %" in got.table()
 
 
 def test_a_recording_carries_the_motor_torque_and_a_fit_weighs_it_by_its_noise(tmp_path):

@@ -48,6 +48,14 @@ STARTS_KEPT = 2
 # more than SECANT_SWITCH of their norm (on the full planetary stage by orders of magnitude: the
 # rattle scrambles the tangents; on the lumped joint they agree to the step's truncation error).
 SECANT_STEP, SECANT_SWITCH = 0.02, 0.5
+# The model's own realisations at the estimate (`_model_noise`): at least REALISATIONS points
+# (those filling the intervals' check's batch) a relative REALISE from it (1e-9: its
+# linearised effect ~1e-9 of a parameter's, far below what the simulation resolves; a
+# rounding-level difference in a rattling stage's run changes its impacts all the same), or
+# REALISATIONS_ALONE where the check runs one point at a time. The check reads a rise only where
+# it exceeds COST_NOISE times the cost's spread between two realisations.
+REALISATIONS, REALISATIONS_ALONE, REALISE = 16, 8, 1e-9
+COST_NOISE = 2.0
 
 
 class _Fit(eqx.Module):
@@ -122,22 +130,30 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
 
 
-def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: float) -> np.ndarray:
-    """The linearised intervals checked against the residual itself: for each parameter $j$ the
-    cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the linearised profile path: the other parameters
-    at their conditional best, where the linearised cost rises by exactly $k^2 s^2$) for $k$ in
-    `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1 where the cost is quadratic out to there.
-    `(parameters, 2 sides, steps)`, NaN where a point would leave the bounds or the standard error
-    is not finite. Costed in batches of `batch` (the screen's: its compiled program), or where
-    no screen ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
-    assessment already: no program compiled for the check), against `cost`, the assessment's own
-    at `x` from that program (µrad²)."""
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: float, residual) -> tuple:
+    """The linearised intervals checked against the residual itself, and the model's own
+    realisations at `x` (`_model_noise`).
+
+    The check: for each parameter $j$ the cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the
+    linearised profile path: the other parameters at their conditional best, where the linearised
+    cost rises by exactly $k^2 s^2$) for $k$ in `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1
+    where the cost is quadratic out to there; NaN where a point would leave the bounds, the
+    standard error is not finite, or the rise $k^2 s^2$ is below `COST_NOISE` times the cost's
+    own spread over the model's realisations (the difference of two: a rise the model cannot
+    reproduce is not a measurement of the residual's shape).
+
+    Costed in batches of `batch` (the screen's: its compiled program), the realisations
+    (`_realisation_points`, at least `REALISATIONS`) filling the batch's rest, or where no screen
+    ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
+    assessment already: no program compiled for the check), `REALISATIONS_ALONE` of them, against
+    `cost` and `residual`, the assessment's own at `x` from that program (µrad², µrad).
+
+    Returns `(ratios (parameters, 2 sides, steps), realisations' x (k, p), their residuals (k, n))`."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
-    if not (math.isfinite(s2) and s2 > 0):  # a residual of exactly zero: no scale to check against
-        return ratio
     points, where = [x], []
-    for j in range(x.size):
+    checked = math.isfinite(s2) and s2 > 0  # a residual of exactly zero: no scale to check against
+    for j in range(x.size if checked else 0):
         if not (np.isfinite(se[j]) and se[j] > 0):
             continue
         for side, sign in enumerate((-1.0, 1.0)):
@@ -147,14 +163,59 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
                     points.append(point)
                     where.append((j, side, m, k))
     if batch is None:
-        costs = [cost] + [float(jnp.sum(_fit_and_jacobian(fit, jnp.asarray(p), width)[3] ** 2)) for p in points[1:]]
+        realised = _realisation_points(x, REALISATIONS_ALONE)
+        residuals = np.stack([np.asarray(residual)] + [np.asarray(_fit_and_jacobian(fit, jnp.asarray(p), width)[3])
+                                                       for p in (*points[1:], *realised)])
     else:
-        points = np.vstack(points + [x] * (-len(points) % batch))
-        costs = np.concatenate([np.asarray(_costs(fit, jnp.asarray(points[i:i + batch]), width))
-                                for i in range(0, len(points), batch)])
-    for (j, side, m, k), c in zip(where, costs[1:]):
-        ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
-    return ratio
+        k = max(REALISATIONS, -len(points) % batch)
+        realised = _realisation_points(x, k + -(len(points) + k) % batch)
+        table = np.vstack([*points, realised])
+        residuals = np.concatenate([np.asarray(_residuals(fit, jnp.asarray(table[i:i + batch]), width))
+                                    for i in range(0, len(table), batch)])
+        # x itself in this program: one more realisation beside the assessment's
+        realised, residuals = np.vstack([x[None], realised]), np.vstack([residuals[:len(points)], residuals[:1], residuals[len(points):]])
+    costs = np.sum(residuals**2, axis=1)
+    if batch is None:
+        costs[0] = cost  # the assessment's realisation, among the realisations' costs below
+    realisations = costs[len(points):] if batch else np.concatenate([costs[:1], costs[len(points):]])
+    spread = math.sqrt(2.0) * float(np.std(realisations, ddof=1))  # the cost's sd between two realisations
+    for (j, side, m, k), c in zip(where, costs[1:len(points)]):
+        if k * k * s2 >= COST_NOISE * spread:
+            ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
+    return ratio, realised, residuals[len(points):]
+
+
+def _realisation_points(x, k: int) -> np.ndarray:
+    """`k` points a relative `REALISE` from `x` in fixed pseudo-random directions: the model's
+    output moves by its linearisation there, ~1e-9 of a parameter's effect, unless the run does
+    not reproduce itself (`_model_noise`)."""
+    return x[None, :] * (1.0 + REALISE * np.random.default_rng(0).standard_normal((k, x.size)))
+
+
+def _model_noise(jac, x, residual, points, realised, cov_x, s2) -> tuple[np.ndarray, float]:
+    """The estimate's covariance from the model's own irreproducibility, and its size in the
+    residual (µrad RMS).
+
+    At `points` (`_realisation_points` about the estimate `x`, and where it was costed in
+    another program, `x` itself) the model's residuals `realised` differ from the assessment's
+    `residual` by their linearisation $J\\,\\delta x$ (~1e-9 of the parameters' effect) plus
+    whatever the run does not reproduce: through a rattling stage a perturbation at rounding
+    level changes which impacts happen where a contact grazes (a float-level difference
+    between two compiled programs of the same model does the same). Each such difference
+    $d_k$ moves the least-squares estimate by $\\Delta_k = -(J^TJ)^{-1}J^T d_k$; the recording is
+    one realisation and the fit another, so the estimate's error from them has the covariance
+    of the difference of two: $2\\,\\mathrm{Cov}_k(\\Delta_k)$ (over the $\\Delta_k$ and the
+    assessment's own, 0). A recording of the model itself is one such realisation; a real
+    unit's is not, and the model's error against the physics is not in this term. Zero to
+    rounding where the runs reproduce themselves (the lumped joint); `cov_x` is
+    $s^2 (J^TJ)^{-1}$ (`_information`). Realisations whose run failed (the residual's 1e6) are
+    left out."""
+    keep = np.all(np.abs(realised) < 1e5, axis=1)
+    d = realised[keep] - residual[None, :] - (points[keep] - x[None, :]) @ jac.T
+    if d.shape[0] < 2 or not np.all(np.isfinite(cov_x)):
+        return np.zeros_like(cov_x), 0.0
+    shifts = -(d @ jac) @ (cov_x / s2)
+    return 2.0 * np.atleast_2d(np.cov(np.vstack([np.zeros(x.size), shifts]), rowvar=False)), float(np.sqrt(np.mean(d**2)))
 
 
 def _unbounded(x, centre, reach):
@@ -163,9 +224,14 @@ def _unbounded(x, centre, reach):
 
 
 @eqx.filter_jit
-def _costs(fit: "_Fit", points, width):
-    """$\\lVert r\\rVert^2$ (µrad²) at each row of `points` (x), in one batched run."""
-    return eqx.filter_vmap(lambda v: jnp.sum(fit.residual(v, width) ** 2))(points)
+def _residuals(fit: "_Fit", points, width):
+    """The residual (µrad) at each row of `points` (x), in one batched run: `(rows, residuals)`."""
+    return eqx.filter_vmap(lambda v: fit.residual(v, width))(points)
+
+
+def _costs(fit: "_Fit", points, width) -> np.ndarray:
+    """$\\lVert r\\rVert^2$ (µrad²) at each row of `points` (x), in one batched run (`_residuals`)."""
+    return np.sum(np.asarray(_residuals(fit, points, width)) ** 2, axis=1)
 
 
 def _starts(fit, x0, width, starts, search: float):

@@ -21,11 +21,17 @@ clearances and drag make the residual non-convex (the best of a Sobol screen ove
 / (N - p)$ the residual variance, the Gauss-Newton covariance is $s^2 (J^TJ)^{+}$ and a 95 %
 interval $\\hat\\theta \\pm 1.96\\,\\sigma_\\theta$ (the linearised one: it holds where the residual is
 close to quadratic over the interval and the residuals are independent; `tests/test_identify.py`
-measures its coverage on synthetic recordings instead of assuming it). Each interval is checked
+measures its coverage on synthetic recordings instead of assuming it). Where the model does not
+reproduce its own run (through a rattling stage a rounding-level perturbation changes its
+impacts), the estimate moves with the run's realisation: the covariance adds the estimate's
+spread over the model's realisations at points $10^{-9}$ from it, twice (the recording is one
+realisation and the fit another: `fit._model_noise`; zero to rounding on the lumped joint).
+Each interval is checked
 against the residual itself along its profile path $\\hat\\theta \\pm k\\,\\Sigma e_j/\\sigma_j$ (the
 other parameters at their linearised conditional best), where the linearised cost rises by
 $k^2 s^2$: the measured rise over that at $k$ = 1.96, 10 and 100 (`Identification.profile`) is
-1 where the residual is quadratic; an interval whose ratio at 1.96 or 10 is off by more than
+1 where the residual is quadratic (read where that rise exceeds the cost's own spread over the
+model's realisations, `COST_NOISE` times); an interval whose ratio at 1.96 or 10 is off by more than
 `PROFILE_FACTOR` does not hold (`Identification.holds`, the status says so). The identifiability
 table is the eigen-decomposition of the relative Fisher information $D J^TJ D / s^2$
 ($D$ = the estimates): a direction whose relative standard error is below `DETERMINED` is
@@ -65,7 +71,7 @@ from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .fit import (BOUND, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
-                  _polish, _profile, _solve, _starts, _unbounded)
+                  _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
 from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
@@ -266,25 +272,27 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         scaled, (values, vectors), cov_x = _information(jac, x, s2)
         remaining = (np.linalg.pinv(scaled) @ r) @ vectors  # relative step, in the eigenvectors
         seen = 1.0 / np.sqrt(values) < DETERMINED
-        return x, fitted, r, s2, values, vectors, cov_x, np.abs(remaining[seen]) * np.sqrt(values[seen])
+        return x, fitted, r, s2, values, vectors, cov_x, np.abs(remaining[seen]) * np.sqrt(values[seen]), jac
 
     # Converged: the Gauss-Newton step left is below a tenth of each determined direction's
     # standard error (Levenberg-Marquardt's own criterion can fail on the adaptive solve's noise
     # in the cost). Where it is not, a Gauss-Newton polish; where that cannot lower the cost, the
     # estimate is at the cost's numerical floor, and within one standard error counts: the step
     # left is then the solve's noise in the Jacobian, not a distance to the minimum.
-    estimate_x, fitted, r, s2, values, vectors, cov_x, left = assess(z)
+    estimate_x, fitted, r, s2, values, vectors, cov_x, left, jac = assess(z)
     converged = bool(np.all(left <= 0.1))
     if not converged:
         polished, polished_cost = _polish(fit, jnp.asarray(z), widths[-1], centre, reach)
         if float(polished_cost) < cost:  # kept only where it lowers the cost
-            estimate_x, fitted, r, s2, values, vectors, cov_x, left = assess(polished)
+            estimate_x, fitted, r, s2, values, vectors, cov_x, left, jac = assess(polished)
             converged = bool(np.all(left <= 0.1))
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)))
-    lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles")
+    profile, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)), r)
+    model_cov, model_rms = _model_noise(jac, estimate_x, r, realised_x, realised, cov_x, s2)
+    lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles, "
+                  f"the model's own realisations ({len(realised)}: {model_rms:.2g} µrad rms apart)")
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
@@ -292,7 +300,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         "torque_measured": np.asarray(fit.torque_measured),
         "torque_fitted": np.asarray(fit.torque_measured) + r[measured.size:].reshape(-1, len(fit.torque_axes)) / float(fit.torque_weight)}
     return Identification(
-        names=parameters, units=units, estimate=estimate, covariance=cov_x * np.outer(scale, scale), sigma=math.sqrt(s2) * UNIT, n=n,
+        names=parameters, units=units, estimate=estimate, covariance=(cov_x + model_cov) * np.outer(scale, scale),
+        model_covariance=model_cov * np.outer(scale, scale), model_rms=model_rms * UNIT, sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,

@@ -23,6 +23,9 @@ PROFILE_FACTOR = 2.0
 # interval that narrow lies inside that error: its check along the profile fails on the solve's
 # noise. No encoder records that finely (a 24-bit one's rounding alone: 0.11 µrad RMS).
 RESOLVED = 0.1e-6
+# The table says how much of the intervals is the model's own irreproducibility where that
+# share of a variance exceeds this.
+MODEL_NOTED = 0.1
 
 
 def show(value: float, unit: str) -> str:
@@ -37,7 +40,11 @@ class Identification:
     """The result of `identify`.
 
     - `names`: the identified parameters, `units` their SI units ("m" for the clearances and
-      backlash); `estimate`, `covariance`, `standard_error` in those units.
+      backlash); `estimate`, `covariance`, `standard_error` in those units. The covariance is
+      the recording's noise's, $s^2 (J^TJ)^{-1}$, plus `model_covariance`: the estimate's spread
+      over the model's own realisations at the estimate (a run that does not reproduce itself at
+      rounding level, as a rattling stage's: `fit._model_noise`; ~0 where it does);
+      `model_rms` (rad): how far those realisations' outputs lie apart, RMS.
     - `sigma` (rad): the residual's standard deviation at the estimate, $s$, floored at
       `RESOLVED` (what the intervals are stated at; `residual_sd` is the residual's own); `n`
       residuals, `cost` $\\lVert r\\rVert^2$ (µrad²).
@@ -87,6 +94,8 @@ class Identification:
     jacobian: str = ""  # the residual's Jacobian, and why (`identify(secant=...)`)
     torque_measured: np.ndarray | None = dataclasses.field(repr=False, default=None)
     torque_fitted: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    model_covariance: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    model_rms: float = 0.0
 
     @property
     def residual_sd(self) -> float:
@@ -100,6 +109,13 @@ class Identification:
     @property
     def residual(self) -> np.ndarray:
         return self.fitted - self.measured
+
+    def model_share(self) -> np.ndarray:
+        """Per parameter: the share of its variance that is the model's own (`model_covariance`)."""
+        if self.model_covariance is None:
+            return np.zeros(len(self.names))
+        total = np.diag(self.covariance)
+        return np.where(total > 0, np.diag(self.model_covariance) / np.where(total > 0, total, 1.0), 0.0)
 
     def interval(self, level: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
         """Each parameter's linearised interval (its unit) at `level` (normal quantile)."""
@@ -229,6 +245,13 @@ class Identification:
                       f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
                       "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
                       "count that bias: the estimates can be off by more than they say."]
+        model = self.model_share()
+        if np.any(model > MODEL_NOTED):
+            notes += ["", f"The model does not reproduce its own run: at points 1e-9 from the estimate its output moves by "
+                      f"{1e6 * self.model_rms:.2g} µrad RMS (through a rattling stage a rounding-level change changes the "
+                      "impacts), and the estimate with it. The intervals include that spread: "
+                      + ", ".join(f"{n} {100 * m:.0f} %" for n, m in zip(self.names, model))
+                      + " of each variance is the model's, the rest the recording's noise."]
         rugged = [j for j, held in enumerate(self.holds()) if held is False]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
