@@ -113,12 +113,13 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
         identify(scene, slipped, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
     # A rough time is said before any work (the command line prints it): 20 steps of
     # SECANT_STEP_RUNS (central secants) or LM_STEP_RUNS (forward mode) x 2 runs, then the
-    # interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate);
-    # both, since the Jacobian is chosen after it (at the first start).
+    # interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate) and the
+    # model's realisations; both, since the Jacobian is chosen after it (at the first start).
+    from tolerax.identification.fit import REALISATIONS_ALONE
     from tolerax.identification.identify import LM_STEP_RUNS, SECANT_STEP_RUNS
 
     one = tx.eta.rough_wall(scene, 0.35)
-    secants, forward = (tx.eta.human_seconds((20 * 2 * k + 6 + 2) * one) for k in (SECANT_STEP_RUNS, LM_STEP_RUNS))
+    secants, forward = (tx.eta.human_seconds((20 * 2 * k + 6 + 2 + REALISATIONS_ALONE) * one) for k in (SECANT_STEP_RUNS, LM_STEP_RUNS))
     assert said == ["identify: Levenberg-Marquardt from 1 given start(s) at 1 smoothing width(s), at most 20 steps each, then "
                     f"the intervals checked: roughly {secants} on one core on central secants, {forward} with forward mode's "
                     "Jacobian (chosen at the first start) plus compilation"], said

@@ -70,7 +70,7 @@ import numpy as np
 from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
-from .fit import (BOUND, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
+from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
                   _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
@@ -189,7 +189,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         # Levenberg-Marquardt steps, each LM_STEP_RUNS runs per parameter and one more (a
         # forward-mode Jacobian through the adaptive solve, which optimistix's linearisation runs
         # again for each product), then the intervals' check (each parameter's profile path at
-        # PROFILE_STEPS both sides), at rough_wall's pace: an order of magnitude, not a bound.
+        # PROFILE_STEPS both sides, and the model's realisations where no screen's batch holds
+        # them), at rough_wall's pace: an order of magnitude, not a bound.
         # A step on central secants instead: SECANT_STEP_RUNS runs per (parameter + 1). Where the
         # Jacobian is chosen (secant=None) both are said: the choice is made at the first start.
         one = rough_wall(scene, duration, objective.integrator)
@@ -198,7 +199,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         p = len(parameters)
 
         def rough(step_runs, n_widths):
-            runs = screen + kept * n_widths * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1
+            realisations = 0 if screen else REALISATIONS_ALONE  # else in the check's batch (`_profile`)
+            runs = screen + kept * n_widths * int(lm_steps) * (p + 1) * step_runs + 2 * p * len(PROFILE_STEPS) + p + 1 + realisations
             return human_seconds(max(runs * one, 1.0))
 
         # The widths each Jacobian would run through (`_continuation`: the choice comes later).
