@@ -578,6 +578,23 @@ def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
         _choose_jacobian(fit, x, 0.0, 2.0)
 
 
+def test_a_misfit_is_screened_again_along_each_parameter_s_line():
+    """Where the best fit from the screen's starts misses the recording, `identify` screens each
+    parameter along its line through that fit (`_lines`): as many points as the screen, log-spaced
+    over the screen's box, the other parameters held at the fit. (That it finds the full-stage
+    dual's pitch basin the 2-D screen misses: benchmarks/identify_full_stage.py --dual --spread.)"""
+    from tolerax.identification.identify import _lines
+
+    x, x0 = np.array([67.0, 190.0]), np.array([100.0, 100.0])
+    points = _lines(x, x0, 2.0, 65)
+    assert points.shape == (130, 2)
+    np.testing.assert_allclose(points[:65, 1], 190.0) and np.testing.assert_allclose(points[65:, 0], 67.0)
+    for j in range(2):
+        line = points[65 * j:65 * (j + 1), j]
+        np.testing.assert_allclose(line[[0, 32, 64]], [50.0, 100.0, 200.0])
+        np.testing.assert_allclose(np.diff(np.log(line)), math.log(4.0) / 64)
+
+
 def test_levenberg_marquardt_starts_on_the_residual_s_own_scale():
     r"""`_solve`'s Levenberg-Marquardt takes Marquardt's first damping, a fraction of the
     largest diagonal of $J^TJ$ at the start (`fit._LevenbergMarquardt`): the same closed-form fit

@@ -71,10 +71,10 @@ from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
-                  _model_noise, _polish, _profile, _solve, _starts, _unbounded)
+                  _costs, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
-from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
+from .result import DETERMINED, MISFIT, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 # Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
 # one more, for the rough time said before the work: timed on the lumped azimuth scan with one
@@ -133,7 +133,12 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       each does not. The fit of a clearance or a drag is not convex: from a start 40 % off it
       can stop in another basin with a residual many times the noise (the full stage's pitch
       backlash: a plateau at larger backlash, its residual above the noise, beside the truth's
-      narrow basin). Or a tuple: the starts, as
+      narrow basin). Where the best fit from them misses the recording (its residual over
+      `MISFIT` times the stated noise) and several parameters are identified, each is screened
+      again along its own line through that fit (`_lines`: as many points, the others held) and
+      Levenberg-Marquardt runs from the lowest point where it is below the fit: a screen in p
+      dimensions lies ~its p-th root of points apart in each, too coarse for a basin a few per
+      cent wide. Or a tuple: the starts, as
       multiples of the scene's values. Every parameter is kept within a factor `BOUND` (100)
       of the scene's value either side: an estimate at that bound is one the recording does not
       determine (the table says so).
@@ -247,8 +252,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # scene's (its reach ~0 about it): the wide smoothing adds a compliance of its own, which a
     # stiffness would absorb and run to its bound. It is released at the scene's width.
     physical = np.array([u != "m" for u in units])
+    n_residuals = measured.size + (0 if fit.torque_measured is None else int(np.size(fit.torque_measured)))
     tried = []
-    for xs in x_starts:
+
+    def fit_from(xs, label):
+        """Levenberg-Marquardt from `xs` through the widths: `(cost, z, steps)`."""
         free = _unbounded(xs, centre, reach)
         held_centre, held_reach = np.where(physical, np.log(xs), centre), np.where(physical, 1e-9, reach)
         z = free if len(widths) == 1 else np.where(physical, 0.0, free)  # held: 0 about the start
@@ -258,9 +266,33 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 z = np.where(physical, free, np.asarray(z))
             z, cost, steps, _ = _solve(fit, jnp.asarray(z), width, int(lm_steps), *(jnp.asarray(v) for v in (
                 (centre, reach) if last else (held_centre, held_reach))))
-            lap("fit", f"start {len(tried) + 1} of {len(x_starts)}, width {1e6 * float(width):.3g} µm: {int(steps)} steps, "
+            lap("fit", f"{label}, width {1e6 * float(width):.3g} µm: {int(steps)} steps, "
                        f"residual {math.sqrt(float(cost) / measured.size):.3g} µrad rms")
-        tried.append((float(cost), z, int(steps)))
+        return float(cost), z, int(steps)
+
+    for xs in x_starts:
+        tried.append(fit_from(xs, f"start {len(tried) + 1} of {len(x_starts)}"))
+    # A misfit after the screen's starts, with several parameters: the screen's points lie too far
+    # apart in each parameter to find a basin a few per cent wide (the full-stage dual's pitch
+    # backlash: a dip ~10 µm wide below a plateau at larger backlash, whose points the screen
+    # finds instead), so each parameter is screened again along its own line through the best fit,
+    # the others held, at the screen's number of points (its compiled batch), and
+    # Levenberg-Marquardt runs from the lowest of them where it is below the fit.
+    line_screened = 0
+    best = min(tried, key=lambda t: t[0])
+    misfit = recording.noise is not None and math.sqrt(best[0] / max(n_residuals - len(parameters), 1)) > (
+        MISFIT * recording.noise / UNIT)
+    if screened and len(parameters) > 1 and misfit:
+        x_best = np.asarray(_bounded(jnp.asarray(best[1]), jnp.asarray(centre), jnp.asarray(reach)))
+        points = _lines(x_best, x0, search, screened)
+        costs = np.concatenate([_costs(fit, jnp.asarray(points[i:i + screened]), final) for i in range(0, len(points), screened)])
+        costs = np.where(np.isfinite(costs), costs, np.inf)
+        line_screened = len(points)
+        lap("screen", f"the fit's residual is {math.sqrt(best[0] / n_residuals) / (recording.noise / UNIT):.2g}x the noise: "
+                      f"{line_screened} points costed along each parameter through it, the lowest "
+                      f"{'below' if costs.min() < best[0] else 'not below'} the fit")
+        if costs.min() < best[0]:
+            tried.append(fit_from(points[int(np.argmin(costs))], "from the lines' lowest point"))
     cost, z, steps = min(tried, key=lambda t: t[0])
     centre, reach = jnp.asarray(centre), jnp.asarray(reach)
 
@@ -305,7 +337,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         names=parameters, units=units, estimate=estimate, covariance=(cov_x + model_cov) * np.outer(scale, scale),
         model_covariance=model_cov * np.outer(scale, scale), model_rms=model_rms * UNIT, sigma=math.sqrt(s2) * UNIT, n=n,
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
-        steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, noise=recording.noise,
+        steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, line_screened=line_screened,
+        noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,
     )
 
@@ -349,6 +382,13 @@ def _continuation(given, fit: _Fit, final) -> list:
     if given is not None:
         return given
     return [jnp.asarray(WIDE, dtype=float), final] if fit.secant is None else [final]
+
+
+def _lines(x, x0, search: float, k: int) -> np.ndarray:
+    """`k` points along each parameter's line through `x` (the others held), log-spaced over the
+    screen's box $[x_0/s, s\\,x_0]$: `(p k, p)`."""
+    grid = x0[None, :] * search ** np.linspace(-1.0, 1.0, k)[:, None]
+    return np.vstack([np.where(np.arange(x.size)[None, :] == j, grid, x[None, :]) for j in range(x.size)])
 
 
 def own_width(scene) -> jax.Array:

@@ -54,7 +54,9 @@ class Identification:
       the Gauss-Newton step left from the estimate is below a tenth of each standard error (or
       below one where a Gauss-Newton polish could not lower the cost: the solve's own noise);
       `starts`: each start's final cost (µrad²); `screened`: the points the starts were chosen
-      from (0: the starts were given). `noise` (rad): the recording's stated noise, or None.
+      from (0: the starts were given); `line_screened`: the points costed along each parameter's
+      line through the best fit where it missed the recording (0: none), the last start from
+      their lowest. `noise` (rad): the recording's stated noise, or None.
     - `wall` (s): where the call's wall time went, by phase: `"check"` (the recording's command
       against the scene's), `"screen"` (the starts' costs), `"fit"` (Levenberg-Marquardt from each
       start through each width), `"assess"` (the Jacobian at the estimate, the covariance, the
@@ -96,6 +98,7 @@ class Identification:
     torque_fitted: np.ndarray | None = dataclasses.field(repr=False, default=None)
     model_covariance: np.ndarray | None = dataclasses.field(repr=False, default=None)
     model_rms: float = 0.0
+    line_screened: int = 0
 
     @property
     def residual_sd(self) -> float:
@@ -236,7 +239,9 @@ class Identification:
                   if below else f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; ")
                  + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
                  f"after {self.steps} steps "
-                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened)." if self.screened else ").")
+                 f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened" + (f", the last from {self.line_screened} along each parameter's "
+                                                                   "line through the best fit" if self.line_screened else "")
+                    + ")." if self.screened else ").")
                  + (f" The residual's Jacobian: {self.jacobian}." if self.jacobian else ""), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
         misfit = bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))  # not below what the model resolves
