@@ -15,7 +15,8 @@ parameters are optimised as $\\log(\\theta / 1\\,\\mu m)$ (a clearance or backla
 $\\log(\\theta / \\theta_{\\text{scene}})$ (a physical parameter), so they stay positive; the contacts' smoothing
 width is continued from wide to narrow (`widths`; on central secants the scene's own alone), and several starts are run because
 clearances and drag make the residual non-convex (the best of a Sobol screen over the prior box,
-`starts`, `search`); the lowest residual wins.
+`starts`, `search`; where the best of them misses the recording with several parameters, each
+again along its own line through it); the lowest residual wins.
 
 **How well.** At the estimate, with $J = \\partial r/\\partial\\theta$ and $s^2 = \\lVert r \\rVert^2
 / (N - p)$ the residual variance, the Gauss-Newton covariance is $s^2 (J^TJ)^{+}$ and a 95 %
@@ -74,7 +75,7 @@ from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bo
                   _costs, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
-from .result import DETERMINED, MISFIT, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
+from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 # Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
 # one more, for the rough time said before the work: timed on the lumped azimuth scan with one
@@ -87,6 +88,12 @@ SECANT_STEP_RUNS = 2
 # The default screen (`identify(starts=None)`): SCREEN Sobol points for one parameter, doubled
 # for each further one (a power of 2 keeps the sequence balanced), at most SCREEN_MAX.
 SCREEN, SCREEN_MAX = 32, 256
+# Where the best fit from the screen's starts misses the recording by more than this many standard
+# deviations of its residual variance (a chi-square's, sqrt(2 / dof) relative), each parameter is
+# screened again along its line through it (`identify(starts=...)`): a residual at the noise is
+# below it with a probability of 0.999, while a wrong basin's sits above the noise by more than
+# the model's own misfit.
+LINE_CHI = 3.0
 # The wide smoothing width (m) of the default continuation (`_continuation`).
 WIDE = 1e-6
 COMMAND_TOLERANCE = 20e-6  # rad: a recording's commanded angle may differ this much (or 1 % of its range) from the scene's
@@ -133,8 +140,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       each does not. The fit of a clearance or a drag is not convex: from a start 40 % off it
       can stop in another basin with a residual many times the noise (the full stage's pitch
       backlash: a plateau at larger backlash, its residual above the noise, beside the truth's
-      narrow basin). Where the best fit from them misses the recording (its residual over
-      `MISFIT` times the stated noise) and several parameters are identified, each is screened
+      narrow basin). Where the best fit from them misses the recording (its residual variance
+      over the stated noise's by more than `LINE_CHI` of its standard deviations) and several
+      parameters are identified, each is screened
       again along its own line through that fit (`_lines`: as many points, the others held) and
       Levenberg-Marquardt runs from the lowest point where it is below the fit: a screen in p
       dimensions lies ~its p-th root of points apart in each, too coarse for a basin a few per
@@ -272,7 +280,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
 
     for xs in x_starts:
         tried.append(fit_from(xs, f"start {len(tried) + 1} of {len(x_starts)}"))
-    # A misfit after the screen's starts, with several parameters: the screen's points lie too far
+    # A misfit after the screen's starts (the residual's variance over the stated noise's by more
+    # than LINE_CHI of its own standard deviations, sqrt(2 / dof) of it: the wrong basin, where
+    # the truth's leaves the noise alone), with several parameters: the screen's points lie too far
     # apart in each parameter to find a basin a few per cent wide (the full-stage dual's pitch
     # backlash: a dip ~10 µm wide below a plateau at larger backlash, whose points the screen
     # finds instead), so each parameter is screened again along its own line through the best fit,
@@ -280,8 +290,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # Levenberg-Marquardt runs from the lowest of them where it is below the fit.
     line_screened = 0
     best = min(tried, key=lambda t: t[0])
-    misfit = recording.noise is not None and math.sqrt(best[0] / max(n_residuals - len(parameters), 1)) > (
-        MISFIT * recording.noise / UNIT)
+    dof = max(n_residuals - len(parameters), 1)
+    misfit = recording.noise is not None and best[0] / dof > (recording.noise / UNIT) ** 2 * (1 + LINE_CHI * math.sqrt(2 / dof))
     if screened and len(parameters) > 1 and misfit:
         x_best = np.asarray(_bounded(jnp.asarray(best[1]), jnp.asarray(centre), jnp.asarray(reach)))
         points = _lines(x_best, x0, search, screened)
