@@ -93,7 +93,7 @@ def main(argv=None) -> int:
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
                          jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened),
                          bits=args.bits, profile=np.asarray(got.profile).tolist(), model_share=got.model_share().tolist(),
-                         model_rms=1e6 * got.model_rms, spread=args.spread))
+                         model_rms=1e6 * got.model_rms, spread=args.spread, nominal=list(nominal)))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
@@ -103,11 +103,11 @@ def main(argv=None) -> int:
 
 def _write(rows, args) -> int:
     sigma = math.hypot(NOISE, 2 * math.pi / 2 ** rows[0].get("bits", 20) / math.sqrt(12))
-    names, truths, dual = rows[0]["names"], rows[0]["truth"], rows[0]["dual"]
+    names, truths, dual = rows[0]["names"], rows[0].get("nominal", rows[0]["truth"]), rows[0]["dual"]
+    spread = max(r.get("spread", 0.0) for r in rows)  # > 0: each recording's unit drawn (--spread)
     default = [r for r in rows if r["asked"] == "default"]
     commit = ", ".join(sorted({r["commit"] for r in rows if "commit" in r})) or subprocess.run(  # the runs' own, else the merge's
         ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
-    spread = max(r.get("spread", 0.0) for r in rows)  # > 0: each recording's unit drawn (--spread)
     cells = lambda r, j: ((f"{r['truth'][j]:.3f} | " if spread else "")  # noqa: E731
                           + f"{r['estimate'][j]:.3f} | {r['lo'][j]:.3f} – {r['hi'][j]:.3f} | {'yes' if r['hit'][j] else 'NO'} | "
                           f"{r['holds'][j]} | {r['status'][j]}" + (f" | {100 * r['model_share'][j]:.0f}" if "model_share" in r else " | –"))
@@ -131,6 +131,7 @@ def _write(rows, args) -> int:
     unit = ("Dual scan, both joints at full planetary fidelity, recorded by both encoders" if dual else
             "Azimuth scan at full planetary fidelity")
     backlash = (f"ring backlash {truths[0]:g} µm (azimuth) and {truths[1]:g} µm (pitch)" if dual else f"ring backlash {truths[0]:g} µm")
+    backlash += f", each recording's unit drawn uniformly within ±{spread:g} µm of those" if spread else ""
     text = "\n".join([
         "# Identifying the full planetary stage with the full stage" + (": the dual axis" if dual else ""), "",
         f"`python benchmarks/identify_full_stage.py{' --dual' if dual else ''}` over {len(default)} recordings (seeds "
