@@ -588,7 +588,8 @@ def test_a_misfit_is_screened_again_along_each_parameter_s_line():
     x, x0 = np.array([67.0, 190.0]), np.array([100.0, 100.0])
     points = _lines(x, x0, 2.0, 65)
     assert points.shape == (130, 2)
-    np.testing.assert_allclose(points[:65, 1], 190.0) and np.testing.assert_allclose(points[65:, 0], 67.0)
+    np.testing.assert_allclose(points[:65, 1], 190.0)
+    np.testing.assert_allclose(points[65:, 0], 67.0)
     for j in range(2):
         line = points[65 * j:65 * (j + 1), j]
         np.testing.assert_allclose(line[[0, 32, 64]], [50.0, 100.0, 200.0])
@@ -687,7 +688,7 @@ def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
                               for p in phases])
         reference = 2.0 * np.cov(estimates, rowvar=False)
         np.testing.assert_allclose(reference, amplitude**2 * np.linalg.inv(A.T @ A), rtol=0.2, atol=0.2 * np.max(np.abs(reference)))
-        assert rms == pytest.approx(amplitude, rel=0.25)  # two realisations apart: a sqrt(2) sin's rms
+        assert rms == pytest.approx(amplitude, rel=0.25)  # two realisations apart: sqrt(2) x a sine's a / sqrt(2)
         # From the batch's rest (53 realisations) a variance is off by ~0.2 of itself (1 sd; this
         # seed's: 1.5x and 1.75x the reference); the same function over 2000 realisations is the
         # comparison that can tell a factor of 2.
