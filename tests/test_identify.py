@@ -676,7 +676,7 @@ def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
         r = np.asarray(fit.residual(jnp.asarray(x), 0.0))
         s2 = float(np.sum(r**2)) / (r.size - 2)
         _, _, cov_x = _information(A, x, s2)
-        profile, points, realised = _profile(fit, x, x0, cov_x, s2, 0.0, 65, float(np.sum(r**2)), r)
+        profile, points, realised = _profile(fit, x, x0, cov_x, s2, 0.0, 65, r)
         assert len(points) == 65 - 13 + 1  # the batch's rest after the check's 13 points, and x in the batch's program
         model, rms = _model_noise(A, x, r, points, realised, cov_x, s2)
         if amplitude == 0.0:

@@ -130,7 +130,7 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
 
 
-def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: float, residual) -> tuple:
+def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) -> tuple:
     """The linearised intervals checked against the residual itself, and the model's own
     realisations at `x` (`_model_noise`).
 
@@ -146,7 +146,7 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
     (`_realisation_points`, at least `REALISATIONS`) filling the batch's rest, or where no screen
     ran (`batch` None) one point at a time through `_fit_and_jacobian` (compiled for the
     assessment already: no program compiled for the check), `REALISATIONS_ALONE` of them, against
-    `cost` and `residual`, the assessment's own at `x` from that program (µrad², µrad).
+    `residual`, the assessment's own at `x` from that program (µrad).
 
     Returns `(ratios (parameters, 2 sides, steps), realisations' x (k, p), their residuals (k, n))`."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
@@ -170,19 +170,16 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, cost: floa
         k = max(REALISATIONS, -len(points) % batch)
         realised = _realisation_points(x, k + -(len(points) + k) % batch)
         table = np.vstack([*points, realised])
-        residuals = np.concatenate([np.asarray(_residuals(fit, jnp.asarray(table[i:i + batch]), width))
-                                    for i in range(0, len(table), batch)])
-        # x itself in this program: one more realisation beside the assessment's
-        realised, residuals = np.vstack([x[None], realised]), np.vstack([residuals[:len(points)], residuals[:1], residuals[len(points):]])
-    costs = np.sum(residuals**2, axis=1)
-    if batch is None:
-        costs[0] = cost  # the assessment's realisation, among the realisations' costs below
-    realisations = costs[len(points):] if batch else np.concatenate([costs[:1], costs[len(points):]])
-    spread = math.sqrt(2.0) * float(np.std(realisations, ddof=1))  # the cost's sd between two realisations
+        residuals = _in_batches(fit, table, width, batch)
+    costs = np.sum(residuals**2, axis=1)  # [0]: x's, the assessment's own (batch None) or in the batch's program
+    spread = math.sqrt(2.0) * float(np.std(np.concatenate([costs[:1], costs[len(points):]]), ddof=1))  # between two realisations
     for (j, side, m, k), c in zip(where, costs[1:len(points)]):
         if k * k * s2 >= COST_NOISE * spread:
             ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
-    return ratio, realised, residuals[len(points):]
+    if batch is None:  # x's residual is the assessment's own: its step is the 0 `_model_noise` counts
+        return ratio, realised, residuals[len(points):]
+    # x in the batch's program: one more realisation beside the assessment's
+    return ratio, np.vstack([x[None], realised]), np.vstack([residuals[:1], residuals[len(points):]])
 
 
 def _realisation_points(x, k: int) -> np.ndarray:
@@ -227,6 +224,12 @@ def _unbounded(x, centre, reach):
 def _residuals(fit: "_Fit", points, width):
     """The residual (µrad) at each row of `points` (x), in one batched run: `(rows, residuals)`."""
     return eqx.filter_vmap(lambda v: fit.residual(v, width))(points)
+
+
+def _in_batches(fit: "_Fit", points, width, batch: int) -> np.ndarray:
+    """`_residuals` at the rows of `points`, `batch` at a time (a whole number of batches: the
+    screen's compiled program each time)."""
+    return np.concatenate([np.asarray(_residuals(fit, jnp.asarray(points[i:i + batch]), width)) for i in range(0, len(points), batch)])
 
 
 def _costs(fit: "_Fit", points, width) -> np.ndarray:

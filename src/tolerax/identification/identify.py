@@ -72,7 +72,7 @@ from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
-                  _costs, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
+                  _in_batches, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
 from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
@@ -284,8 +284,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # than LINE_CHI of its own standard deviations, sqrt(2 / dof) of it: the wrong basin, where
     # the truth's leaves the noise alone), with several parameters: the screen's points lie too far
     # apart in each parameter to find a basin a few per cent wide (the full-stage dual's pitch
-    # backlash: a dip ~10 µm wide below a plateau at larger backlash, whose points the screen
-    # finds instead), so each parameter is screened again along its own line through the best fit,
+    # backlash: a narrow dip below a plateau at larger backlash, whose points the screen finds
+    # instead), so each parameter is screened again along its own line through the best fit,
     # the others held, at the screen's number of points (its compiled batch), and
     # Levenberg-Marquardt runs from the lowest of them where it is below the fit.
     line_screened = 0
@@ -295,7 +295,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     if screened and len(parameters) > 1 and misfit:
         x_best = np.asarray(_bounded(jnp.asarray(best[1]), jnp.asarray(centre), jnp.asarray(reach)))
         points = _lines(x_best, x0, search, screened)
-        costs = np.concatenate([_costs(fit, jnp.asarray(points[i:i + screened]), final) for i in range(0, len(points), screened)])
+        costs = np.sum(_in_batches(fit, points, final, screened) ** 2, axis=1)
         costs = np.where(np.isfinite(costs), costs, np.inf)
         line_screened = len(points)
         lap("screen", f"the fit's residual is {math.sqrt(best[0] / n_residuals) / (recording.noise / UNIT):.2g}x the noise: "
@@ -333,7 +333,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, float(np.sum(r**2)), r)
+    profile, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, r)
     model_cov, model_rms = _model_noise(jac, estimate_x, r, realised_x, realised, cov_x, s2)
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles, "
                   f"the model's own realisations ({len(realised)}: {model_rms:.2g} µrad rms apart)")
