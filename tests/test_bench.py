@@ -56,7 +56,7 @@ def test_bench_runs_at_paper_speed(bench_run):
 def start_up_reference():
     """The bench's start-up (0.2 s from rest, before the planets land on their pins) at rtol
     1e-10: the reference of the controller and solver tests."""
-    return tx.simulate(tx.TestBench(), 0.2, n_save=N_SAVE, rtol=1e-10, atol=1e-13)
+    return tx.simulate(tx.TestBench(), 0.2, n_save=N_SAVE, integrator=tx.Integrator(rtol=1e-10, atol=1e-13))
 
 
 def test_pi_step_controller_rejects_fewer_steps_same_answer(start_up_reference):
@@ -66,8 +66,8 @@ def test_pi_step_controller_rejects_fewer_steps_same_answer(start_up_reference):
     # transmission error (the error control's own scale at rtol 1e-6 over a ~3e-3 rad signal).
     bench = tx.TestBench()
     plain = tx.simulate(bench, 0.2, n_save=N_SAVE)
-    pi = tx.simulate(bench, 0.2, n_save=N_SAVE, pcoeff=0.3, icoeff=0.3)
-    explicit = tx.simulate(bench, 0.2, n_save=N_SAVE, pcoeff=0.0, icoeff=1.0)  # the default is diffrax's I-controller
+    pi = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator(pcoeff=0.3, icoeff=0.3))
+    explicit = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator(pcoeff=0.0, icoeff=1.0))  # diffrax's I-controller
     assert (int(plain.num_steps), int(plain.num_rejected)) == (int(explicit.num_steps), int(explicit.num_rejected))
     ref = start_up_reference
     assert int(pi.num_rejected) < 0.5 * int(plain.num_rejected)
@@ -75,9 +75,9 @@ def test_pi_step_controller_rejects_fewer_steps_same_answer(start_up_reference):
         te = np.abs(np.asarray(res.transmission_error) - np.asarray(ref.transmission_error)).max()
         assert te < 1e-10, te
     with pytest.raises(ValueError, match="icoeff must be .* > 0"):
-        tx.simulate(bench, 1e-3, icoeff=0.0)
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(icoeff=0.0))
     with pytest.raises(ValueError, match="pcoeff must be .* >= 0"):
-        tx.simulate(bench, 1e-3, pcoeff=float("nan"))
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(pcoeff=float("nan")))
 
 
 def test_solver_by_name_same_run_and_bosh3_within_its_tolerance(start_up_reference):
@@ -86,13 +86,18 @@ def test_solver_by_name_same_run_and_bosh3_within_its_tolerance(start_up_referen
     # of transmission error (measured; Tsit5 at rtol 1e-6: 8e-12). The bound, 1e-8 rad, is 30x
     # below rtol times the ~3.4e-3 rad signal (3.4e-7): a check of the solver, not of rtol.
     bench = tx.TestBench()
-    named = tx.simulate(bench, 0.2, n_save=N_SAVE, solver="Bosh3", rtol=1e-4, atol=1e-7)
-    given = tx.simulate(bench, 0.2, n_save=N_SAVE, solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7)
+    named = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator(solver="Bosh3", rtol=1e-4, atol=1e-7))
+    given = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator(solver=diffrax.Bosh3(), rtol=1e-4, atol=1e-7))
     assert int(named.num_steps) == int(given.num_steps)
     np.testing.assert_array_equal(np.asarray(named.transmission_error), np.asarray(given.transmission_error))
     # The same settings as one value (`tx.Integrator`): the same run, bitwise (one program).
     held = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator("Bosh3", rtol=1e-4, atol=1e-7))
     np.testing.assert_array_equal(np.asarray(held.transmission_error), np.asarray(named.transmission_error))
+    # The settings one by one (deprecated for a release): the same run, with a warning naming the value.
+    with pytest.warns(DeprecationWarning, match=r"pass integrator=tolerax.solve.ACCURATE.replace\(solver='Bosh3', rtol=0.0001"):
+        legacy = tx.simulate(bench, 0.2, n_save=N_SAVE, solver="Bosh3", rtol=1e-4, atol=1e-7)
+    np.testing.assert_array_equal(np.asarray(legacy.transmission_error), np.asarray(named.transmission_error))
+    assert legacy.integrated_with == held.integrated_with
     with pytest.raises(ValueError, match="give rtol in the integrator"):
         tx.simulate(bench, 0.2, integrator=tx.Integrator("Bosh3"), rtol=1e-4)
     ref = start_up_reference
@@ -100,30 +105,30 @@ def test_solver_by_name_same_run_and_bosh3_within_its_tolerance(start_up_referen
     assert te < 1e-8, te
     # SRK53 (tolerax's own tableau, fitted to the planetary stage's damped modes) by name, on the
     # same scene and bound: measured 8.2e-10 rad (Bosh3 1.4e-9), in 797 steps (Bosh3 926).
-    srk = tx.simulate(bench, 0.2, n_save=N_SAVE, solver="SRK53", rtol=1e-4, atol=1e-7)
+    srk = tx.simulate(bench, 0.2, n_save=N_SAVE, integrator=tx.Integrator(solver="SRK53", rtol=1e-4, atol=1e-7))
     te = np.abs(np.asarray(srk.transmission_error) - np.asarray(ref.transmission_error)).max()
     assert te < 1e-8, te
     with pytest.raises(ValueError, match=r"solver 'RK4' is unknown; use one of \['Bosh3', 'Dopri5', 'Dopri8', 'SRK53', 'Tsit5'\]"):
-        tx.simulate(bench, 1e-3, solver="RK4")
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(solver="RK4"))
     with pytest.raises(TypeError, match="solver must be a name"):
-        tx.simulate(bench, 1e-3, solver=3)
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(solver=3))
 
 
 def test_failure_is_reported_not_hidden():
     bench = tx.TestBench()
-    res = tx.simulate(bench, 0.05, n_save=N_SAVE, max_steps=50, throw=False)
+    res = tx.simulate(bench, 0.05, n_save=N_SAVE, throw=False, integrator=tx.Integrator(max_steps=50))
     assert not res.success
     assert res.result == diffrax.RESULTS.max_steps_reached
     # t_reached is where the solver stopped: the same 50-step budget reaches it (the step
     # sequence is the same up to there), and does not reach 20 % further.
     t = float(res.t_reached)
     assert 0 < t < 0.05
-    assert tx.simulate(bench, t, n_save=N_SAVE, max_steps=50, throw=False).success
-    assert not tx.simulate(bench, 1.2 * t, n_save=N_SAVE, max_steps=50, throw=False).success
+    assert tx.simulate(bench, t, n_save=N_SAVE, throw=False, integrator=tx.Integrator(max_steps=50)).success
+    assert not tx.simulate(bench, 1.2 * t, n_save=N_SAVE, throw=False, integrator=tx.Integrator(max_steps=50)).success
     (line,) = res.failures()
     assert "max_steps_reached" in line and f"t = {t:.6g} s of 0.05 s" in line and "max_steps" in line
     with pytest.raises(tx.SimulationError, match=r"failed \(max_steps_reached\) at t = "):
-        tx.simulate(bench, 0.05, n_save=N_SAVE, max_steps=50)
+        tx.simulate(bench, 0.05, n_save=N_SAVE, integrator=tx.Integrator(max_steps=50))
 
 
 def test_fixed_step_beyond_stability_is_a_failure_not_nan():
@@ -132,19 +137,19 @@ def test_fixed_step_beyond_stability_is_a_failure_not_nan():
     # diffrax, taking constant steps, has no error estimate to refuse them. That must come back
     # as a failure, not as numbers.
     bench = tx.TestBench()
-    res = tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=1e-4, throw=False)
+    res = tx.simulate(bench, 0.02, n_save=N_SAVE, throw=False, integrator=tx.Integrator(fixed_step=1e-4))
     assert not res.success
     assert res.result == diffrax.RESULTS.nonfinite
     with pytest.raises(tx.SimulationError, match="smaller step"):
-        tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=1e-4)
+        tx.simulate(bench, 0.02, n_save=N_SAVE, integrator=tx.Integrator(fixed_step=1e-4))
     # Inside the limit the fixed step agrees with the adaptive solution (no contact yet in the
     # first 20 ms from rest, so both are smooth; 5th-order steps of 20 us: error far below 1e-9).
-    fixed = tx.simulate(bench, 0.02, n_save=N_SAVE, fixed_step=2e-5)
-    adaptive = tx.simulate(bench, 0.02, n_save=N_SAVE, rtol=1e-10, atol=1e-13)
+    fixed = tx.simulate(bench, 0.02, n_save=N_SAVE, integrator=tx.Integrator(fixed_step=2e-5))
+    adaptive = tx.simulate(bench, 0.02, n_save=N_SAVE, integrator=tx.Integrator(rtol=1e-10, atol=1e-13))
     assert fixed.success and int(fixed.num_steps) == 1000
     np.testing.assert_allclose(np.asarray(fixed.output_angle), np.asarray(adaptive.output_angle), rtol=0, atol=1e-9)
     with pytest.raises(ValueError, match="fixed_step"):
-        tx.simulate(bench, 0.02, fixed_step=-1e-4)
+        tx.simulate(bench, 0.02, integrator=tx.Integrator(fixed_step=-1e-4))
 
 
 def test_bad_duration_rejected():

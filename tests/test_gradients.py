@@ -283,10 +283,8 @@ class _Bench:
         self.probe = lambda p: observe(p)[1:]
 
     def run(self, p, adjoint=None):
-        return tx.simulate(
-            tx.with_design(self.bench, p), BENCH_HORIZON, n_save=41, rtol=RTOL, atol=ATOL, max_steps=400_000,
-            throw=False, adjoint=adjoint,
-        )
+        return tx.simulate(tx.with_design(self.bench, p), BENCH_HORIZON, n_save=41, throw=False, adjoint=adjoint,
+                           integrator=tx.Integrator(rtol=RTOL, atol=ATOL, max_steps=400_000))
 
     def rms(self, p, adjoint=None):
         return jnp.sqrt(jnp.mean((self.run(p, adjoint).output_angle_error / tx.ARCSEC) ** 2))

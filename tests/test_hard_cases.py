@@ -273,7 +273,7 @@ def _long_horizon(duration):
     # over the run the output turns by 0.98 duration degrees; momentum must not drift and the
     # output must keep tracking (no secular growth of the error).
     mech = tx.antenna("azimuth", fidelity=("lumped", "ideal"))
-    res = tx.simulate(mech, duration, n_save=201, start="steady", rtol=1e-8, atol=1e-11, throw=False)
+    res = tx.simulate(mech, duration, n_save=201, start="steady", throw=False, integrator=tx.Integrator(rtol=1e-8, atol=1e-11))
     assert res.success, res.report()
     lin = np.asarray(res.momentum)
     ang = np.asarray(res.angular_momentum)

@@ -175,12 +175,18 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     res = tx.simulate(tx.TestBench(), 0.002, n_save=51)
     assert res.integrated_with.startswith("Tsit5, rtol 1e-06") and "chosen automatically" in res.integrated_with
     assert "Integrated with Tsit5" in res.report()
-    asked, why = choose_integrator(lumped, "auto", dict(rtol=1e-5, solver=None))
+    # Settings one by one (simulate's deprecated keywords) still refine the preset, with a
+    # warning that names the one value to pass instead.
+    with pytest.warns(DeprecationWarning, match=r"integrator=tolerax.solve.ACCURATE.replace\(rtol=1e-05\)"):
+        asked, why = choose_integrator(lumped, "auto", dict(rtol=1e-5, solver=None))
     assert asked == ACCURATE.replace(rtol=1e-5) and why == "Tsit5, rtol 1e-05, atol 1e-09, I-controller: as asked"
     # A preset by name (simulate, the objective, a scene file's [run] integrator, --integrator),
     # refined by the settings given beside it; an unknown name refused with the names there are.
     assert choose_integrator(full, "fast-stage", {}) == (FAST_STAGE, FAST_STAGE.said())
-    assert choose_integrator(full, "fast-stage", dict(rtol=1e-5))[0] == FAST_STAGE.replace(rtol=1e-5)
+    with pytest.warns(DeprecationWarning, match=r"NAMED_INTEGRATORS\['fast-stage'\].replace\(rtol=1e-05\)"):
+        assert choose_integrator(full, "fast-stage", dict(rtol=1e-5))[0] == FAST_STAGE.replace(rtol=1e-5)
+    with pytest.raises(TypeError, match="unexpected keyword argument.*rtoll.*integrator=tolerax.Integrator"):
+        choose_integrator(full, "auto", dict(rtoll=1e-5))
     assert choose_integrator(full, "accurate", {})[0] == ACCURATE
     with pytest.raises(ValueError, match="simulate: 'fast' is not an integrator's name; use 'auto' .*'fast-stage'"):
         tx.simulate(lumped, 0.01, integrator="fast")
@@ -195,5 +201,5 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
     with pytest.raises(ValueError, match="give rtol in the integrator"):
         choose_integrator(lumped, FAST_STAGE, dict(rtol=1e-5))
     with pytest.raises(tx.SimulationError, match="It was integrated with Tsit5.*as asked"):
-        tx.simulate(tx.TestBench(), 0.05, n_save=51, max_steps=50)
+        tx.simulate(tx.TestBench(), 0.05, n_save=51, integrator=tx.Integrator(max_steps=50))
     assert not math.isnan(float(res.output_angle[-1]))

@@ -206,7 +206,7 @@ def test_conservative_planetary_run_keeps_energy_and_momentum():
     # (rtol 1e-10) through the impacts: energy to 1e-7 of the kick's, momenta to 1e-9 of the
     # largest sum of the bodies' momenta (`_momentum_scale`).
     mech = _free_mechanism("planetary", gains=(0.0, 0.0), drag_torque=0.0)
-    res = tx.simulate(mech, 0.004, n_save=41, rtol=1e-10, atol=1e-13, y0=_kicked_state(mech))
+    res = tx.simulate(mech, 0.004, n_save=41, y0=_kicked_state(mech), integrator=tx.Integrator(rtol=1e-10, atol=1e-13))
     pot = jax.vmap(mech.potential_energy)(res.states[0])
     total = np.asarray(res.kinetic_energy + pot)
     kick_energy = float(res.kinetic_energy[0])
@@ -246,7 +246,7 @@ def test_free_base_conserves_momentum_over_a_run(fidelity, duration):
     clearances rattle): every force is internal, so linear and angular momentum must stay at
     their initial value."""
     mech = tx.antenna("dual", fidelity=fidelity, rate=math.radians(30.0))
-    res = tx.simulate(mech, duration, n_save=21, rtol=1e-10, atol=1e-12)
+    res = tx.simulate(mech, duration, n_save=21, integrator=tx.Integrator(rtol=1e-10, atol=1e-12))
     lin_scale, ang_scale = _momentum_scale(mech, res)
     assert lin_scale > 1e-3 and ang_scale > 1e-3  # the bodies really move
     lin = np.asarray(res.momentum)
@@ -264,7 +264,7 @@ def test_energy_conserved_over_a_run(fidelity, duration):
     free base, joints kicked so that the 2 um clearances close: the drift of kinetic plus elastic
     energy must follow the integrator tolerance (rtol 1e-10)."""
     mech = _free_mechanism(fidelity, gains=(0.0, 0.0), drag_torque=0.0)
-    res = tx.simulate(mech, duration, n_save=41, rtol=1e-10, atol=1e-13, y0=_kicked_state(mech))
+    res = tx.simulate(mech, duration, n_save=41, y0=_kicked_state(mech), integrator=tx.Integrator(rtol=1e-10, atol=1e-13))
     pot = jax.vmap(mech.potential_energy)(res.states[0])
     total = np.asarray(res.kinetic_energy + pot)
     kick_energy = float(res.kinetic_energy[0])
@@ -311,7 +311,7 @@ def test_ideal_torque_drive_matches_closed_form():
     # Fixed base, pitch locked, azimuth driven by the paper's T = 1.5 cos(2 pi t) N m through a
     # rigid gear train, no drag: theta = T0 / (J w^2) (1 - cos w t) with J summed by hand.
     mech = tx.antenna("azimuth", fidelity="ideal", drive="torque", base="fixed", drag_torque=0.0)
-    res = tx.simulate(mech, 1.0, n_save=11, rtol=1e-11, atol=1e-13)
+    res = tx.simulate(mech, 1.0, n_save=11, integrator=tx.Integrator(rtol=1e-11, atol=1e-13))
     j = _azimuth_inertia(mech)
     w = 2 * math.pi
     ts = np.asarray(res.ts)

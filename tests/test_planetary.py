@@ -105,7 +105,7 @@ def test_simulated_speed_ratio_rigid_supports_zero_backlash():
         mesh="linear", sun_support="rigid", carrier_support="rigid", planet_support="rigid"
     )
     bench = tx.TestBench(stage, load_torque=0.0)
-    res = tx.simulate(bench, 0.02, start="steady", n_save=3, rtol=1e-10, atol=1e-13)
+    res = tx.simulate(bench, 0.02, start="steady", n_save=3, integrator=tx.Integrator(rtol=1e-10, atol=1e-13))
     q, qd, _ = res.states
     lay = stage.layout
     ratio = qd[-1, lay.sun_theta] / qd[-1, lay.carrier_theta]
@@ -184,9 +184,7 @@ def test_stage_energy_conserved_over_a_run():
     kick = jnp.tile(jnp.array([0.01, -0.005]), stage.n_planets)
     qd0 = qd_rigid.at[lay.planet_xy].set(kick)
     v0 = P.initial_impact_rates(stage, q0, qd0)
-    res = tx.simulate(
-        bench, 0.004, n_save=101, rtol=1e-11, atol=1e-14, dtmax=1e-5, y0=(q0, qd0, v0)
-    )
+    res = tx.simulate(bench, 0.004, n_save=101, y0=(q0, qd0, v0), integrator=tx.Integrator(rtol=1e-11, atol=1e-14, dtmax=1e-5))
     q, qd, _ = res.states
 
     def energy(q_, qd_):

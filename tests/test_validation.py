@@ -140,17 +140,17 @@ def test_run_arguments_are_checked():
     with pytest.raises(ValueError, match="structure"):
         tx.simulate(bench, 1e-3, y0=(q, qd))
     with pytest.raises(ValueError, match="solver 'rk45' is unknown"):
-        tx.simulate(bench, 1e-3, solver="rk45")
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(solver="rk45"))
     with pytest.raises(TypeError, match="diffrax solver"):
-        tx.simulate(bench, 1e-3, solver=object())
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(solver=object()))
     # A stage is not a scene: it needs a bench or a mechanism around it.
     with pytest.raises(TypeError, match="TestBench or a Mechanism"):
         tx.simulate(tx.default_stage(), 1e-3)
     for name, value in (("rtol", -1e-6), ("atol", NAN), ("dtmax", 0.0), ("dtmin", INF)):
         with pytest.raises(ValueError, match=name):
-            tx.simulate(bench, 1e-3, **{name: value})
+            tx.simulate(bench, 1e-3, integrator=tx.Integrator(**{name: value}))
     with pytest.raises(ValueError, match="dtmin < dt0 <= dtmax"):
-        tx.simulate(bench, 1e-3, dt0=1e-2)
+        tx.simulate(bench, 1e-3, integrator=tx.Integrator(dt0=1e-2))
 
 
 def test_step_size_collapse_is_reported():
@@ -160,20 +160,20 @@ def test_step_size_collapse_is_reported():
     # N_SAVE saves (every 5 ms): the bench's one forward program, shared with test_bench.py and
     # test_hard_cases.py (dtmin and dt0 are values in it).
     bench = tx.TestBench()
-    res = tx.simulate(bench, 0.25, n_save=N_SAVE, dt0=2e-5, dtmin=4e-6, throw=False)
+    res = tx.simulate(bench, 0.25, n_save=N_SAVE, throw=False, integrator=tx.Integrator(dt0=2e-5, dtmin=4e-6))
     assert not res.success
     assert res.result == diffrax.RESULTS.dt_min_reached
     t = float(res.t_reached)
     # Independently: the same run with the default dtmin succeeds, and its first saved contact
     # force comes within one save interval (5 ms) after t.
-    ref = tx.simulate(bench, 0.25, n_save=N_SAVE, dt0=2e-5, throw=False)
+    ref = tx.simulate(bench, 0.25, n_save=N_SAVE, throw=False, integrator=tx.Integrator(dt0=2e-5))
     assert ref.success
     touching = np.asarray(ref.ts)[np.asarray(ref.contact_force).max(axis=1) > 0]
     assert t < touching[0] <= t + 0.005, (t, touching[:3])
     (line,) = res.failures()
     assert "dt_min_reached" in line and f"t = {t:.6g} s of 0.25 s" in line and "smoothing_width" in line
     with pytest.raises(tx.SimulationError, match="dt_min_reached"):
-        tx.simulate(bench, 0.25, n_save=N_SAVE, dt0=2e-5, dtmin=4e-6)
+        tx.simulate(bench, 0.25, n_save=N_SAVE, integrator=tx.Integrator(dt0=2e-5, dtmin=4e-6))
 
 
 def test_the_face_exports_what_the_docs_call():

@@ -89,7 +89,9 @@ class Integrator(eqx.Module):
     its fields (`solver`, `rtol`, `atol`, `pcoeff`, `icoeff`, `dt0`, `dtmax`, `dtmin`,
     `max_steps`, `fixed_step`).
 
-    - `solver`: the name of an explicit method in `SOLVERS` (default `"Tsit5"`).
+    - `solver`: the name of an explicit method in `SOLVERS` (default `"Tsit5"`), or a diffrax
+      solver object (an implicit one such as `diffrax.Kvaerno5()`: its root finder takes the
+      controller's tolerances). A scene file names it by name only.
     - `rtol`, `atol`: the PID controller's relative and absolute tolerances (atol in the
       state's SI units: m, rad, m/s, rad/s).
     - `pcoeff`, `icoeff`: the controller's proportional and integral coefficients (default
@@ -102,7 +104,7 @@ class Integrator(eqx.Module):
     `replace(**changes)` gives another.
     """
 
-    solver: str = eqx.field(static=True, default=DEFAULT_SOLVER)
+    solver: str | diffrax.AbstractSolver = eqx.field(static=True, default=DEFAULT_SOLVER)
     rtol: float = eqx.field(static=True, default=1e-6)
     atol: float = eqx.field(static=True, default=1e-9)
     pcoeff: float = eqx.field(static=True, default=DEFAULT_PID[0])
@@ -117,8 +119,12 @@ class Integrator(eqx.Module):
                                          "fixed_step")
 
     def __check_init__(self):
-        if not isinstance(self.solver, str) or self.solver not in SOLVERS:
-            raise ValueError(f"Integrator: solver {self.solver!r} is unknown; use the name of one of {sorted(SOLVERS)}.")
+        if isinstance(self.solver, str) and self.solver not in SOLVERS:
+            raise ValueError(f"Integrator: solver {self.solver!r} is unknown; use one of {sorted(SOLVERS)} (by name) or a "
+                             "diffrax solver (e.g. diffrax.Kvaerno5()).")
+        if not isinstance(self.solver, (str, diffrax.AbstractSolver)):
+            raise TypeError(f"Integrator: solver must be a name in {sorted(SOLVERS)} or a diffrax solver (e.g. "
+                            f"diffrax.Tsit5()), got {type(self.solver).__name__}.")
         wrong = run_settings_error(rtol=self.rtol, atol=self.atol, dt0=self.dt0, dtmax=self.dtmax, dtmin=self.dtmin,
                                    pcoeff=self.pcoeff, icoeff=self.icoeff)
         if wrong is not None:
@@ -141,10 +147,11 @@ class Integrator(eqx.Module):
 
     def describe(self) -> str:
         """These settings in a few words (what a result's `integrated_with` starts with)."""
+        solver = self.solver if isinstance(self.solver, str) else type(self.solver).__name__
         if self.fixed_step is not None:
-            return f"{self.solver}, fixed steps of {self.fixed_step:g} s"
+            return f"{solver}, fixed steps of {self.fixed_step:g} s"
         control = "I-controller" if (self.pcoeff, self.icoeff) == DEFAULT_PID else f"PI controller ({self.pcoeff:g}, {self.icoeff:g})"
-        return f"{self.solver}, rtol {self.rtol:g}, atol {self.atol:g}, {control}"
+        return f"{solver}, rtol {self.rtol:g}, atol {self.atol:g}, {control}"
 
     def said(self, reason: str | None = None) -> str:
         """These settings and why, in words (a result's and an objective's `integrated_with`):
@@ -325,28 +332,20 @@ def solve(
     duration,
     *,
     n_save: int,
-    solver: diffrax.AbstractSolver,
-    rtol: float,
-    atol: float,
-    dt0: float,
-    dtmax: float,
-    max_steps: int,
-    dtmin: float = DTMIN,
-    fixed_step: float | None = None,
+    integrator: Integrator = ACCURATE,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
-    pcoeff: float = DEFAULT_PID[0],
-    icoeff: float = DEFAULT_PID[1],
 ):
-    """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times.
+    """Integrate `scene` over `[0, duration]`, saving at `n_save` equally spaced times, as
+    `integrator` says (a `tolerax.Integrator`: solver, step-size controller, steps' limits).
 
-    Adaptive steps (`diffrax.PIDController` with `rtol`, `atol`, first step `dt0`, largest
-    `dtmax`; a step the error control wants below `dtmin` (s, default 1e-13) stops the solve with
-    `RESULTS.dt_min_reached`: a journal crossing the 1 nm smoothing zone at 0.2 m/s needs steps of
-    order 5 ns, 5e4 times the default; `pcoeff`, `icoeff` its proportional and integral
-    coefficients, Python numbers, default `DEFAULT_PID` = (0, 1): diffrax's I-controller), or, with `fixed_step` (s), constant steps of that size (the paper's
-    multibody setting is 1e-4 s); an implicit solver whose root finder takes its tolerances from
-    the step-size controller then gets `diffrax.VeryChord(rtol, atol)` instead.
+    Adaptive steps (`diffrax.PIDController` with the integrator's `rtol`, `atol`, first step
+    `dt0`, largest `dtmax`, coefficients `pcoeff`, `icoeff`; a step the error control wants below
+    `dtmin` (s) stops the solve with `RESULTS.dt_min_reached`: a journal crossing the 1 nm
+    smoothing zone at 0.2 m/s needs steps of order 5 ns, 5e4 times the default), or, with its
+    `fixed_step` (s), constant steps of that size (the paper's multibody setting is 1e-4 s); an
+    implicit solver whose root finder takes its tolerances from the step-size controller then
+    gets `diffrax.VeryChord(rtol, atol)` instead.
 
     `adjoint` (default `diffrax.RecursiveCheckpointAdjoint()`): how derivatives pass through the
     solve; `diffrax.ForwardMode()` for forward-mode (`jax.jvp`, `jax.jacfwd`) derivatives.
@@ -358,15 +357,15 @@ def solve(
     is the time the solver reached) and `observe` at the saved states. Numbers become float64
     arrays so that changing them does not recompile.
     """
+    if not isinstance(integrator, Integrator):
+        raise TypeError(f"integrator must be a tolerax.Integrator, got {type(integrator).__name__}.")
+    solver = solver_named(integrator.solver)
+    rtol, atol, dt0, dtmax, dtmin = integrator.rtol, integrator.atol, integrator.dt0, integrator.dtmax, integrator.dtmin
+    max_steps, fixed_step = integrator.max_steps, integrator.fixed_step
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive finite time in seconds, got {duration!r}.")
     if int(n_save) < 2:
         raise ValueError(f"n_save must be at least 2 (the start and the end), got {n_save!r}.")
-    wrong = run_settings_error(rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax, dtmin=dtmin, pcoeff=pcoeff, icoeff=icoeff)
-    if wrong is not None:
-        raise ValueError(wrong)
-    if not isinstance(solver, diffrax.AbstractSolver):
-        raise TypeError(f"solver must be a diffrax solver (e.g. diffrax.Tsit5()), got {type(solver).__name__}.")
     _validate.check_tree(scene)
     fixed = fixed_step is not None
     if fixed:
@@ -392,7 +391,7 @@ def solve(
     return run(
         scene, y0, f64(duration), ts, solver, f64(rtol), f64(atol), f64(dt0), f64(dtmin), f64(dtmax),
         int(max_steps), bool(progress), fixed, diffrax.RecursiveCheckpointAdjoint() if adjoint is None else adjoint,
-        (0.0, 1.0) if fixed else (float(pcoeff), float(icoeff)),  # no controller with a fixed step
+        (0.0, 1.0) if fixed else (float(integrator.pcoeff), float(integrator.icoeff)),  # no controller with a fixed step
     )
 
 

@@ -20,7 +20,7 @@ from ..mechanism import scenes as _scenes
 from ..mechanism.mechanism import Mechanism
 from ..mechanism.structure import Geometry, Inertias
 from ..mechanism.scene import STARTS, simulate as _simulate
-from ..solve import ACCURATE, NAMED_INTEGRATORS, PID_RULES, SOLVERS
+from ..solve import ACCURATE, NAMED_INTEGRATORS, PID_RULES, SOLVERS, Integrator
 from .checker import TOP_KEYS, Checker, SceneFileError, SceneFileNote, _accepts, _for_call, _suggest, check_top  # noqa: F401 (the schema's tables, errors)
 
 # ---------------------------------------------------------------------------------------------
@@ -35,21 +35,13 @@ STRUCTURE_KEYS = {"geometry": Geometry, "inertias": Inertias}
 CONTACT_LAWS = {cls.__name__: cls for cls in (_contact.BaiZhao, _contact.HertzLN, _contact.Flores, _contact.AdamsImpact)}
 
 _SIM = inspect.signature(_simulate).parameters
-# [run]: simulate()'s numeric settings (defaults from its signature), the pointing window `settle`.
+# [run]: simulate()'s window (defaults from its signature), the integrator's settings (each
+# `tolerax.Integrator` field, None: not given, so `simulate` chooses), the pointing window `settle`.
 RUN_KEYS = {
     "duration": (float, None),
     "start": (str, _SIM["start"].default),
     "n_save": (int, _SIM["n_save"].default),
-    "rtol": (float, _SIM["rtol"].default),
-    "atol": (float, _SIM["atol"].default),
-    "dt0": (float, _SIM["dt0"].default),
-    "dtmax": (float, _SIM["dtmax"].default),
-    "dtmin": (float, _SIM["dtmin"].default),
-    "max_steps": (int, _SIM["max_steps"].default),
-    "fixed_step": (float, None),
-    "pcoeff": (float, _SIM["pcoeff"].default),
-    "icoeff": (float, _SIM["icoeff"].default),
-    "solver": (str, None),  # the run settings: None (not given) lets `simulate` choose the integrator
+    **{name: ({"solver": str, "max_steps": int}.get(name, float), None) for name in Integrator.FIELDS},
     "integrator": (str, None),  # a preset by name (NAMED_INTEGRATORS), which the keys above refine; None: "auto"
     "settle": (float, 0.0),
 }

@@ -9,6 +9,7 @@ one diffrax call.
 
 import abc
 import dataclasses
+import warnings
 from collections.abc import Callable
 
 import diffrax
@@ -69,26 +70,17 @@ def simulate(
     start: str = "rest",
     y0: tuple | None = None,
     n_save: int = 1001,
-    solver: diffrax.AbstractSolver | str | None = None,
-    rtol: float | None = None,
-    atol: float | None = None,
-    dt0: float | None = None,
-    dtmax: float | None = None,
-    dtmin: float | None = None,
-    max_steps: int | None = None,
-    fixed_step: float | None = None,
+    integrator: Integrator | str = "auto",
     throw: bool = True,
     progress: bool = False,
     adjoint: diffrax.AbstractAdjoint | None = None,
-    pcoeff: float | None = None,
-    icoeff: float | None = None,
-    integrator: Integrator | str = "auto",
+    **settings,
 ):
     """Run a scene (a `TestBench`, a `Mechanism`) for `duration` seconds.
 
     **Arguments:**
 
-    - `scene`: what to run. Only its structure compiles (fidelities, supports, solver,
+    - `scene`: what to run. Only its structure compiles (fidelities, supports, integrator,
       `n_save`); changing values (clearances, stiffnesses, rates) reuses the compiled program.
     - `duration`: simulated time (s).
     - `start`: `"rest"` (everything at rest: a servo start-up closes the backlash, so the run
@@ -99,37 +91,22 @@ def simulate(
       Ignored when `y0` is given.
     - `y0`: an explicit initial state, shaped like `scene.initial_state()`.
     - `n_save`: number of equally spaced save times.
-    - **How it is integrated** (default: chosen from the scene, `integrator="auto"`,
-      `scene.automatic_integrator()`; every scene measured gets `tolerax.solve.ACCURATE`,
-      Tsit5 at rtol 1e-6, atol 1e-9, the I-controller). The result's `integrated_with` (and
-      `report()`) says which and why: for a scene with a full planetary joint, that
-      `tolerax.solve.FAST_STAGE` (SRK53 at rtol 1e-4, the (0.2, 0.2) controller) runs it faster
-      but reads its outputs less closely (`benchmarks/auto_integrator.py`). A
-      choice of one's own overrides it: `integrator=tolerax.Integrator(...)` (or
-      `tolerax.solve.FAST_STAGE`), every setting as one value, or the settings one by one, each
-      replacing `ACCURATE`'s:
-    - `solver`: a diffrax solver, or the name of one in `tolerax.solve.SOLVERS` (`"Tsit5"`,
-      `"Bosh3"`, `"SRK53"`, `"Dopri5"`, `"Dopri8"`); implicit solvers are compared in
-      `benchmarks/work_precision.py`.
-    - `rtol`, `atol`: PID step-size controller tolerances (atol in the state's SI units: m, rad,
-      m/s, rad/s; 1e-9 resolves nanometres against 100 µm clearances).
-    - `dt0`, `dtmax` (s): first and largest step; `dtmin` (s): a step the error control wants
-      below it ends the run with `RESULTS.dt_min_reached` (a step-size collapse).
-    - `max_steps`: step budget.
-    - `pcoeff`, `icoeff`: the step-size controller's proportional and integral coefficients
-      (`diffrax.PIDController`; (0, 1) is diffrax's I-controller, `tolerax.solve.DEFAULT_PID`).
-      Python numbers: changing them recompiles (like `solver`); ignored with `fixed_step`.
-    - `fixed_step` (s): constant steps instead of the adaptive controller (the paper's multibody
-      setting is 1e-4 s; an explicit solver is unstable there, see `benchmarks/`).
-    - `integrator`: `"auto"` (the default), a name in `tolerax.solve.NAMED_INTEGRATORS`
-      (`"accurate"`, `"fast-stage"`: that preset, the settings given one by one refining it),
-      or a `tolerax.Integrator` (what a `PointingObjective` holds and a scene file's `[run]`
-      names), not beside the settings one by one.
+    - `integrator`: how it is integrated, one value. `"auto"` (the default): chosen from the
+      scene (`scene.automatic_integrator()`; every scene measured gets `tolerax.solve.ACCURATE`,
+      Tsit5 at rtol 1e-6, atol 1e-9, the I-controller); a name in
+      `tolerax.solve.NAMED_INTEGRATORS` (`"accurate"`, `"fast-stage"`: SRK53 at rtol 1e-4, the
+      (0.2, 0.2) controller); or a `tolerax.Integrator` (solver, `rtol`, `atol`, `pcoeff`,
+      `icoeff`, `dt0`, `dtmax`, `dtmin`, `max_steps`, `fixed_step`: its docstring), e.g.
+      `tolerax.Integrator(rtol=1e-9, atol=1e-12)` or `tolerax.solve.ACCURATE.replace(
+      max_steps=10**7)`. The result's `integrated_with` (and `report()`) says which and why.
     - `throw`: raise `SimulationError` on failure; otherwise return with `result` set (required
       under `jit`/`vmap`/`grad`).
     - `progress`: print diffrax's text progress meter (compiles a separate program).
     - `adjoint`: how derivatives pass through the solve (default: reverse mode with recursive
       checkpointing; `diffrax.ForwardMode()` for `jax.jvp`/`jax.jacfwd`).
+    - `settings`: deprecated, for one release: the integrator's settings one by one
+      (`solver=`, `rtol=`, ... as `tolerax.Integrator`'s fields), each replacing the named
+      preset's (or `ACCURATE`'s); a `DeprecationWarning` names the `Integrator` to pass instead.
 
     **Returns:** the scene's result (`BenchResult`, `MechanismResult`), a `SolverReport`.
     """
@@ -137,17 +114,13 @@ def simulate(
         raise TypeError(f"scene must be a TestBench or a Mechanism (see `antenna`), got {type(scene).__name__}.")
     if start not in STARTS:
         raise ValueError(f"start={start!r} is unknown; use one of {STARTS}.")
+    chosen, why = choose_integrator(scene, integrator, settings)
     scene.check_runnable()
     if y0 is None:
         y0 = scene.initial_state(start)
     else:
         V.state_like(y0, jax.eval_shape(lambda: scene.initial_state(start)))  # shapes only: no steady-state solve
-    chosen, why = choose_integrator(scene, integrator, dict(solver=solver, rtol=rtol, atol=atol, dt0=dt0, dtmax=dtmax,
-                                                            dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step,
-                                                            pcoeff=pcoeff, icoeff=icoeff))
-    settings = chosen.options() if isinstance(chosen, Integrator) else chosen
-    settings["solver"] = solver_named(settings["solver"])
-    sol, observed = solve(scene, y0, duration, n_save=n_save, progress=progress, adjoint=adjoint, **settings)
+    sol, observed = solve(scene, y0, duration, n_save=n_save, integrator=chosen, progress=progress, adjoint=adjoint)
     result = dataclasses.replace(scene.result(sol, observed, duration), integrated_with=why)
     if throw:
         try:
@@ -157,32 +130,38 @@ def simulate(
     return result
 
 
-def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", given: dict) -> tuple:
-    """`(settings, why)` for a run of `scene`: `integrator` (a `tolerax.Integrator`, or `"auto"`:
-    `scene.automatic_integrator()`) unless settings are `given` one by one (name -> value,
-    `None` for not given), which then replace `ACCURATE`'s. `settings` is an `Integrator`, or
-    a dict of `simulate`'s keywords where the solver is a diffrax solver object rather than a
-    name; `why` says which and why in words (a result's `integrated_with`)."""
-    given = {k: v for k, v in given.items() if v is not None}
-    if isinstance(integrator, str) and integrator != "auto":
-        named = named_integrator(integrator, "simulate")  # a preset by name: the settings given refine it
-        if "solver" in given and not isinstance(given["solver"], str):
-            raise ValueError(f"simulate: integrator={integrator!r} takes its solver by name, not a diffrax solver object.")
-        chosen = named.replace(**given) if given else named
-        return chosen, chosen.said()
+def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", given: dict | None = None) -> tuple:
+    """`(integrator, why)` for a run of `scene`: `integrator` (a `tolerax.Integrator`, a name in
+    `NAMED_INTEGRATORS`, or `"auto"`: `scene.automatic_integrator()`) and why in words (a
+    result's `integrated_with`). `given`: deprecated settings one by one (`simulate`'s
+    `**settings`, name -> value, `None` for not given), which refine the named preset (or
+    `ACCURATE`'s, under `"auto"`) with a `DeprecationWarning` that names the value to pass."""
+    given = {k: v for k, v in (given or {}).items() if v is not None}
+    unknown = sorted(set(given) - set(Integrator.FIELDS))
+    if unknown:
+        raise TypeError(f"simulate() got unexpected keyword argument(s) {', '.join(unknown)}; the run's settings go in "
+                        f"integrator=tolerax.Integrator(...) ({', '.join(Integrator.FIELDS)}).")
     if isinstance(integrator, Integrator):
         if given:
             raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
         return integrator, integrator.said()
-    if integrator != "auto":
+    if not isinstance(integrator, str):
         raise TypeError(f"integrator must be 'auto', a name in tolerax.solve.NAMED_INTEGRATORS or a tolerax.Integrator, got "
                         f"{integrator!r}.")
+    named = named_integrator(integrator, "simulate")  # None for "auto"; an unknown name refused with the names there are
     if not given:
+        if named is not None:
+            return named, named.said()
         chosen, reason = scene.automatic_integrator()
         return chosen, chosen.said(reason)
-    solver_named(given.get("solver"))  # an unknown name or a wrong type refused in simulate's words
-    if "solver" in given and not isinstance(given["solver"], str):  # a diffrax solver object
-        return ACCURATE.options() | given, f"{type(given['solver']).__name__} with the settings given"
-    chosen = ACCURATE.replace(**given)
+    if "solver" in given:
+        solver_named(given["solver"])  # an unknown name or a wrong type refused in simulate's words
+    base = ACCURATE if named is None else named
+    chosen = base.replace(**given)
+    preset = "tolerax.solve.ACCURATE" if named is None else f"tolerax.solve.NAMED_INTEGRATORS[{integrator!r}]"
+    written = ", ".join(f"{k}={v!r}" for k, v in given.items())
+    warnings.warn(f"simulate({written}) is deprecated: pass integrator={preset}.replace({written}) (one "
+                  "tolerax.Integrator holds every run setting); the settings one by one go in the next release.",
+                  DeprecationWarning, stacklevel=3)
     return chosen, chosen.said()
 
