@@ -87,7 +87,8 @@ def main():
         scene = build(scaling, families)
         powers, design_jitters = [], []
         for row in values:
-            res = tx.simulate(tx.with_design(scene, jnp.asarray(row)), duration, start="steady", n_save=n_save, rtol=1e-6, atol=1e-9)
+            res = tx.simulate(tx.with_design(scene, jnp.asarray(row)), duration, start="steady", n_save=n_save,
+                              integrator=tx.Integrator(rtol=1e-6, atol=1e-9))
             ts, err = np.asarray(res.ts), np.asarray(res.pointing_error)
             window = ts >= settle - 1e-12
             e, dt = err[window], float(ts[1] - ts[0])

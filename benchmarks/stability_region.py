@@ -54,7 +54,8 @@ SLOW_RADIUS = 0.35
 
 def spectrum(n_states: int):
     mech = tx.antenna("dual", fidelity="planetary")
-    res = tx.simulate(mech, 1.2, start="steady", n_save=121, solver="Bosh3", rtol=1e-5, atol=1e-8, pcoeff=0.3, icoeff=0.3)
+    res = tx.simulate(mech, 1.2, start="steady", n_save=121,
+                      integrator=tx.Integrator("Bosh3", rtol=1e-5, atol=1e-8, pcoeff=0.3, icoeff=0.3))
     picks = np.linspace(90, 120, n_states).round().astype(int)
     out = []
     for k in picks:

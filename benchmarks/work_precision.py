@@ -128,8 +128,8 @@ def run_diffrax(case, scene, solver, rtol, fixed_step=None, max_steps=4_000_000)
 
     def run():
         return tolerax.simulate(
-            scene, case.duration, start=case.start, n_save=case.n_save, solver=solver, rtol=rtol,
-            atol=1e-3 * rtol, max_steps=max_steps, fixed_step=fixed_step, throw=False,
+            scene, case.duration, start=case.start, n_save=case.n_save, throw=False,
+            integrator=tolerax.Integrator(solver=solver, rtol=rtol, atol=1e-3 * rtol, max_steps=max_steps, fixed_step=fixed_step),
         )
 
     # Up to 3 timed repeats, fewer once a solve takes 2 s; a configuration whose first call takes
@@ -213,7 +213,8 @@ def numpy_check(case, scene, rhs, n_states=81):
     the yardstick for "equal to rounding", the largest change of the JAX right-hand side itself
     when the state is perturbed by 1e-15 relative (random, seed 0)."""
     f, _, _ = flat_rhs(scene, case.start)
-    res = tolerax.simulate(scene, case.duration, start=case.start, n_save=n_states, rtol=1e-8, atol=1e-11)
+    res = tolerax.simulate(scene, case.duration, start=case.start, n_save=n_states,
+                           integrator=tolerax.Integrator(rtol=1e-8, atol=1e-11))
     ys = np.asarray(jax.vmap(lambda *a: ravel_pytree(a)[0])(*res.states))
     n = scene.stage.layout.size
     blocks = {"q'": slice(0, n), "q''": slice(n, 2 * n), "impact-rate rates": slice(2 * n, None)}
