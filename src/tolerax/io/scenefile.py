@@ -27,6 +27,7 @@ import tomli_w
 from .._files import atomic_write
 from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
+from ..solve import ACCURATE, Integrator, named_integrator
 from . import checker as C, schema as S
 from .checker import builtin_scenes  # noqa: F401 (the face's)
 from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError, SceneFileNote  # noqa: F401 (SceneFileNote: the face's)
@@ -105,8 +106,13 @@ class SceneFile:
     def simulate(self, *, throw: bool = True, progress: bool = False):
         """`simulate(self.build(), ...)` with the `[run]` settings; the `MechanismResult`."""
         run = self.run
-        kwargs = {k: v for k, v in run.items() if k not in ("duration", "settle") and v is not None}
-        return _simulate(self.build(), run["duration"], throw=throw, progress=progress, **kwargs)
+        kwargs = {k: v for k, v in run.items() if k in ("start", "n_save") and v is not None}
+        # The integrator: the preset named (or "auto"), its settings refined by the [run] keys given.
+        settings = {k: run[k] for k in Integrator.FIELDS if run.get(k) is not None}
+        integrator = run.get("integrator") or "auto"
+        if settings:
+            integrator = (named_integrator(integrator, "[run] integrator") or ACCURATE).replace(**settings)
+        return _simulate(self.build(), run["duration"], throw=throw, progress=progress, integrator=integrator, **kwargs)
 
     def objective(self, **kwargs):
         """A `PointingObjective` on this scene over the window `[settle, duration]` (s), with the
