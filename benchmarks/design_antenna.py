@@ -60,7 +60,8 @@ def main():
     print(report.table(), flush=True)
 
     planetary = _design.at_width(tx.PointingObjective(tx.scan("dual", fidelity="planetary-scaled", **stages), duration=args.horizon, settle=0.0,
-                                                      start="steady", n_save=61, rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3), width)
+                                                      start="steady", n_save=61,
+                                                      integrator=tx.Integrator(rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3, max_steps=400_000)), width)
     tolerances = _design.designed_tolerances(planetary.scene, report.names, report.nominal, report.band)
     wall_verify, mc = harness.wall(tx.monte_carlo, planetary, tolerances, args.verify_units,
                                    jax.random.key(2025), chunk_size=args.chunk, progress=True, requirement={"pointing_rms": R})

@@ -53,7 +53,7 @@ def main():
     start = time.perf_counter()
     scene = tx.scan("azimuth", fidelity=("planetary-scaled", "ideal"))
     scene = eqx.tree_at(lambda s: s.azimuth.mass_scaling, scene, jnp.asarray(1000.0))
-    pointing = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=301, rtol=1e-6, atol=1e-9,
+    pointing = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=301, integrator=tx.Integrator(max_steps=400_000),
                                     jitter_cutoff=20.0)
     width = 1e-7
     both = design_problem(pointing, yield_=0.9, secant_units=args.secant_units, output=OUTPUTS, scatter=True)

@@ -32,8 +32,8 @@ import harness
 def pointing_for(distinct: bool, width: float):
     stage = tx.default_stage(distinct_planets=distinct)
     scene = tx.scan("azimuth", fidelity=("planetary-scaled", "ideal"), azimuth_stage=stage, mass_scaling=1000.0)
-    objective = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=101, rtol=1e-3, atol=1e-6,
-                                     pcoeff=0.3, icoeff=0.3)
+    objective = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=101,
+                                     integrator=tx.Integrator(rtol=1e-3, atol=1e-6, pcoeff=0.3, icoeff=0.3, max_steps=400_000))
     return objective, _design.at_width(objective, width)
 
 

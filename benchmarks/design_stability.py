@@ -102,7 +102,7 @@ def main():
         scene = tx.scan("azimuth", fidelity=(fidelity, "ideal"),
                         mass_scaling=float(args.mass_scaling) if fidelity == "planetary-scaled" else None)
         return tx.PointingObjective(scene, duration=args.horizon, settle=args.settle, start="steady",
-                                    n_save=int(round(args.save_rate * args.horizon)) + 1, rtol=args.rtol, atol=1e-3 * args.rtol,
+                                    n_save=int(round(args.save_rate * args.horizon)) + 1, integrator=tx.Integrator(rtol=args.rtol, atol=1e-3 * args.rtol, max_steps=400_000),
                                     jitter_cutoff=args.cutoff)
 
     pointing = objective(args.fidelity)

@@ -86,7 +86,8 @@ def build(scene_name: str, fidelity: str, scaling):
 def objective(scene_name, fidelity, scaling, run):
     scene, joints = build(scene_name, fidelity, scaling)
     return tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=301, jitter_cutoff=20.0,
-                                metrics=(PeakBearingForce(joints),), max_steps=2_000_000, **run)
+                                metrics=(PeakBearingForce(joints),),
+                                integrator=tx.Integrator(max_steps=2_000_000, **run))
 
 
 def simulate_units(pointing, names_full, values_full):

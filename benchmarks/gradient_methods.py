@@ -54,13 +54,15 @@ def main():
 
     def objective(rtol, adjoint=None):
         pointing = tx.PointingObjective(
-            scene, duration=args.duration, settle=0.0, start="steady", n_save=61, rtol=rtol, atol=1e-3 * rtol,
+            scene, duration=args.duration, settle=0.0, start="steady", n_save=61,
+            integrator=tx.Integrator(rtol=rtol, atol=1e-3 * rtol, max_steps=400_000),
             adjoint=adjoint,
         )
         return lambda p: pointing(p, args.width)["pointing_rms"]
 
     def steps(rtol):
-        pointing = tx.PointingObjective(scene, duration=args.duration, settle=0.0, start="steady", n_save=2, rtol=rtol, atol=1e-3 * rtol)
+        pointing = tx.PointingObjective(scene, duration=args.duration, settle=0.0, start="steady", n_save=2,
+                                        integrator=tx.Integrator(rtol=rtol, atol=1e-3 * rtol, max_steps=400_000))
         res = pointing.run(p0, args.width)
         return int(res.num_steps), int(res.num_rejected)
 

@@ -45,7 +45,8 @@ def _model_costs(scene, rec, names):
     """(one simulation, one forward-mode Jacobian, one Jacobian by central secants) of the
     identification's window, s, compiled programs warm, and the forward-mode Jacobian's distance
     from the secants at the scene's values (relative to their norm)."""
-    fit_scene = tx.PointingObjective(scene, duration=0.35, settle=0.0, n_save=141, start="steady", rtol=1e-6, atol=1e-9).forward_mode()
+    fit_scene = tx.PointingObjective(scene, duration=0.35, settle=0.0, n_save=141, start="steady",
+                                    integrator=tx.Integrator(max_steps=400_000)).forward_mode()
     n_save, times = I._model_times(rec, 0.35, None)
     units, scale = I._scales(scene, names)
     x0 = np.asarray(parameter_values(scene, names)) / scale

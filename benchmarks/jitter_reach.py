@@ -60,7 +60,7 @@ def main():
     args = harness.parse_args(parser)
     start = time.perf_counter()
     scene = tx.scan("azimuth", fidelity=("planetary", "ideal"))
-    pointing = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=301, rtol=1e-6, atol=1e-9,
+    pointing = tx.PointingObjective(scene, duration=0.6, settle=0.3, start="steady", n_save=301, integrator=tx.Integrator(max_steps=400_000),
                                     jitter_cutoff=20.0)
     pointing = eqx.tree_at(lambda p: p.scene, pointing, pointing.with_width(tx.design_of(scene), 1e-7))
     names = tx.design_names(scene)

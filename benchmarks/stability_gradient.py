@@ -55,7 +55,7 @@ def scene_of(fidelity, mass_scaling):
 def objective(scene, horizon, args):
     return tx.PointingObjective(
         scene, duration=horizon, settle=args.settle, start="steady", n_save=int(round(args.save_rate * horizon)) + 1,
-        rtol=args.rtol, atol=1e-3 * args.rtol, jitter_cutoff=args.cutoff,
+        integrator=tx.Integrator(rtol=args.rtol, atol=1e-3 * args.rtol, max_steps=400_000), jitter_cutoff=args.cutoff,
     )
 
 

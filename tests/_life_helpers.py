@@ -15,6 +15,9 @@ WIDTH = 1e-6  # m: the optimiser's continuation width at which gradients are mea
 MOS2 = "MoS2 sputtered film, vacuum"
 
 
-def life_objective(scene, life, **kw):
-    """The `PointingObjective` over the start-up with `life`."""
+def life_objective(scene, life, rtol=None, atol=None, **kw):
+    """The `PointingObjective` over the start-up with `life` (at `rtol`, `atol` where given: Tsit5
+    on a design unit's step budget)."""
+    if rtol is not None:
+        kw["integrator"] = tx.Integrator(rtol=rtol, atol=atol, max_steps=400_000)
     return tx.PointingObjective(scene, duration=HORIZON, settle=0.0, start="rest", n_save=N_SAVE, life=life, **kw)

@@ -108,7 +108,8 @@ class _Lumped:
     def __init__(self):
         self.scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
         self.pointing = tx.PointingObjective(
-            self.scene, duration=LUMPED_HORIZON, settle=0.0, start="steady", n_save=61, rtol=RTOL, atol=ATOL
+            self.scene, duration=LUMPED_HORIZON, settle=0.0, start="steady", n_save=61,
+            integrator=tx.Integrator(rtol=RTOL, atol=ATOL, max_steps=400_000),
         )
         rms = lambda p: self.pointing(p, WIDTH)["pointing_rms"]  # noqa: E731
         self.grad = eqx.filter_jit(jax.grad(rms))

@@ -121,14 +121,21 @@ def test_the_run_settings_are_one_value():
     integrator = tx.Integrator(**settings)
     objective = tx.load_scene("scan-azimuth").replace(**settings).objective()
     assert objective.integrator == integrator.replace(max_steps=objective.max_steps) and objective.rtol == 1e-5
-    held = tx.PointingObjective(objective.scene, 0.6, 0.3, integrator=integrator, rtol=1e-4)
+    held = tx.PointingObjective(objective.scene, 0.6, 0.3, integrator=integrator.replace(rtol=1e-4))
     assert held.integrator == integrator.replace(rtol=1e-4) and held.solver == "Bosh3"
+    # The settings one by one (deprecated for a release) still refine the integrator, with a
+    # warning that writes the value to pass.
+    with pytest.warns(DeprecationWarning, match=r"PointingObjective\(rtol=0.0001\) is deprecated: pass integrator=integrator.replace"):
+        assert tx.PointingObjective(objective.scene, 0.6, 0.3, integrator=integrator, rtol=1e-4).integrator == held.integrator
+    with pytest.warns(DeprecationWarning, match=r"integrator=tolerax.solve.ACCURATE.replace\(max_steps=400000, rtol=0.0001\)"):
+        alone = tx.PointingObjective(objective.scene, 0.6, 0.3, rtol=1e-4)
+    assert alone.integrator == tx.solve.ACCURATE.replace(max_steps=400_000, rtol=1e-4)
     assert dataclasses.replace(held, n_save=11).integrator == held.integrator
     assert tx.PointingObjective(objective.scene, 0.6, 0.3).max_steps == 400_000  # a design unit's budget
     with pytest.raises(ValueError, match="Integrator: rtol must be a positive finite number"):
         tx.Integrator(rtol=-1.0)
     with pytest.raises(ValueError, match="PointingObjective: solver 'Euler' is unknown"):
-        tx.PointingObjective(objective.scene, 0.6, 0.3, solver="Euler")
+        tx.PointingObjective(objective.scene, 0.6, 0.3, solver="Euler")  # refused before any warning
     with pytest.raises(TypeError, match="unknown setting"):
         integrator.replace(rtool=1e-3)
 
@@ -161,7 +168,8 @@ def test_the_integrator_is_chosen_from_the_scene_unless_one_is_named():
 
     assert dataclasses.replace(objective, n_save=11).integrated_with == objective.integrated_with
     assert dataclasses.replace(objective, integrator=FAST_STAGE).integrated_with == fast.integrated_with
-    assert tx.PointingObjective(full, 0.1, 0.0, rtol=1e-5).integrator == ACCURATE.replace(rtol=1e-5, max_steps=400_000)
+    with pytest.warns(DeprecationWarning):  # a setting given one by one refines ACCURATE, not the automatic choice
+        assert tx.PointingObjective(full, 0.1, 0.0, rtol=1e-5).integrator == ACCURATE.replace(rtol=1e-5, max_steps=400_000)
     # A scene file whose [run] names no setting gets it too; one that names them keeps them.
     named = tx.load_scene("scan-azimuth-planetary")
     assert named.objective().solver == "Bosh3"  # its [run] names Bosh3

@@ -45,7 +45,8 @@ def _life(years, wear, duty=1.0, points=2):
 
 
 def _plain(scene):
-    return tx.PointingObjective(scene, duration=HORIZON, settle=0.0, start="rest", n_save=N_SAVE, rtol=RTOL, atol=ATOL)
+    return tx.PointingObjective(scene, duration=HORIZON, settle=0.0, start="rest", n_save=N_SAVE,
+                               integrator=tx.Integrator(rtol=RTOL, atol=ATOL, max_steps=400_000))
 
 
 @pytest.fixture(scope="module")
@@ -229,8 +230,8 @@ def test_end_of_life_directional_derivative(life_scan, startup):
     assert np.all(sun > 0.0) or np.all(sun < 0.0)
     k = ArchardWear.from_lubricant(MOS2).rate
     life = _life(5.0, ArchardWear(jnp.array([k, 0.0, 0.0, 0.0, 0.0]), flanks=False))
-    forward = tx.PointingObjective(life_scan, duration=HORIZON / 2, settle=0.0, start="rest", n_save=(N_SAVE + 1) // 2, rtol=RTOL,
-                                   atol=ATOL, life=life, adjoint=diffrax.ForwardMode())
+    forward = tx.PointingObjective(life_scan, duration=HORIZON / 2, settle=0.0, start="rest", n_save=(N_SAVE + 1) // 2,
+                                   integrator=tx.Integrator(rtol=RTOL, atol=ATOL, max_steps=400_000), life=life, adjoint=diffrax.ForwardMode())
     direction = jax.random.normal(jax.random.key(1), (5,))
     direction = direction / jnp.linalg.norm(direction)
     out, tangent = _directional(forward, VALUES, direction)

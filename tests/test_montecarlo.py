@@ -292,7 +292,7 @@ def test_chunk_size_keeps_the_units_and_changes_outputs_within_the_solvers_error
     (the tests above and below)."""
     scene, eights, pairs = scan_units
     tolerances = scene.tolerances()
-    reference = monte_carlo(scene.objective(rtol=1e-9, atol=1e-12), tolerances, 8, jax.random.key(7), chunk_size=8, **QUIET).dataset
+    reference = monte_carlo(scene.objective(integrator=tx.Integrator(rtol=1e-9, atol=1e-12, max_steps=400_000)), tolerances, 8, jax.random.key(7), chunk_size=8, **QUIET).dataset
     for name in tolerances.names:
         np.testing.assert_array_equal(pairs[name].values, eights[name].values)
     assert bool(pairs["success"].all() and eights["success"].all() and reference["success"].all())

@@ -186,6 +186,42 @@ def named_integrator(name: str, where: str = "integrator") -> "Integrator | None
     return NAMED_INTEGRATORS[name]
 
 
+def refined(integrator, settings: dict | None = None, *, where: str = "integrator", budget: int | None = None) -> tuple:
+    """The integrator a run names, refined by run settings given one by one, and how a user
+    writes it: `(chosen, written)`.
+
+    `integrator`: a `tolerax.Integrator`, a name in `NAMED_INTEGRATORS`, or `"auto"`;
+    `settings`: `Integrator` fields -> values (`None`: not given), each replacing the
+    integrator's own; under `"auto"` they refine `ACCURATE` (the automatic choice's default).
+    `budget` (steps, optional): the step budget a preset or `ACCURATE` takes here (a design
+    unit's, `PointingObjective`'s); an `Integrator` given keeps its own. `chosen` is `None` for
+    `"auto"` with no settings (the scene's automatic choice, `AbstractScene.automatic_integrator`,
+    left to the caller); `written` is the Python a caller passes instead of the settings one by
+    one (`"tolerax.solve.ACCURATE.replace(rtol=1e-05)"`), for a deprecation's message. An unknown
+    name or setting is refused in `where`'s words."""
+    settings = {k: v for k, v in (settings or {}).items() if v is not None}
+    if isinstance(integrator, Integrator):
+        base, spelled = integrator, "integrator"
+    elif isinstance(integrator, str):
+        named = named_integrator(integrator, where)
+        base = ACCURATE if named is None else named
+        spelled = "tolerax.solve.ACCURATE" if named is None else f"tolerax.solve.NAMED_INTEGRATORS[{integrator!r}]"
+        if named is None and not settings:
+            return None, spelled
+        if budget is not None:
+            base, settings = base.replace(max_steps=budget), {"max_steps": budget} | settings
+    else:
+        raise TypeError(f"{where}: integrator must be 'auto', a name in tolerax.solve.NAMED_INTEGRATORS or a tolerax.Integrator, "
+                        f"got {integrator!r}.")
+    if not settings:
+        return base, spelled
+    try:
+        chosen = base.replace(**settings)
+    except (TypeError, ValueError) as err:
+        raise type(err)(f"{where}: {str(err).removeprefix('Integrator: ')}") from None
+    return chosen, f"{spelled}.replace({', '.join(f'{k}={v!r}' for k, v in settings.items())})"
+
+
 class SimulationError(RuntimeError):
     """The integrator did not reach the final time."""
 

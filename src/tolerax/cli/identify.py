@@ -26,9 +26,12 @@ def _scene_and_parameters(parser, args):
 
 
 def _run_settings(scene_file) -> dict:
-    """The scene file's `[run]` keys but the window and saves, which the recording (or the
-    planned test) sets: every one is a `PointingObjective` field (`SceneFile.objective`)."""
-    return {k: v for k, v in scene_file.run.items() if k not in ("duration", "settle", "n_save")}
+    """The scene file's `[run]` settings but the window and saves, which the recording (or the
+    planned test) sets: its start and its integrator (on a design unit's step budget, as
+    `SceneFile.objective` takes it)."""
+    from ..design.objectives import OBJECTIVE_INTEGRATOR
+
+    return {"start": scene_file.run["start"], "integrator": scene_file.integrator(OBJECTIVE_INTEGRATOR.max_steps)}
 
 
 def identify_command(parser, args) -> int:

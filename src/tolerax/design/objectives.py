@@ -6,6 +6,7 @@ scalar outputs and a `success` flag).
 
 import abc
 import dataclasses
+import warnings
 from typing import ClassVar
 
 import diffrax
@@ -18,7 +19,7 @@ from .features import design_names, with_design
 from .life import WEAR_FACTOR, MissionLife, window_wear_rates, worn_joints, worn_scene
 from ..mechanism.outputs import check_jitter_sampling, pointing_metrics
 from ..mechanism.scene import simulate
-from ..solve import Integrator, named_integrator
+from ..solve import Integrator, refined
 
 OBJECTIVE_INTEGRATOR = Integrator(max_steps=400_000)  # a design's units: `simulate`'s settings, a tenth of its step budget
 _UNSET = object()  # a run setting not given to `PointingObjective`
@@ -143,9 +144,11 @@ class PointingObjective(AbstractObjective):
     coefficients, the steps' limits; or a preset's name, `"fast-stage"`, `"accurate"`, on the
     objective's step budget; default (`"auto"`): the one `simulate` chooses for the scene,
     `scene.automatic_integrator()`, with a step budget of 400 000; `integrated_with` says which
-    and why); the settings may also be given one by one (`rtol=...`, `solver="Bosh3"`, a scene
-    file's `[run]` keys), each replacing the integrator's (`OBJECTIVE_INTEGRATOR`, Tsit5 at rtol
-    1e-6, where no integrator is given), and are read back as attributes (`objective.rtol`).
+    and why); its settings are read back as attributes (`objective.rtol`). Given one by one
+    (`rtol=...`, `solver="Bosh3"`) they still refine the integrator (a preset's or, where none is
+    named, `OBJECTIVE_INTEGRATOR`, Tsit5 at rtol 1e-6) for one release, with a
+    `DeprecationWarning` naming the `Integrator` to pass instead (a scene file's `[run]` keys
+    are made one by `SceneFile.objective`).
     Run settings are static: changing them recompiles; changing the design or the scene's
     values does not.
 
@@ -183,29 +186,26 @@ class PointingObjective(AbstractObjective):
         self.scene, self.duration, self.settle, self.n_save = scene, duration, settle, n_save
         self.peak_order, self.start, self.adjoint, self.jitter_cutoff = peak_order, start, adjoint, jitter_cutoff
         self.metrics, self.life = metrics, life
-        # The run settings given one by one (the older spelling, and a scene file's [run] keys;
-        # None: not given) replace the integrator's (`integrator`, else the objective's default);
-        # with none given and no integrator, the scene's automatic one (`simulate`'s default)
-        # with the objective's step budget.
+        # The run settings given one by one (deprecated: the older spelling; None: not given)
+        # refine the integrator (a preset by name or "auto": on the objective's step budget);
+        # with none given and "auto", the scene's automatic one (`simulate`'s default) with the
+        # objective's step budget.
         given = {k: v for k, v in dict(solver=solver, rtol=rtol, atol=atol, pcoeff=pcoeff, icoeff=icoeff, dt0=dt0, dtmax=dtmax,
                                         dtmin=dtmin, max_steps=max_steps, fixed_step=fixed_step).items()
                  if v is not _UNSET and v is not None}
-        if isinstance(integrator, str):  # "auto", or a preset by name ("fast-stage": NAMED_INTEGRATORS), on the objective's step budget
-            integrator = named_integrator(integrator, "PointingObjective")
-            integrator = None if integrator is None else integrator.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)
-        if integrator is None and not given:
+        chosen, written = refined("auto" if integrator is None else integrator, given, where="PointingObjective",
+                                  budget=OBJECTIVE_INTEGRATOR.max_steps)
+        if given:
+            settings = ", ".join(f"{k}={v!r}" for k, v in given.items())
+            warnings.warn(f"PointingObjective({settings}) is deprecated: pass integrator={written} (one tolerax.Integrator "
+                          "holds every run setting); the settings one by one go in the next release.", DeprecationWarning,
+                          stacklevel=2)
+        if chosen is None:
             chosen, reason = scene.automatic_integrator()
             self.integrator = chosen.replace(max_steps=OBJECTIVE_INTEGRATOR.max_steps)
             why = self.integrator.said(reason)
         else:
-            base = OBJECTIVE_INTEGRATOR if integrator is None else integrator
-            if not isinstance(base, Integrator):
-                raise TypeError(f"PointingObjective: integrator must be a tolerax.Integrator, got {type(base).__name__}.")
-            try:
-                self.integrator = base.replace(**given) if given else base
-            except ValueError as err:
-                raise ValueError(f"PointingObjective: {str(err).removeprefix('Integrator: ')}") from None
-            why = self.integrator.said()
+            self.integrator, why = chosen, chosen.said()
         # A copy (`dataclasses.replace`) hands its `integrated_with` back: kept where it still
         # describes this integrator, else said again.
         kept = integrated_with is not None and integrated_with.startswith(f"{self.integrator.describe()}:")

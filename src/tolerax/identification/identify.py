@@ -108,7 +108,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=None, starts=None, search: float = 2.0,
-             lm_steps: int = 20, rtol: float = 1e-6, atol: float = 1e-9, secant: float | bool | None = None, progress=False,
+             lm_steps: int = 20, integrator="auto", secant: float | bool | None = None, progress=False,
              **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
@@ -154,8 +154,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       `DAMPING` of the largest diagonal of $J^TJ$ at the start; its tolerance: `LM_TOL`; then
       where the best is not within a tenth of a standard error, `POLISH_STEPS` Gauss-Newton steps
       at `POLISH_TOL`, kept if they lower the cost);
-      `rtol`, `atol` and `**run`: the model's run settings (`simulate`'s: solver, controller,
-      `max_steps`, ...), as a scene file's `[run]` holds them.
+      `integrator`: the model's run settings (a `tolerax.Integrator`, a preset's name, or
+      `"auto"`: the scene's automatic choice, on a design unit's step budget:
+      `PointingObjective`'s); `**run`: its other `PointingObjective` fields.
     - `secant`: the residual's Jacobian, for Levenberg-Marquardt and the intervals. `None`
       (default): chosen at the first start, the forward-mode Jacobian through the solve where it
       agrees with the central secants at `SECANT_STEP` to `SECANT_SWITCH` of their norm, else
@@ -184,8 +185,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     window = times >= settle
     measured = recording.at(times[window])
     columns = [AXES.index(a) for a in recording.axes]
-    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start, rtol=rtol, atol=atol,
-                                  **run).forward_mode()
+    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start,
+                                  integrator=integrator, **run).forward_mode()
     units, scale = _scales(scene, parameters)
     x0 = np.asarray(parameter_values(scene, parameters)) / scale
     # The problem's data as arrays (traced): one compiled program per scene structure, parameter

@@ -184,7 +184,7 @@ class TestDesign:
 def design_test(scene, parameters, *, duration: float, n_save: int, noise: float, settle: float = 0.0,
                 max_amplitude: float | None = None, max_rate: float | None = None, amplitudes=None, periods=None,
                 criterion: str = "weakest", start: str = "steady", secant: float | bool | None = None, progress=False,
-                **run) -> TestDesign:
+                integrator="auto", **run) -> TestDesign:
     """The scan (amplitude, period) that makes `parameters` of `scene` best determined by a
     recording of `duration` s (module docstring).
 
@@ -200,7 +200,8 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     - `amplitudes` (rad), `periods` (s): the grid; default `FACTORS` times the limits' amplitude
       and times the plain scan's period (candidates beyond the limits dropped). The scene's own
       scan is always a candidate.
-    - `criterion`: "weakest" (default) or "D"; `start`, `**run`: the model's run (`identify`'s).
+    - `criterion`: "weakest" (default) or "D"; `start`, `integrator`, `**run`: the model's run
+      (`identify`'s).
     - `secant`: the Jacobian, as `identify`'s (`None`: chosen on the plain scan at the guess).
     - `progress`: True prints to stderr a rough time before the candidates are evaluated (the
       simulations they need at `tolerax.eta.rough_wall`'s pace, compilation not included) and a
@@ -237,7 +238,8 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
     times = np.linspace(0.0, duration, int(n_save))
     rows = jnp.asarray(np.flatnonzero(times >= settle))
     columns = jnp.asarray([AXES.index(a) for a in axes])
-    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=int(n_save), start=start, **run).forward_mode()
+    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=int(n_save), start=start, integrator=integrator,
+                                  **run).forward_mode()
     width = own_width(scene)
     measured = jnp.zeros((rows.size, columns.size))
     factors = np.geomspace(SPREAD[0], SPREAD[1], PROFILE_POINTS)

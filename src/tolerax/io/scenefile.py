@@ -27,7 +27,7 @@ import tomli_w
 from .._files import atomic_write
 from ..design import features as _design
 from ..mechanism.scene import simulate as _simulate
-from ..solve import ACCURATE, Integrator, named_integrator
+from ..solve import Integrator, refined
 from . import checker as C, schema as S
 from .checker import builtin_scenes  # noqa: F401 (the face's)
 from .schema import OUTPUT_KEYS, RUN_KEYS, TOLERANCE_KEYS, SceneFileError, SceneFileNote  # noqa: F401 (SceneFileNote: the face's)
@@ -35,6 +35,14 @@ from .schema import life as _life
 
 # ---------------------------------------------------------------------------------------------
 # The description
+
+
+def _integrator(run: dict, budget: int | None):
+    """`SceneFile.integrator` of the `[run]` settings `run` (a `tolerax.Integrator` given as
+    `integrator` is refined by the settings beside it)."""
+    settings = {k: run[k] for k in Integrator.FIELDS if run.get(k) is not None}
+    named = run.get("integrator") or "auto"
+    return refined(named, settings, where="[run] integrator", budget=None if isinstance(named, Integrator) else budget)[0] or "auto"
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -105,25 +113,31 @@ class SceneFile:
 
     def simulate(self, *, throw: bool = True, progress: bool = False):
         """`simulate(self.build(), ...)` with the `[run]` settings; the `MechanismResult`."""
-        run = self.run
-        kwargs = {k: v for k, v in run.items() if k in ("start", "n_save") and v is not None}
-        # The integrator: the preset named (or "auto"), its settings refined by the [run] keys given.
-        settings = {k: run[k] for k in Integrator.FIELDS if run.get(k) is not None}
-        integrator = run.get("integrator") or "auto"
-        if settings:
-            integrator = (named_integrator(integrator, "[run] integrator") or ACCURATE).replace(**settings)
-        return _simulate(self.build(), run["duration"], throw=throw, progress=progress, integrator=integrator, **kwargs)
+        kwargs = {k: v for k, v in self.run.items() if k in ("start", "n_save") and v is not None}
+        return _simulate(self.build(), self.run["duration"], throw=throw, progress=progress, integrator=self.integrator(),
+                         **kwargs)
+
+    def integrator(self, budget: int | None = None):
+        """The integrator `[run]` names: the preset named (`integrator = "fast-stage"`; default
+        `"auto"`, the scene's automatic choice) refined by the `Integrator` fields it sets
+        (`rtol = 1e-5`), as a `tolerax.Integrator`, or `"auto"` where it names neither.
+        `budget` (steps): a preset's step budget here (`PointingObjective`'s, a design unit's)."""
+        return _integrator(self.run, budget)
 
     def objective(self, **kwargs):
         """A `PointingObjective` on this scene over the window `[settle, duration]` (s), with the
         `[run]` settings and the `[life]` (its outputs then have end-of-life twins, `_eol`);
         keyword arguments override them."""
-        from ..design.objectives import PointingObjective
+        from ..design.objectives import OBJECTIVE_INTEGRATOR, PointingObjective
 
-        # Every `[run]` key is a `PointingObjective` field of the same name (tests/test_scenefile.py
-        # checks it), so the whole table passes through and a new key cannot be dropped here.
-        opts = dict(self.run, life=self.life)
-        return PointingObjective(self.build(), **{**opts, **kwargs})
+        # Every `[run]` key is an `Integrator` field or a `PointingObjective` field of the same name
+        # (tests/test_scenefile.py checks it), so the whole table passes through and a new key
+        # cannot be dropped here: the integrator's fields refine the preset named, on a design
+        # unit's step budget, as one `Integrator`.
+        opts = dict(self.run, life=self.life) | kwargs
+        integrator = _integrator(opts, OBJECTIVE_INTEGRATOR.max_steps)
+        opts = {k: v for k, v in opts.items() if k not in Integrator.FIELDS and k != "integrator"}
+        return PointingObjective(self.build(), integrator=integrator, **opts)
 
     def problem(self):
         """The design problem this file states (`tolerax.io.problem`): a `ToleranceProblem` of

@@ -17,7 +17,7 @@ import equinox as eqx
 import jax
 
 from .. import _validate as V
-from ..solve import ACCURATE, Integrator, SimulationError, SolverReport, named_integrator, raise_on_failure, solve, solver_named
+from ..solve import ACCURATE, Integrator, SimulationError, SolverReport, raise_on_failure, refined, solve
 
 STARTS = ("rest", "steady", "loaded")
 
@@ -141,27 +141,15 @@ def choose_integrator(scene: AbstractScene, integrator: "Integrator | str", give
     if unknown:
         raise TypeError(f"simulate() got unexpected keyword argument(s) {', '.join(unknown)}; the run's settings go in "
                         f"integrator=tolerax.Integrator(...) ({', '.join(Integrator.FIELDS)}).")
-    if isinstance(integrator, Integrator):
-        if given:
-            raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
-        return integrator, integrator.said()
-    if not isinstance(integrator, str):
-        raise TypeError(f"integrator must be 'auto', a name in tolerax.solve.NAMED_INTEGRATORS or a tolerax.Integrator, got "
-                        f"{integrator!r}.")
-    named = named_integrator(integrator, "simulate")  # None for "auto"; an unknown name refused with the names there are
-    if not given:
-        if named is not None:
-            return named, named.said()
+    if isinstance(integrator, Integrator) and given:
+        raise ValueError(f"simulate: give {', '.join(sorted(given))} in the integrator (Integrator.replace(...)), not beside it.")
+    chosen, written = refined(integrator, given, where="simulate")  # an unknown name or setting refused in simulate's words
+    if chosen is None:
         chosen, reason = scene.automatic_integrator()
         return chosen, chosen.said(reason)
-    if "solver" in given:
-        solver_named(given["solver"])  # an unknown name or a wrong type refused in simulate's words
-    base = ACCURATE if named is None else named
-    chosen = base.replace(**given)
-    preset = "tolerax.solve.ACCURATE" if named is None else f"tolerax.solve.NAMED_INTEGRATORS[{integrator!r}]"
-    written = ", ".join(f"{k}={v!r}" for k, v in given.items())
-    warnings.warn(f"simulate({written}) is deprecated: pass integrator={preset}.replace({written}) (one "
-                  "tolerax.Integrator holds every run setting); the settings one by one go in the next release.",
-                  DeprecationWarning, stacklevel=3)
+    if given:
+        settings = ", ".join(f"{k}={v!r}" for k, v in given.items())
+        warnings.warn(f"simulate({settings}) is deprecated: pass integrator={written} (one tolerax.Integrator holds every "
+                      "run setting); the settings one by one go in the next release.", DeprecationWarning, stacklevel=3)
     return chosen, chosen.said()
 
