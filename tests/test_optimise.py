@@ -58,8 +58,8 @@ def test_reciprocal_cost_linear_budget_closed_form():
     np.testing.assert_allclose(result.multiplier, lam_star, rtol=1e-4)
     np.testing.assert_allclose(result.cost, np.sum(A / t_star), rtol=1e-5)
     assert bool(result.converged) and bool(result.constraint_active)
-    assert abs(float(result.constraint)) < 1e-4
-    np.testing.assert_allclose(result.sensitivity.band, W / UM, rtol=1e-12)
+    assert abs(float(result.constraint[0])) < 1e-4
+    np.testing.assert_allclose(result.sensitivity.band, (W / UM)[None], rtol=1e-12)  # one row: one requirement
     np.testing.assert_allclose(result.cost_gradient.band, -A / np.asarray(result.x.band) ** 2, rtol=1e-10)
     # The schedule reached the objective: history records it, iteration by iteration.
     n = len(result.history.continuation)
@@ -96,7 +96,7 @@ def test_robust_objective_with_active_bound_closed_form():
     np.testing.assert_array_equal(result.x.nominal, lower.nominal)
     assert np.all(result.at_lower.nominal) and not np.any(result.at_upper.nominal)
     assert not np.any(result.at_lower.band) and not np.any(result.at_upper.band)
-    np.testing.assert_allclose(result.sensitivity.nominal, W / UM, rtol=1e-12)
+    np.testing.assert_allclose(result.sensitivity.nominal, (W / UM)[None], rtol=1e-12)  # one row: one requirement
     assert bool(result.converged) and bool(result.constraint_active)
 
 
@@ -110,7 +110,7 @@ def test_inactive_requirement_goes_to_the_upper_bound():
     result = optimise_design(_robust_stack, FEATURES, requirement=10 * loosest, **problem)
     np.testing.assert_array_equal(result.x.band, upper.band)
     np.testing.assert_allclose(result.x.nominal, 0.5 * (lower.nominal + upper.nominal), rtol=1e-14)
-    assert float(result.multiplier) == 0.0 and not bool(result.constraint_active)
+    assert float(result.multiplier[0]) == 0.0 and not bool(result.constraint_active[0])
     assert np.all(result.at_upper.band) and bool(result.converged)
     np.testing.assert_allclose(result.cost, np.sum(A / np.asarray(upper.band)), rtol=1e-12)
 
@@ -305,10 +305,10 @@ def test_result_is_the_cheapest_iterate_that_met_the_requirement(continuation, s
     x0 = jax.tree.map(lambda lo, hi: lo + start * (hi - lo), lower, upper)
     result = optimise_design(objective, FEATURES, requirement=400.0, lower=lower, upper=upper, x0=x0, cost_model=RECIPROCAL,
                              continuation=continuation, max_outer=len(script), inner_steps=1, optimiser=_jumps([start, *levels]))
-    np.testing.assert_allclose(result.history.objective, values, rtol=1e-12)  # the script was followed
+    np.testing.assert_allclose(result.history.objective[:, 0], values, rtol=1e-12)  # the script was followed
     band = lower.band + (upper.band - lower.band) * levels[chosen]
     assert int(result.iteration) == chosen
-    assert float(result.objective) == pytest.approx(values[chosen], rel=1e-12)
+    assert float(result.objective[0]) == pytest.approx(values[chosen], rel=1e-12)
     np.testing.assert_allclose(float(result.cost), float(RECIPROCAL.total(band, FEATURES.size_mm)), rtol=1e-12)
     np.testing.assert_allclose(result.x.band, band, rtol=1e-12)
     assert len(result.history.cost) == len(script)
@@ -399,7 +399,7 @@ def test_sequential_against_scipy_slsqp_where_the_response_bends():
     assert reference.success and bool(result.converged)
     np.testing.assert_allclose(result.cost, reference.fun, rtol=1e-5)
     np.testing.assert_allclose(np.r_[result.x.nominal, result.x.band] / UM, reference.x, rtol=1e-4)
-    assert abs(float(result.constraint)) <= 1e-6 * requirement
+    assert abs(float(result.constraint[0])) <= 1e-6 * requirement
     # Each iteration is one value-and-gradient of the objective; SLSQP's quasi-Newton model of the
     # same problem took more (deterministic: 9 against 29 when this was written).
     assert int(result.history.steps[-1]) < reference.njev
@@ -527,7 +527,7 @@ def test_sequential_converges_within_the_noise_of_estimated_gradients():
     best = float(np.sum(A / bands(lam_star)))
     assert not bool(plain.converged) and plain.band_optimality > 1e-2
     assert bool(told.converged) and told.band_optimality_within_noise <= 1e-2 < told.band_optimality
-    assert float(told.objective) <= requirement * 1.01
+    assert float(told.objective[0]) <= requirement * 1.01
     # Within what the requirement's own tolerance (1 %) is worth at the optimum, lambda* x 0.01 x R:
     # the stop cannot resolve cost differences below that (`SequentialSolver`'s stationarity).
     assert abs(float(told.cost) - best) <= lam_star * 0.01 * requirement

@@ -131,7 +131,7 @@ def test_two_sets_of_secant_units_that_disagree_make_a_noise_limited_answer():
     """The designs found with two independent sets of secant units: within what the
     requirements' tolerances resolve (multiplier x tol x limit, here 0.5 x 0.2 x 1 = 0.1, or 1 %
     of the cost) they are one answer; beyond it the status is noise-limited, with both costs."""
-    from tolerax.design.propose import _noise_verdict
+    from tolerax.design.finish import noise_verdict as _noise_verdict
     from tolerax.design.report import RequirementOutcome
     from tolerax import Requirement
 

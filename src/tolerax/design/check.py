@@ -211,10 +211,10 @@ def model_off(checks, requirements) -> bool:
 
 
 def as_requirement(requirements):
-    """The requirements (m,) as the solvers and `yield_check` take them: a float for one, a
-    tuple of m floats for several."""
+    """The requirements (m,) as the solvers and `yield_check` take them: a tuple of m floats,
+    one or several."""
     requirements = np.atleast_1d(requirements)
-    return float(requirements[0]) if len(requirements) == 1 else tuple(float(v) for v in requirements)
+    return tuple(float(v) for v in requirements)
 
 
 def cheapest_accepted(costs, quantiles, requirement, tol=0.01, missed=None):

@@ -88,8 +88,8 @@ class AbstractDesignSolver(eqx.Module):
     - `terminate(problem, state) -> bool`: stop now (converged, or nothing more to do).
     - `postprocess(problem, state) -> OptimisationResult`: the answer.
     - `last(problem, state) -> (x, cost, objective, evaluations)`: the design the last step
-      evaluated, for the progress bar and the callback (`objective` a float for one constraint,
-      an array for several).
+      evaluated, for the progress bar and the callback (`objective` an array (m,), one entry
+      per constraint, however many).
     """
 
     @abc.abstractmethod
@@ -170,12 +170,11 @@ def make_result(problem: ConstrainedDesign, x: Design, f, sensitivity: Design, m
     constraints' values `f` (m,) and gradients `sensitivity` (a `Design` of rows, arcsec/m)
     there, the multipliers (m,), whether it `converged`, the index of the chosen iterate in
     `rows` (one history row per step: cost, objective, constraint, multiplier, penalty,
-    continuation, steps). One constraint: scalars and single rows; several: one per constraint.
+    continuation, steps). One entry (and one row) per requirement, however many there are.
     The cost, its gradient and the bounds held are computed here."""
-    n, one = len(problem.features.names), problem.m == 1
-    f, multiplier = np.atleast_1d(np.asarray(f, dtype=float)), np.atleast_1d(np.asarray(multiplier, dtype=float))
-    reported = (lambda v: float(np.asarray(v).reshape(-1)[0])) if one else np.asarray
-    single = (lambda d: Design(np.asarray(d.nominal).reshape(-1, n)[0], np.asarray(d.band).reshape(-1, n)[0])) if one else (lambda d: d)
+    n, m = len(problem.features.names), problem.m
+    f, multiplier = np.asarray(f, dtype=float).reshape(m), np.asarray(multiplier, dtype=float).reshape(m)
+    rows_of = lambda d: Design(np.asarray(d.nominal).reshape(m, n), np.asarray(d.band).reshape(m, n))  # noqa: E731
     feature_cost = problem.cost_model(jnp.asarray(x.band), problem.features.size_mm)
     cost_gradient = jax.grad(lambda b: problem.cost_model.total(b, problem.features.size_mm))(jnp.asarray(x.band, dtype=float))
     return OptimisationResult(
@@ -183,14 +182,14 @@ def make_result(problem: ConstrainedDesign, x: Design, f, sensitivity: Design, m
         features=problem.features,
         cost=jnp.sum(feature_cost),
         feature_cost=feature_cost,
-        objective=jnp.asarray(reported(f)),
-        constraint=jnp.asarray(reported(f - problem.requirements)),
-        multiplier=jnp.asarray(reported(multiplier)),
-        constraint_active=jnp.asarray(reported(f >= problem.requirements * (1 - problem.tol))),
+        objective=jnp.asarray(f),
+        constraint=jnp.asarray(f - problem.requirements),
+        multiplier=jnp.asarray(multiplier),
+        constraint_active=jnp.asarray(f >= problem.requirements * (1 - problem.tol)),
         at_lower=jax.tree.map(lambda v, bound: jnp.asarray(v) <= bound, x, problem.lower),
         at_upper=jax.tree.map(lambda v, bound: jnp.asarray(v) >= bound, x, problem.upper),
-        sensitivity=single(sensitivity),
-        sensitivity_se=None if sensitivity_se is None else single(sensitivity_se),
+        sensitivity=rows_of(sensitivity),
+        sensitivity_se=None if sensitivity_se is None else rows_of(sensitivity_se),
         cost_gradient=Design(np.zeros(n), np.asarray(cost_gradient)),
         converged=jnp.asarray(bool(converged)),
         iteration=jnp.asarray(int(iteration)),

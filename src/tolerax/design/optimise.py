@@ -313,7 +313,7 @@ class AugmentedLagrangianSolver(AbstractDesignSolver):
 
     def last(self, problem, state):
         x = state.box.to_x(state.z)
-        return x, state.rows[-1][0], state.rows[-1][1], len(state.rows)
+        return x, state.rows[-1][0], np.atleast_1d(state.rows[-1][1]), len(state.rows)
 
     def postprocess(self, problem, state):
         rows, z, box, multiplier = state.rows, state.z, state.box, state.multiplier
@@ -326,15 +326,17 @@ class AugmentedLagrangianSolver(AbstractDesignSolver):
             features=problem.features,
             cost=jnp.sum(feature_cost),
             feature_cost=feature_cost,
-            objective=f,
-            constraint=f - box.requirement,
-            multiplier=multiplier * box.cost_scale / box.requirement,
-            constraint_active=f >= box.requirement * (1.0 - float(problem.tol[0])),
+            # One entry (and one sensitivity row) per requirement, as every solver's result.
+            objective=jnp.atleast_1d(f),
+            constraint=jnp.atleast_1d(f - box.requirement),
+            multiplier=jnp.atleast_1d(multiplier * box.cost_scale / box.requirement),
+            constraint_active=jnp.atleast_1d(f >= box.requirement * (1.0 - float(problem.tol[0]))),
             at_lower=jax.tree.map(lambda zz: zz <= 1e-9, z),
             at_upper=jax.tree.map(lambda zz, s: (zz >= 1.0 - 1e-9) | (s == 0), z, box.span),
-            sensitivity=sensitivity,
+            sensitivity=jax.tree.map(lambda s: jnp.reshape(s, (1, -1)), sensitivity),
             cost_gradient=cost_gradient,
             converged=jnp.asarray(state.converged),
             iteration=jnp.asarray(chosen),
-            history=History(*(jnp.asarray(column, dtype=float) for column in zip(*rows))),
+            history=History(*(jnp.asarray(column, dtype=float).reshape((-1, 1) if k in (1, 2, 3) else (-1,))
+                              for k, column in enumerate(zip(*rows)))),
         )

@@ -6,23 +6,21 @@ whose pointing outputs meet their requirements.
 statistic, zones, cost model), the design method (`tolerax.design.solvers`: `Sequential` by
 default, or the augmented Lagrangian on optax) and the Monte Carlo check of a yield
 (`tolerax.design.check.Check`). It answers infeasible first, runs the solve rounds
-(`tolerax.design.rounds`), draws the optimum on whole ISO grades (`tolerax.design.drawable`) and
+(`tolerax.design.rounds`), draws the optimum on whole ISO grades and measures its noise band (`tolerax.design.finish`) and
 returns a `DesignReport` that says whether its answer is a proposal (`tolerax.design.outcome`).
 """
 
 import dataclasses
 import functools
 
-import jax.numpy as jnp
 import numpy as np
 
 from ..eta import human_seconds, rough_wall
 from .check import Check, as_requirement, model_off
 from .cost import grade_of
-from .drawable import round_to_grades
+from .finish import TIGHTER_GRADES, drawn_missed, drawn_on_grades, noise_band, noise_verdict
 from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
-from .loop import tolerance_worth
 from .objectives import PointingObjective
 from .outcome import SETTLED_STEPS, diagnose, tightest_reach
 from .phases import Phases
@@ -181,9 +179,9 @@ def propose_design(
         if combined.twin:
             seed = int(options.get("secant_seed", 1)) + 1
             say(f"the noise band: the design again on another set of units (seed {seed}) ...")
-            twin = design_problem(pointing, **(options | {"secant_seed": seed}))
-            _, other, _, _ = _solve_and_check(twin, requirements, tol, solver, check, progress, None, rounds=rounds, say=say)
-            twin_costs = (float(result.cost), float(other.cost), seed)
+            twin_costs = noise_band(lambda s: design_problem(pointing, **(options | {"secant_seed": s})), result, seed,
+                                    lambda p: _solve_and_check(p, requirements, tol, solver, check, progress, None, rounds=rounds,
+                                                               say=say)[1])
     what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
     status, diagnosis = diagnose(
         objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
@@ -195,8 +193,7 @@ def propose_design(
         stalled=bool(result.stalled is not None and result.stalled), solver=solver, settled=_settled(result))
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
-        status, diagnosis = _noise_verdict(twin_costs, outcomes, options.get("secant_units"), bool(other.converged),
-                                           combined.surface is not None)
+        status, diagnosis = noise_verdict(twin_costs, outcomes, options.get("secant_units"), surface=combined.surface is not None)
         more = _on_more_units(problem, options.get("secant_units")) if status == "noise-limited" else None
         if more is not None:
             # Auto(): the measurement (two sets of units that disagree on the design) moves the
@@ -209,19 +206,18 @@ def propose_design(
             return dataclasses.replace(again, notes=(
                 f"On {units} units the design was noise-limited (costs {twin_costs[0]:.4g} and {twin_costs[1]:.4g} with two sets "
                 f"of units): Auto() solved it again on {2 * units} units.",) + again.notes)
-    drawable = None
+    # Every solver's result carries one row of sensitivities per requirement, what the rounding reads.
     band = np.asarray(result.x.band)
     grade = np.asarray(grade_of(band * 2, built.features.size_mm))
-    if solver.drawable:
-        drawn_check = None if check is None or status != "converged" else check
-        say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units (up to {TIGHTER_GRADES + 1} designs, "
-                                                f"each a check{say.at_pace('check').replace(', about', ': about')})"
-                                                if drawn_check else "") + " ...")
-        drawable = _drawable(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width, progress)
-        if status == "converged" and not drawable.met:
-            # One proposal: what the drawing carries is the answer, so a continuous optimum whose
-            # whole grades miss is not a proposal.
-            status, diagnosis = "check missed", _drawable_missed(drawable, yield_)
+    drawn_check = None if check is None or status != "converged" else check
+    say("the design on whole ISO grades" + (f", checked on {drawn_check.units} units (up to {TIGHTER_GRADES + 1} designs, "
+                                            f"each a check{say.at_pace('check').replace(', about', ': about')})"
+                                            if drawn_check else "") + " ...")
+    drawable = drawn_on_grades(built, result, grade, outcomes, targets, requirements, yield_, drawn_check, width, progress)
+    if status == "converged" and not drawable.met:
+        # One proposal: what the drawing carries is the answer, so a continuous optimum whose
+        # whole grades miss is not a proposal.
+        status, diagnosis = "check missed", drawn_missed(drawable, yield_)
     features, x0 = built.features, built.x0
     say(f"done: {status}.")
     return DesignReport(
@@ -315,73 +311,6 @@ def _tightest_first(evaluate, problem, slopes, requirements, tol):
     if np.all(np.min(values, axis=0) <= requirements * (1 + tol)):
         return None
     return tried[int(np.argmin(np.max(values / requirements, axis=1)))]
-
-
-TIGHTER_GRADES = 2  # how many grades below the continuous ones the drawable design is rounded from, at most
-
-
-def _drawable(problem, result, grade, outcomes, targets, requirements, yield_, check, width, progress=False):
-    """The proposal as drawn: the continuous design on whole ISO grades (`round_to_grades`,
-    from its grades `grade`, with its linear model against what it was solved for), checked on
-    `check`'s units (`Check.key_for(drawn=True)`, at smoothing `width`, m) against the
-    requirements where there is a check. Where it
-    misses (its check short of the yield, or its linear model over a requirement), tighter
-    grades are tried: rounded from every continuous grade one lower, then two (`TIGHTER_GRADES`),
-    each checked on the same units; the first that meets is returned, else the last tried, its
-    `tightened` saying how far."""
-    size, lower, upper = np.asarray(problem.features.size_mm), problem.lower, problem.upper
-    band, limit = np.asarray(result.x.band, dtype=float), np.asarray(result.x.nominal, dtype=float)
-    given = np.asarray(lower.band) == np.asarray(upper.band)
-    fixed = tuple(n for n, g in zip(problem.features.names, given) if g)
-    for shift in range(TIGHTER_GRADES + 1):
-        d = round_to_grades(problem.features.names, size, limit, band, np.asarray(grade, dtype=float) - shift,
-                            [o.objective for o in outcomes], targets, np.atleast_2d(np.asarray(result.sensitivity.band)),
-                            lambda b: np.asarray(problem.cost_model(jnp.asarray(b), jnp.asarray(size))),
-                            band_range=(np.asarray(lower.band), np.asarray(upper.band)), fixed=fixed,
-                            pressure_angle=problem.features.pressure_angle)
-        d = dataclasses.replace(d, tightened=shift)
-        if yield_ is not None and check is not None:
-            got = check.simulate(problem.objective.objective, Design(d.nominal, d.band), requirements, width, drawn=True,
-                                 progress=progress)
-            d = dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
-        if d.met:
-            return d
-    return d
-
-
-def _drawable_missed(d, yield_) -> str:
-    """The diagnosis of a converged design whose drawable twin (whole grades) misses: by a check
-    short of the yield where one is, else by its linear model."""
-    missed = [c for c in d.checks if c.missed]
-    if not missed:
-        return ("The continuous optimum meets the requirements, but on whole ISO grades (what a drawing carries) the linear "
-                "model says it misses: " + ", ".join(f"{float(o):.4g} against {float(r):.4g}" for o, r in zip(d.objective, d.limit))
-                + ". To change it: a wider band range (Zones(band_range=...)), or a looser requirement.")
-    c = missed[0]
-    return (f"The continuous optimum meets the requirements, but its design on whole ISO grades (what a drawing carries), "
-            f"rounded from up to {d.tightened} grade(s) below the continuous ones after its checks, does not: {c.text()}, against "
-            f"{yield_:.1%} asked. To change "
-            "it: fit the slopes over units (model=Secants(units=...), --secant-units), more check units (Check(units=...), --check), or a "
-            "looser requirement.")
-
-
-def _noise_verdict(band, outcomes, units, other_converged, surface: bool = False) -> tuple[str, str]:
-    """`(status, diagnosis)` from the costs of the designs found with two independent sets of
-    secant units, `band = (this cost, the other's, the other's seed)`: converged where they agree
-    to what the requirements' tolerances resolve, else noise-limited. The remedy names the model
-    the units fitted (`surface`: a response surface, else secants) on more units."""
-    this, that, seed = band
-    resolved = max(0.01 * this, tolerance_worth([o.multiplier for o in outcomes], [o.tol for o in outcomes],
-                                                [o.requirement.limit for o in outcomes]))
-    if abs(this - that) <= resolved and other_converged:
-        return "converged", ""
-    return "noise-limited", (
-        f"Two independent sets of {units} secant units give designs of cost {this:.4g} (this one) and {that:.4g} (secant_seed "
-        f"{seed}{'' if other_converged else ', not converged'}): a band of {abs(this - that):.3g}, more than the "
-        f"{resolved:.3g} the requirements' tolerances resolve. The fitted slopes' noise, not the mechanism, decides the design. To "
-        f"change it: the same {'response surface' if surface else 'secants'} on more units (the model's units={2 * units}"
-        + (f", e.g. Auto(units={2 * units}) for the default" if surface else "")
-        + f"; --secant-units {2 * units}, which keeps the model), or a looser tolerance on the noisy requirement.")
 
 
 AUTO_MAX_UNITS = 128  # Auto() moves a noise-limited design on to twice its units while that stays within this

@@ -479,8 +479,8 @@ class DesignReport:
         what = "objective" if self.yield_ is None else f"{self.yield_:.1%} quantile (linearised)"
         objective = np.asarray(hist.objective)
         start = np.array([o.baseline for o in self.outcomes])
-        if objective.ndim == 1:
-            values = np.r_[start[:1], objective]
+        if len(self.outcomes) == 1:  # one requirement: in its own unit
+            values = np.r_[start[:1], objective.reshape(-1)]
             ax2.plot(it[-len(values):], values, "s--", color="C1", label=f"{what}, {first.unit}")
             ax2.axhline(first.limit, color="C1", lw=0.8, ls=":", label="requirement")
             ax2.set_ylabel(f"{first.name}: {what} ({first.unit})", fontsize=8)

@@ -60,8 +60,8 @@ import optax
 
 from .cost import AbstractCostModel
 from .loop import AbstractDesignSolver, ConstrainedDesign, make_result, solve_design, tolerance_worth
-from .subproblem import _cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian
-from .types import Design, Features, OptimisationResult, optimality_residual
+from .subproblem import _cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian, linearised_minimiser
+from .types import Design, Features, OptimisationResult, counted_rows, optimality_residual
 
 MIN_RADIUS = 1e-4  # the trust region's smallest half-width (a fraction of each variable's range)
 STALL_STEPS = 4  # rejected steps in a row at MIN_RADIUS that end a run as stalled
@@ -73,12 +73,11 @@ __all__ = ["SequentialSolver", "TrustRegionState", "sequential_design", "trust_r
 def _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=False, se=None) -> float:
     """`optimality_residual` at box point `z` (flat lower limits then bands) with the cost's
     gradient over the bands `dc` (n,) and the gradients `grad` (m, 2n) of the constraints values
-    `f`: over the active ones (to `tol`) where there are several, an inactive constraint's
-    multiplier being 0; `bands_only`: over the bands, the lower limits held where they are;
+    `f`: over those `counted_rows` counts (the active ones, to `tol`); `bands_only`: over the bands, the lower limits held where they are;
     `se` (m, 2n): the gradients' standard errors (the residual within their noise)."""
     dc = np.concatenate([np.zeros(n), dc])
     keep = slice(n, None) if bands_only else slice(None)
-    rows = slice(None) if grad.shape[0] == 1 else f >= requirements * (1 - tol)
+    rows = counted_rows(f >= requirements * (1 - tol))
     return optimality_residual(dc[keep], grad[rows][:, keep], (z <= lo)[keep], (z >= hi)[keep],
                                None if se is None else se[rows][:, keep])
 
@@ -111,11 +110,9 @@ class _Flat:
     def evaluate(self, z):
         """`(f, grad)`: the constraints' values (m,) and gradients (m, 2n) at `z`."""
         p, x = self.problem, self.design(z)
-        if self.m == 1:
-            f, g = _value_and_grad(p.objective, x, p.draws, self.width)
-            return np.atleast_1d(float(f)), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)])[None]
-        f, g = _value_and_jacobian(p.objective, x, p.draws, self.width)
-        return np.asarray(f, dtype=float).reshape(self.m), np.concatenate([np.asarray(g.nominal), np.asarray(g.band)], axis=1)
+        f, g = (_value_and_grad if self.m == 1 else _value_and_jacobian)(p.objective, x, p.draws, self.width)
+        rows = [np.asarray(part, dtype=float).reshape(self.m, self.n) for part in (g.nominal, g.band)]
+        return np.asarray(f, dtype=float).reshape(self.m), np.concatenate(rows, axis=1)
 
     def cost(self, z) -> float:
         return float(_cost_and_gradient(self.problem.cost_model, self.problem.features.size_mm, jnp.asarray(z[self.n :]))[0])
@@ -137,13 +134,7 @@ class _Flat:
         multipliers (m,), predicted f (m,))`; a multiplier is inf where even the tightest design
         there misses its linearised constraint."""
         n, p = self.n, self.problem
-        if self.m == 1 and self.zone is None:
-            boxes = (jnp.asarray(box_lo[:n]), jnp.asarray(box_hi[:n])), (jnp.asarray(box_lo[n:]), jnp.asarray(box_hi[n:]))
-            l, b, lam, f_pred = _subproblem(p.cost_model, p.features.size_mm, jnp.asarray(f[0]), jnp.asarray(grad[0, :n]),
-                                            jnp.asarray(grad[0, n:]), jnp.asarray(z[:n]), jnp.asarray(z[n:]), *boxes,
-                                            jnp.asarray(p.requirements[0]))  # arrays: no retrace when values change
-        else:
-            l, b, lam, f_pred = _subproblem_many(p.cost_model, p.features.size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:],
+        l, b, lam, f_pred = linearised_minimiser(p.cost_model, p.features.size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:],
                                                  (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]), p.requirements, self.zone)
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), self.lo, self.hi)
         return trial, np.atleast_1d(np.asarray(lam, dtype=float)), np.atleast_1d(np.asarray(f_pred, dtype=float))
@@ -243,11 +234,11 @@ class _SequentialState:
 
 def _row(problem, cost, f, multipliers, evaluations) -> tuple:
     """One `History` row: cost, objective, constraint (objective - requirement), multiplier
-    (each a float for one requirement, an array for several), penalty (NaN: the method has
-    none), continuation (the smoothing width, NaN without one) and the evaluations so far."""
-    reported = (lambda v: float(v[0])) if problem.m == 1 else np.asarray
+    (each an array, one entry per requirement), penalty (NaN: the method has none),
+    continuation (the smoothing width, NaN without one) and the evaluations so far."""
     width = np.nan if problem.width is None else float(problem.width)
-    return (cost, reported(f), reported(f - problem.requirements), reported(multipliers), np.nan, width, evaluations)
+    f = np.asarray(f, dtype=float)
+    return (cost, f, f - problem.requirements, np.asarray(multipliers, dtype=float), np.nan, width, evaluations)
 
 
 class SequentialSolver(AbstractDesignSolver):
@@ -331,7 +322,7 @@ class SequentialSolver(AbstractDesignSolver):
     def last(self, problem, state):
         opt, flat = state.opt_state, state.flat
         f = opt.trial_value
-        return flat.design(opt.trial), flat.cost(opt.trial), (float(f[0]) if problem.m == 1 else np.asarray(f)), opt.evaluations
+        return flat.design(opt.trial), flat.cost(opt.trial), np.asarray(f), opt.evaluations
 
     def postprocess(self, problem, state):
         flat, n = state.flat, state.flat.n

@@ -37,7 +37,6 @@ class AbstractDesignMethod(abc.ABC):
     """A design solver (module docstring). `widths` (m, wide to narrow): the smoothing widths
     it continues over; the design is judged at the last. Class attributes: `several` (it meets
     several requirements at once), `fitted` (it takes slopes fitted over units: secants),
-    `drawable` (its result carries the sensitivities the rounding to whole grades uses),
     `restarts` (it re-solves from a design: a check's shifted requirement, a surface's rounds),
     `budget` (the name of its field that bounds its iterations, which a diagnosis names)."""
 
@@ -45,13 +44,12 @@ class AbstractDesignMethod(abc.ABC):
     budget: ClassVar[str] = "max_gradients"
     several: ClassVar[bool] = True
     fitted: ClassVar[bool] = True
-    drawable: ClassVar[bool] = True
     restarts: ClassVar[bool] = True
 
     @abc.abstractmethod
     def solve(self, problem: DesignProblem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
         """The cheapest design of `problem` (`DesignProblem`) whose objective meets
-        `requirement` (a float, or a tuple of floats for several) to relative `tol` (one per
+        `requirement` (a tuple of m floats, one requirement or several) to relative `tol` (one per
         requirement). From `problem.x0` over every width; or, given `x0` (a `Design`: a
         re-solve after the requirement or the problem moved), from there at the last width,
         with `step` (relative, optional) the largest first step. Returns an
@@ -123,15 +121,15 @@ class AugmentedLagrangian(AbstractDesignMethod):
     budget: ClassVar[str] = "max_outer"
     several: ClassVar[bool] = False
     fitted: ClassVar[bool] = False
-    drawable: ClassVar[bool] = False
     restarts: ClassVar[bool] = False
 
     def __post_init__(self):
         object.__setattr__(self, "widths", _widths(self.widths))
 
     def solve(self, problem, requirement, tol, *, x0=None, step=None, progress=False, callback=None):
-        if np.ndim(requirement):
+        if np.size(requirement) != 1:
             raise ValueError("AugmentedLagrangian: one requirement only; several need Sequential().")
+        requirement = np.asarray(requirement, dtype=float).reshape(())  # one requirement, as every solver is given it: (1,)
         if callback is not None:
             raise ValueError("AugmentedLagrangian: takes no callback (Sequential does).")
         widths = jnp.asarray(self.widths if x0 is None else self.widths[-1:])
@@ -221,7 +219,7 @@ def _slsqp(design: ConstrainedDesign, x0: Design, cost_gradient, max_iterations:
             evaluations += 1
             if callback is not None:
                 f = memo[key][0]
-                callback(evaluations, as_design(z), cost(z), float(f[0]) if f.size == 1 else f)
+                callback(evaluations, as_design(z), cost(z), f)
         return memo[key]
 
     R = np.asarray(design.requirements, dtype=float)

@@ -144,14 +144,15 @@ class History(eqx.Module):
     """One entry per outer iteration, at the end of its inner minimisation.
 
     - `cost`: total cost. `objective`: $f$ (arcsec). `constraint`: $f - R$ (arcsec).
-    - `multiplier`: $\\lambda$ (cost per arcsec). `penalty`: $\\rho$ (dimensionless).
+    - `multiplier`: $\\lambda$ (cost per arcsec). These three: a column per requirement.
+    - `penalty`: $\\rho$ (dimensionless).
     - `continuation`: the value passed to the objective. `steps`: optimiser steps so far.
     """
 
     cost: Float[Array, " iterations"]
-    objective: Float[Array, " iterations"]
-    constraint: Float[Array, " iterations"]
-    multiplier: Float[Array, " iterations"]
+    objective: Float[Array, "iterations m"]
+    constraint: Float[Array, "iterations m"]
+    multiplier: Float[Array, "iterations m"]
     penalty: Float[Array, " iterations"]
     continuation: Float[Array, " iterations"]
     steps: Float[Array, " iterations"]
@@ -163,6 +164,8 @@ class OptimisationResult(eqx.Module):
     - `x`: the design (`Design`, m). `features`: the `Features` it was asked for.
     - `cost`: total cost; `feature_cost`: per feature (cost unit of the model).
     - `objective`: $f(x)$ (arcsec) at the last continuation value; `constraint`: $f(x) - R$.
+      These, `multiplier` and `constraint_active` hold one entry per requirement (m,), and
+      `sensitivity` one row each (m, n): one requirement or several, the same shapes.
     - `multiplier`: $\\lambda \\ge 0$ (cost per arcsec): the shadow price of the requirement,
       $\\partial C^*/\\partial R = -\\lambda$ at a regular optimum.
     - `constraint_active`: whether the requirement binds ($f \\ge R(1 - $`active_tol`$)$).
@@ -187,10 +190,10 @@ class OptimisationResult(eqx.Module):
     features: Features
     cost: Float[Array, ""]
     feature_cost: Float[Array, " n"]
-    objective: Float[Array, ""]
-    constraint: Float[Array, ""]
-    multiplier: Float[Array, ""]
-    constraint_active: Bool[Array, ""]
+    objective: Float[Array, " m"]
+    constraint: Float[Array, " m"]
+    multiplier: Float[Array, " m"]
+    constraint_active: Bool[Array, " m"]
     at_lower: Design
     at_upper: Design
     sensitivity: Design
@@ -205,9 +208,7 @@ class OptimisationResult(eqx.Module):
     def optimality(self) -> float:
         """First-order optimality residual at `x` (`optimality_residual`): 0 at a KKT point."""
         flat = lambda d: np.concatenate([np.asarray(d.nominal), np.asarray(d.band)], axis=-1)  # noqa: E731
-        sensitivity = flat(self.sensitivity)
-        if sensitivity.ndim == 2:  # several constraints: the active ones
-            sensitivity = sensitivity[np.asarray(self.constraint_active, dtype=bool)]
+        sensitivity = flat(self.sensitivity)[counted_rows(self.constraint_active)]
         return optimality_residual(flat(self.cost_gradient), sensitivity, flat(self.at_lower), flat(self.at_upper))
 
     @property
@@ -224,12 +225,19 @@ class OptimisationResult(eqx.Module):
     def _band_residual(self, se) -> float:
         """`optimality_residual` over the bands (the active constraints' rows where there are
         several), with the sensitivities' standard errors `se` where given."""
-        sensitivity = np.asarray(self.sensitivity.band)
-        if sensitivity.ndim == 2:
-            active = np.asarray(self.constraint_active, dtype=bool)
-            sensitivity, se = sensitivity[active], None if se is None else se[active]
+        rows = counted_rows(self.constraint_active)
+        sensitivity, se = np.asarray(self.sensitivity.band)[rows], None if se is None else se[rows]
         return optimality_residual(np.asarray(self.cost_gradient.band), sensitivity, np.asarray(self.at_lower.band),
                                    np.asarray(self.at_upper.band), se)
+
+
+def counted_rows(active) -> np.ndarray:
+    """Which constraints' gradients the optimality residual counts, given which are active
+    (m,): the active ones, an inactive constraint's multiplier being 0 — but a lone constraint
+    always (its multiplier is then the residual's own minimiser: a design short of its one
+    requirement with bands left to widen reads far from optimal either way)."""
+    active = np.atleast_1d(np.asarray(active, dtype=bool))
+    return np.ones_like(active) if active.size == 1 else active
 
 
 def optimality_residual(cost_gradient, gradient, at_lower, at_upper, gradient_se=None, k: float = 2.0) -> float:
