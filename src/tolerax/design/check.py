@@ -141,10 +141,12 @@ class Check:
                  progress: bool = False):
         """`yield_check` of design `x` (`Design(middle, half-width)`, m) against `requirements`
         (one per output of `objective`) on this check's units (`key_for(drawn)`), run as it says
-        (chunks, backend, checkpoints), at smoothing `width` (m)."""
-        return yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
-                           int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
-                           progress=progress)
+        (chunks, backend, checkpoints), at smoothing `width` (m): a tuple of `YieldCheck`s, one
+        per requirement, however many."""
+        got = yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
+                          int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
+                          progress=progress)
+        return got if isinstance(got, tuple) else (got,)
 
     def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None, say=None):
         """Check `result` (an `OptimisationResult` of `problem`, a `DesignProblem` whose
@@ -153,10 +155,9 @@ class Check:
         moves them. Returns `(result, checked)`, `checked` one `(result, checks (one per
         requirement), requirements solved for)` per check, the last the returned design's. A
         design that misses what it was solved for is not checked."""
-        m = requirements.shape[0]
         target, checked = requirements.copy(), []
         for _ in range(int(self.rounds)):
-            if np.any(np.atleast_1d(np.asarray(result.objective, dtype=float)) > target * (1 + tol)):
+            if np.any(np.asarray(result.objective, dtype=float) > target * (1 + tol)):
                 break  # the design misses what it was solved for (infeasible, or not converged): nothing to check
             middle = Design(result.x.nominal + result.x.band, result.x.band)
             paced = isinstance(say, Phases)  # a Phases keeps each check's wall time, to say the next's
@@ -167,7 +168,6 @@ class Check:
             got = self.simulate(problem.objective.objective, middle, requirements, solver.width, progress=progress)
             if paced:
                 say.took("check", time.perf_counter() - begun)
-            got = got if m > 1 else (got,)
             checked.append((result, got, target.copy()))
             if model_off(got, requirements):
                 break  # the linear model does not hold here: no shift of it would (`diagnose` says so)

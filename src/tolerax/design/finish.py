@@ -53,7 +53,7 @@ def drawn_on_grades(problem, result: OptimisationResult, grade, outcomes, target
         if yield_ is not None and check is not None:
             got = check.simulate(problem.objective.objective, Design(d.nominal, d.band), requirements, width, drawn=True,
                                  progress=progress)
-            d = dataclasses.replace(d, checks=got if requirements.shape[0] > 1 else (got,))
+            d = dataclasses.replace(d, checks=got)
         if d.met:
             return d
     return d

@@ -187,7 +187,7 @@ def propose_design(
         objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
         iterations=int(np.asarray(result.history.steps)[-1]), labels=[r.name + what for r in requirements_],
         evaluate=functools.partial(evaluate, built), lower=built.lower,
-        upper=built.upper, sensitivity=np.atleast_2d(np.asarray(result.sensitivity.nominal)) / requirements[:, None],
+        upper=built.upper, sensitivity=np.asarray(result.sensitivity.nominal) / requirements[:, None],
         checks=checked[-1][1] if checked else (), yield_=yield_, noisy=built.gradient_noise is not None,
         bounds_text=" (the zones' min_clearance and band_range; a scene file's [tolerances])",
         stalled=bool(result.stalled is not None and result.stalled), solver=solver, settled=_settled(result))
@@ -395,9 +395,9 @@ def _outcomes(requirements_, result, baseline, targets, tol, checked) -> tuple[R
     """One `RequirementOutcome` per requirement from the optimiser's result. Its sensitivities
     are to (l, b); at fixed band a nominal shift is a shift of l, and at fixed nominal
     d/db = d/db|_l - d/dl."""
-    s_limit, s_band = np.atleast_2d(np.asarray(result.sensitivity.nominal)), np.atleast_2d(np.asarray(result.sensitivity.band))
-    values = [np.atleast_1d(np.asarray(v, dtype=float)) for v in (result.objective, result.multiplier)]
-    active = np.atleast_1d(np.asarray(result.constraint_active, dtype=bool))
+    s_limit, s_band = np.asarray(result.sensitivity.nominal), np.asarray(result.sensitivity.band)  # (m, n): a row each
+    values = [np.asarray(v, dtype=float) for v in (result.objective, result.multiplier)]
+    active = np.asarray(result.constraint_active, dtype=bool)
     return tuple(
         RequirementOutcome(requirement=r, objective=float(values[0][k]), baseline=float(baseline[k]), target=float(targets[k]),
                            tol=float(tol[k]), constraint_active=bool(active[k]), multiplier=float(values[1][k]),

@@ -25,7 +25,7 @@ def _secant_rescue(rebuild, problem, result, checked, requirements, tol, solver,
     units = max(16, 2 * len(problem.features.names) + 2)
     secant = rebuild(secant_units=units)
     _, again, again_checked, _ = _solve_and_check(secant, requirements, tol, solver, check, progress, callback, x0=result.x, say=say)
-    met = np.all(np.atleast_1d(np.asarray(again.objective, dtype=float)) <= requirements * (1 + tol))
+    met = np.all(np.asarray(again.objective, dtype=float) <= requirements * (1 + tol))
     note = (f"The tangent slopes {why} at the {solver.width:.2g} m width after {int(np.asarray(result.history.steps)[-1])} "
             f"gradients; the design was finished from there on secant slopes over {units} units of the zone "
             f"({'converged' if bool(again.converged) else 'not converged'}).")
