@@ -14,7 +14,10 @@ each recording's unit its own, its backlashes drawn uniformly within S µm of th
 recording's seed): where the model does not reproduce its own run, recordings of one unit share
 one realisation of the model's error, so their coverage measures that one draw (the dual's
 pitch: all low), not the intervals'. `--forward` also identifies the first recording with the
-forward-mode Jacobian (`secant=False`), the former default, for contrast. The coverage of the
+forward-mode Jacobian (`secant=False`), the former default, for contrast; `--from-truth` fits
+each recording again from its truth (`starts=`): a lower residual there than at the default's
+estimate says the search missed the basin, the same estimate that the cost's minimum is there.
+Each row says how many points the line screen costed (0: it did not run). The coverage of the
 intervals is measured, not assumed: over 20 recordings about 19 should hold the truth.
 
 Each run appends its rows to `--rows` (JSON lines), so recordings can be split over processes
@@ -36,10 +39,12 @@ import subprocess
 import time
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from scipy.stats import binom
 
 import tolerax as tx
+from tolerax.identification.parameters import with_parameters
 
 NOISE = 2e-6  # rad: the encoders' noise (their steps: --bits)
 DURATION, N_SAVE = 0.35, 141
@@ -66,6 +71,9 @@ def main(argv=None) -> int:
     parser.add_argument("--bits", type=int, default=20, help="the encoders' bits per turn (default 20: 6.0 µrad steps; 24: 0.37)")
     parser.add_argument("--spread", type=float, default=0.0, help="each recording's unit its own: its backlashes drawn uniformly "
                         "within this many µm of --truth (and the pitch's) with the recording's seed (default 0: one unit)")
+    parser.add_argument("--from-truth", action="store_true", help="also fit each recording from its truth (starts=[truth]): "
+                        "where that ends at a lower residual than the default's estimate, the default's search missed the "
+                        "basin; where it ends at the same estimate, the cost's own minimum is there (the model's noise)")
     parser.add_argument("--merge", action="store_true", help="run nothing: write the table from --rows")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
@@ -93,7 +101,16 @@ def main(argv=None) -> int:
                          wall=wall, phases={k: round(v, 1) for k, v in got.wall.items()},
                          jacobian=got.jacobian.split(":")[0], load=os.getloadavg()[0], dual=args.dual, commit=commit, screened=int(got.screened),
                          bits=args.bits, profile=np.asarray(got.profile).tolist(), model_share=got.model_share().tolist(),
-                         model_rms=1e6 * got.model_rms, spread=args.spread, nominal=list(nominal)))
+                         model_rms=1e6 * got.model_rms, spread=args.spread, nominal=list(nominal),
+                         line_screened=int(got.line_screened)))
+        if args.from_truth:  # the same recording fitted from its truth: did the default's search find the cost's basin?
+            begun = time.perf_counter()
+            # A given start is a multiple of the scene's values: the scene with the truth's, started there.
+            at_truth = with_parameters(full, names, jnp.asarray([1e-6 * t for t in truths]))
+            there = tx.identify(at_truth, rec, names, starts=(1.0,), secant=secant)
+            rows[-1].update(from_truth=dict(estimate=[1e6 * v for v in there.estimate], sd=1e6 * there.residual_sd,
+                                            converged=there.converged, steps=int(there.steps),
+                                            wall=time.perf_counter() - begun))
         print(rows[-1], flush=True)
         if args.rows:
             with args.rows.open("a") as f:
