@@ -37,6 +37,20 @@ def test_propose_design_takes_at_most_five_keyword_options():
                          "solved_for"}
 
 
+def test_the_library_is_modules_of_at_most_500_lines_without_run_history():
+    """The library's modules stay readable (at most 500 lines each) and carry no run history:
+    no link to a benchmark's result file or an archive (the claims live in benchmarks/README.md)."""
+    import pathlib
+    import re
+
+    src = pathlib.Path(tx.__file__).parent
+    long = {str(p.relative_to(src)): n for p in src.rglob("*.py") if (n := len(p.read_text().splitlines())) > 500}
+    assert not long, f"modules over 500 lines: {long}"
+    linked = [f"{p.relative_to(src)}:{k + 1}" for p in src.rglob("*.py")
+              for k, line in enumerate(p.read_text().splitlines()) if re.search(r"results/|archive/", line)]
+    assert not linked, f"src/ links run results: {linked}"
+
+
 @dataclasses.dataclass(frozen=True)
 class PenaltyMethod(tx.AbstractDesignMethod):
     """A design method of one's own: tests/test_solvers.py's projected Adam on a quadratic
