@@ -60,7 +60,8 @@ import optax
 
 from .cost import AbstractCostModel
 from .loop import AbstractDesignSolver, ConstrainedDesign, make_result, solve_design, tolerance_worth
-from .subproblem import _cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian, linearised_minimiser
+from .subproblem import (_cost_and_gradient, _cost_gradient, _subproblem, _subproblem_many, _value_and_grad, _value_and_jacobian,
+                         linearised_minimiser)
 from .types import Design, Features, OptimisationResult, counted_rows, optimality_residual
 
 MIN_RADIUS = 1e-4  # the trust region's smallest half-width (a fraction of each variable's range)
@@ -73,8 +74,9 @@ __all__ = ["SequentialSolver", "TrustRegionState", "sequential_design", "trust_r
 def _optimality(dc, z, grad, f, requirements, tol, lo, hi, n, bands_only=False, se=None) -> float:
     """`optimality_residual` at box point `z` (flat lower limits then bands) with the cost's
     gradient over the bands `dc` (n,) and the gradients `grad` (m, 2n) of the constraints values
-    `f`: over those `counted_rows` counts (the active ones, to `tol`); `bands_only`: over the bands, the lower limits held where they are;
-    `se` (m, 2n): the gradients' standard errors (the residual within their noise)."""
+    `f`: over those `counted_rows` counts (the active ones, to `tol`); `bands_only`: over the
+    bands, the lower limits held where they are; `se` (m, 2n): the gradients' standard errors
+    (the residual within their noise)."""
     dc = np.concatenate([np.zeros(n), dc])
     keep = slice(n, None) if bands_only else slice(None)
     rows = counted_rows(f >= requirements * (1 - tol))

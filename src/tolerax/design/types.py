@@ -234,8 +234,9 @@ class OptimisationResult(eqx.Module):
 def counted_rows(active) -> np.ndarray:
     """Which constraints' gradients the optimality residual counts, given which are active
     (m,): the active ones, an inactive constraint's multiplier being 0 — but a lone constraint
-    always (its multiplier is then the residual's own minimiser: a design short of its one
-    requirement with bands left to widen reads far from optimal either way)."""
+    always (its multiplier is then the residual's own minimiser, 0 where that fits best: a
+    design clear of its one requirement with bands left to widen reads far from optimal either
+    way)."""
     active = np.atleast_1d(np.asarray(active, dtype=bool))
     return np.ones_like(active) if active.size == 1 else active
 
