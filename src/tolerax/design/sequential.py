@@ -139,7 +139,7 @@ class _Flat:
         l, b, lam, f_pred = linearised_minimiser(p.cost_model, p.features.size_mm, f, grad[:, :n], grad[:, n:], z[:n], z[n:],
                                                  (box_lo[:n], box_hi[:n]), (box_lo[n:], box_hi[n:]), p.requirements, self.zone)
         trial = np.clip(np.concatenate([np.asarray(l), np.asarray(b)]), self.lo, self.hi)
-        return trial, np.atleast_1d(np.asarray(lam, dtype=float)), np.atleast_1d(np.asarray(f_pred, dtype=float))
+        return trial, lam, f_pred  # (m,) each, as `linearised_minimiser` returns them
 
 
 class TrustRegionState(NamedTuple):

@@ -169,10 +169,12 @@ def linearised_minimiser(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box,
     One constraint and no zone edge: the exact solution (`_subproblem`, one bisection over its
     multiplier); else SciPy's SLSQP (`_subproblem_many`)."""
     if np.shape(f_k)[0] > 1 or zone_upper is not None:
-        return _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement, zone_upper)
-    boxes = [(jnp.asarray(lo), jnp.asarray(hi)) for lo, hi in (l_box, b_box)]
-    l, b, lam, f_pred = _subproblem(cost_model, size_mm, jnp.asarray(f_k[0]), jnp.asarray(a[0]), jnp.asarray(d[0]), jnp.asarray(l_k),
-                                    jnp.asarray(b_k), *boxes, jnp.asarray(requirement[0]))  # arrays: no retrace when values change
+        l, b, lam, f_pred = _subproblem_many(cost_model, size_mm, f_k, a, d, l_k, b_k, l_box, b_box, requirement, zone_upper)
+    else:
+        boxes = [(jnp.asarray(lo), jnp.asarray(hi)) for lo, hi in (l_box, b_box)]
+        l, b, lam, f_pred = _subproblem(cost_model, size_mm, jnp.asarray(f_k[0]), jnp.asarray(a[0]), jnp.asarray(d[0]),
+                                        jnp.asarray(l_k), jnp.asarray(b_k), *boxes,
+                                        jnp.asarray(requirement[0]))  # arrays: no retrace when values change
     return l, b, np.atleast_1d(np.asarray(lam, dtype=float)), np.atleast_1d(np.asarray(f_pred, dtype=float))
 
 
