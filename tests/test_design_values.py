@@ -187,16 +187,21 @@ def test_a_design_method_of_one_s_own_runs_through_propose_design(capsys):
 
 def test_the_defaults_reach_the_recipes_that_verified():
     """With no model named (`Auto()`): the RMS alone on tangents, finished on secants where they
-    stall; beside a jitter, both fitted on the jitter's response-surface recipe (64 units with
-    their scatter, the jitter's line on its logarithm, boxes from the functional minimum to
-    100 um, six rounds, a twin solve); a model named on a requirement is kept."""
-    pointing = R.Line(R.scan_scene(), [900.0, 2.0], [SLOPES, SLOPES], 60e-6, names=("pointing_rms", "pointing_jitter"),
-                      jitter_cutoff=20.0)
+    stall; beside a jitter that scatters from unit to unit, both fitted on the jitter's
+    response-surface recipe (64 units with their scatter, the jitter's line on its logarithm,
+    boxes from the functional minimum to 100 um, six rounds, a twin solve); a model named on a
+    requirement is kept."""
+    # The jitter's scatter (0.5 arcsec) against its trend over the starting zone (its slopes
+    # times +-10 um: under 0.1 arcsec): Auto()'s measurement reads a share near 1.
+    pointing = R.Line(R.scan_scene(), [900.0, 2.0], [SLOPES, SLOPES * 1e-3], 60e-6, names=("pointing_rms", "pointing_jitter"),
+                      jitter_cutoff=20.0, sigma=[0.0, 0.5])
     alone, combined = _propose._requirements(tx.ToleranceProblem(pointing, 700.0), tx.Sequential())
     assert isinstance(alone[0].model, tx.Auto) and combined.options == {} and combined.rescue and not combined.twin
     both = [tx.Requirement("pointing_rms", 700.0), tx.Requirement("pointing_jitter", 0.2)]
     found, combined = _propose._requirements(tx.ToleranceProblem(pointing, both, tx.Yield(0.9), tx.Zones(min_clearance=8e-6)),
                                              tx.Sequential())
+    shares = [r.model.share for r in found]
+    assert shares[0] < 1e-6 and shares[1] > 0.5, shares  # a line carries the RMS exactly; the jitter is scatter
     assert combined.secants and combined.twin and not combined.rescue and combined.surface.rounds == 6
     assert combined.options["secant_units"] == 64 and combined.options["scatter"]
     assert combined.options["log_outputs"] == ("pointing_jitter",) and combined.options["surface_box"] == (8e-6, 100e-6)
@@ -207,6 +212,45 @@ def test_the_defaults_reach_the_recipes_that_verified():
     assert combined.surface is None and combined.options["secant_units"] == 24
     with pytest.raises(ValueError, match="AugmentedLagrangian takes tangent slopes only"):
         _propose._requirements(tx.ToleranceProblem(pointing, both, tx.Yield(0.9)), tx.AugmentedLagrangian())
+
+
+def test_auto_chooses_by_the_scatter_it_measures_not_by_the_output_name():
+    """`Auto()` measures, over units of the starting zone, the share of each output's variance a
+    line in the features does not carry (`scatter_share`), and fits the outputs above
+    `SCATTER_SHARE` on a response surface: an RMS that scatters from unit to unit gets one, a
+    jitter a line carries gets tangents. The share agrees with its closed form; a share given
+    is not measured again; a problem without a yield is not measured; the report says what
+    was measured."""
+    from tolerax.design.reliability import LinearisedYield
+    from tolerax.design.surface import scatter_share
+    from tolerax.design.types import Design
+
+    # Closed form: units uniform over middle +- b (b = 10 um) give the line's part a variance
+    # sum_i (s_i b)^2 / 3 = 2808 arcsec^2; with sigma = 53 arcsec the share is
+    # 53^2 / (53^2 + 2808) = 0.500. 400 units: the ratio of variances carries ~7 % sampling error.
+    line = R.Line(R.scan_scene(), [900.0], [SLOPES], 60e-6, sigma=[53.0])
+    middle = np.full(4, 60e-6)
+    share = scatter_share(LinearisedYield(line, "pointing_rms", 0.9, secant_units=400, scatter=True),
+                          Design(middle, np.full(4, 10e-6)))
+    assert abs(float(share[0]) - 53.0**2 / (53.0**2 + 2808.0)) < 0.06, share
+
+    pointing = R.Line(R.scan_scene(), [900.0, 2.0], [SLOPES * 1e-3, SLOPES], 60e-6, names=("pointing_rms", "pointing_jitter"),
+                      jitter_cutoff=20.0, sigma=[30.0, 0.0])
+    both = [tx.Requirement("pointing_rms", 950.0), tx.Requirement("pointing_jitter", 400.0)]
+    found, combined = _propose._requirements(tx.ToleranceProblem(pointing, both, tx.Yield(0.9)), tx.Sequential())
+    assert found[0].model.share > 0.5 and found[1].model.share < 1e-6, [r.model.share for r in found]
+    assert isinstance(found[0].model.resolve(found[0]), tx.Surface) and isinstance(found[1].model.resolve(found[1]), tx.Tangents)
+    assert combined.surface is not None and combined.options["log_outputs"] == ("pointing_rms",)
+    (note,) = _propose._auto_notes(found, 4)
+    assert "over 32 units of the starting zone" in note and "pointing_jitter 0.00 (tangents)" in note
+    assert f"pointing_rms {found[0].model.share:.2f} (a response surface)" in note
+    given = [tx.Requirement("pointing_rms", 950.0, model=tx.Auto(share=0.0))]
+    found, combined = _propose._requirements(tx.ToleranceProblem(pointing, given, tx.Yield(0.9)), tx.Sequential())
+    assert found[0].model == tx.Auto(share=0.0) and combined.surface is None and combined.rescue
+    found, _ = _propose._requirements(tx.ToleranceProblem(pointing, 950.0, tx.MeanPlusKStd(1.0)), tx.Sequential())
+    assert found[0].model == tx.Auto() and _propose._auto_notes(found, 4) == ()
+    with pytest.raises(ValueError, match="share is a fraction"):
+        tx.Auto(share=1.5)
 
 
 def test_the_former_keywords_map_to_the_values_that_replace_them():
@@ -403,8 +447,11 @@ def test_auto_moves_a_noise_limited_design_on_to_more_units(monkeypatch):
     assert report.noise_band is not None and report.noise_band[:2] != (2.302370421763528, 1.3659996495276179)
     assert not any(n.startswith("On 16 units") for n in report.notes)  # the cap: no further
     # Which requirements move: those on Auto() fitted over units, to twice the units within the cap.
+    assert sum(n.startswith("Auto() measured") for n in report.notes) == 1  # measured once: the move to 16 units keeps it
     again = P._on_more_units(problem, 8)
     assert again.requirements[0].model == tx.Auto(units=16) and P._on_more_units(problem, 16) is None
+    measured = (dataclasses.replace(problem.requirements, model=tx.Auto(units=8, share=0.7)),)
+    assert P._on_more_units(problem, 8, measured).requirements[0].model == tx.Auto(units=16, share=0.7)
     named = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_jitter", requirement, model=tx.Surface(units=8)),))
     tangents = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_rms", 700.0),))
     assert P._on_more_units(named, 8) is None and P._on_more_units(tangents, 8) is None

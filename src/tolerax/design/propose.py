@@ -27,9 +27,9 @@ from .phases import Phases
 from .rounds import _secant_rescue, _solve_and_check
 from .sequential import sequential_design
 from .solvers import AbstractDesignMethod, Sequential
-from .spec import Auto, Combined, Secants, ToleranceProblem, combine, with_model
+from .spec import SCATTER_SHARE, Auto, Combined, Secants, ToleranceProblem, combine, with_model
 from .subproblem import objective_value_and_gradient
-from .surface import secant_standard_error
+from .surface import scatter_share, secant_standard_error
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -66,8 +66,10 @@ def propose_design(
     `"infeasible"`, with the requirement that would be met, and no solver runs.
 
     Each requirement is linearised by its constraint model (`Requirement(model=...)`, default
-    `Auto()`: tangent slopes, finished on secants over units where they stall; for a
-    scattering output, the jitter, a response surface refitted as the design moves; models
+    `Auto()`: tangent slopes, finished on secants over units where they stall; for an output
+    measured at the start to scatter from unit to unit (over units of the starting zone a line
+    in the features carries less than half its variance: the jitter of a rattling stage), a
+    response surface refitted as the design moves; models
     fitted over units also solve a twin design on another set of units, the noise band: where
     the two costs differ by more than the requirements' tolerances resolve, the status is
     `"noise-limited"`, and a requirement on `Auto()` is designed again on twice the units, up to
@@ -123,8 +125,9 @@ def propose_design(
                          "not: use Sequential(), or check=None.")
     pointing = problem.objective
     say = Phases(progress)
-    requirements_, combined = _requirements(problem, solver)
+    requirements_, combined = _requirements(problem, solver, say)
     proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=problem.allow_proxy))
+    proxy_notes += _auto_notes(requirements_, len(design_names(pointing.scene)))
     options = problem.zones.options() | problem.statistic_options() | combined.options | dict(
         cost_model=problem.cost, output=requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_))
     if combined.surface is not None:
@@ -194,7 +197,7 @@ def propose_design(
     outcomes = _outcomes(requirements_, result, baseline, targets, tol, checked)
     if twin_costs is not None and status == "converged":
         status, diagnosis = noise_verdict(twin_costs, outcomes, options.get("secant_units"), surface=combined.surface is not None)
-        more = _on_more_units(problem, options.get("secant_units")) if status == "noise-limited" else None
+        more = _on_more_units(problem, options.get("secant_units"), requirements_) if status == "noise-limited" else None
         if more is not None:
             # Auto(): the measurement (two sets of units that disagree on the design) moves the
             # model on to twice the units (again while noise-limited, up to AUTO_MAX_UNITS); the
@@ -316,30 +319,82 @@ def _tightest_first(evaluate, problem, slopes, requirements, tol):
 AUTO_MAX_UNITS = 128  # Auto() moves a noise-limited design on to twice its units while that stays within this
 
 
-def _on_more_units(problem: ToleranceProblem, units) -> ToleranceProblem | None:
+def _on_more_units(problem: ToleranceProblem, units, measured=()) -> ToleranceProblem | None:
     """`problem` with each requirement on `Auto()` (its default) that is fitted over units
     moved to `Auto(units=2 x units)`, where that stays within `AUTO_MAX_UNITS`; `None` where no
-    requirement is (a model named by the user is kept as named)."""
+    requirement is (a model named by the user is kept as named). `measured`: the requirements
+    as `_requirements` gave them (in the problem's order): their `Auto` keeps its measured
+    `share`, so the move does not measure again."""
     if units is None or 2 * int(units) > AUTO_MAX_UNITS:
         return None
-    def on_auto_fitted(r):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
-        model = with_model(r).model
-        return isinstance(model, Auto) and model.resolve(r).fitted
-
     requirements = as_requirements(problem.requirements)
-    moved = tuple(dataclasses.replace(r, model=Auto(units=2 * int(units))) if on_auto_fitted(r) else r for r in requirements)
+    shares = [m.model.share if isinstance(m.model, Auto) else None for m in measured] or [None] * len(requirements)
+
+    def moved_model(r, share):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
+        model = with_model(r).model
+        if not isinstance(model, Auto):
+            return None
+        model = model if share is None else dataclasses.replace(model, share=share)
+        return dataclasses.replace(model, units=2 * int(units)) if model.resolve(r).fitted else None
+
+    moved = tuple(r if (m := moved_model(r, share)) is None else dataclasses.replace(r, model=m)
+                  for r, share in zip(requirements, shares))
     return None if moved == requirements else dataclasses.replace(problem, requirements=moved)
 
 
-def _requirements(problem: ToleranceProblem, solver) -> tuple[tuple[Requirement, ...], Combined]:
-    """The problem's requirements, each with its constraint model resolved and its unit the
-    objective's, checked against what the objective computes and what the solver takes, and
-    their models combined into one linearisation (`combine`)."""
+def _measured(problem: ToleranceProblem, requirements, width, say=None) -> tuple[Requirement, ...]:
+    """`requirements` with each one on `Auto()` not yet measured given its output's measured
+    `share` (`scatter_share` over `probe_units` units of the problem's starting zone, at smoothing `width`, m; one batch of forward solves for all of them): what `Auto`
+    resolves by. Unmeasured (returned as given) where the statistic is not a yield."""
+    pending = [r for r in requirements if isinstance(r.model, Auto) and r.model.share is None]
+    if not pending or problem.yield_ is None:
+        return requirements
+    pointing = problem.objective
+    outputs = tuple(dict.fromkeys(r.output for r in pending if r.output in pointing.outputs))
+    if not outputs:
+        return requirements  # refused below, by name
+    units = probe_units(len(design_names(pointing.scene)))
+    if say is not None:
+        say(f"Auto(): how much of {', '.join(outputs)}'s scatter a line in the features carries, over {units} units of the "
+            "starting zone ...")
+    built = design_problem(pointing, **(problem.zones.options() | problem.statistic_options()), output=outputs,
+                           secant_units=units, scatter=True)
+    x = Design(np.asarray(built.x0.nominal) + np.asarray(built.x0.band), np.asarray(built.x0.band))  # Design(middle, half-width)
+    shares = dict(zip(outputs, (float(v) for v in np.atleast_1d(scatter_share(built.objective.objective, x, width)))))
+    return tuple(dataclasses.replace(r, model=dataclasses.replace(r.model, share=shares[r.output]))
+                 if r in pending and r.output in shares else r for r in requirements)
+
+
+def probe_units(n_features: int) -> int:
+    """How many units of the starting zone `Auto()`'s measurement takes: max(32, 4 x features
+    + 4). The share is a ratio of two variance estimates, on about units - features - 1 and
+    units - 1 degrees of freedom; at 16 units (4 features) one set of units read a lumped
+    drive's jitter anywhere from 0.17 to 0.70."""
+    return max(32, 4 * int(n_features) + 4)
+
+
+def _auto_notes(requirements, n_features: int) -> tuple[str, ...]:
+    """The report's line on what `Auto()` measured and chose, per requirement it measured."""
+    measured = [(r, r.model) for r in requirements if isinstance(r.model, Auto) and r.model.share is not None]
+    if not measured:
+        return ()
+    parts = [f"{r.output} {m.share:.2f} ({'a response surface' if m.scattering_measured else 'tangents'})" for r, m in measured]
+    return (f"Auto() measured, over {probe_units(n_features)} units of the starting zone, the share of each output's variance a "
+            f"line in the features does not carry: {', '.join(parts)}; above {SCATTER_SHARE:g} tangents, or a line through one "
+            "zone's units, read scatter, and the output is fitted on a response surface over the bounds.",)
+
+
+def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Requirement, ...], Combined]:
+    """The problem's requirements, each with its constraint model resolved (an `Auto()` one
+    measured first: `_measured`) and its unit the objective's, checked against what the
+    objective computes and what the solver takes, and their models combined into one
+    linearisation (`combine`)."""
     pointing = problem.objective
     requirements_ = tuple(with_model(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)))
                           for r in as_requirements(problem.requirements))
     yield_ = problem.yield_
     n = len(design_names(pointing.scene))
+    requirements_ = _measured(problem, requirements_, solver.width, say)
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
         # secants over units that draw it, the line carrying it (LinearisedYield).

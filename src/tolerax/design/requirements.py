@@ -12,8 +12,9 @@ requirement on its own, marginal yields). The optimiser, the Monte Carlo checks,
 A kind of requirement is a value, not a class: which output, which limit. An output whose
 unit-to-unit scatter the features do not explain (the jitter of a rattling stage: chaotic) is
 linearised over units with that scatter (its constraint model, `model=`: `Secants`, `Surface`;
-`Auto()`, the default, gives the outputs in `SCATTERING_OUTPUTS` a response surface); its
-tolerance then defaults to twice its fit's standard error.
+`Auto()`, the default, gives an output a response surface where it measures that scatter at
+the start, and, with nothing measured, the outputs in `SCATTERING_OUTPUTS`); its tolerance then
+defaults to twice its fit's standard error.
 """
 
 import contextvars
@@ -24,7 +25,8 @@ import warnings
 from .objectives import UNITS
 
 # Outputs whose scatter from unit to unit is mostly not carried by the features (chaotic
-# rattle): linearised by secants over units, with the fit's residual scatter.
+# rattle): linearised by secants over units, with the fit's residual scatter, where no
+# measurement says otherwise (`Auto()` measures it: `tolerax.design.surface.scatter_share`).
 SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
 # Of those, outputs whose scatter grows with their level: their secant line is fitted to their
 # logarithm (a relative scatter). Empty: the log fit is opt-in (`Secants(log=True)`).

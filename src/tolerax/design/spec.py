@@ -17,8 +17,8 @@ defaults, so that the plain call reaches the configurations that were verified:
   unit-to-unit scatter the features do not carry), `Surface()` (a response surface over a box,
   refitted where the design leaves it, as a trust region moves), or `Auto()` (the default:
   tangents, moved to secants where the tangent slopes stall or the Monte Carlo check finds
-  their model off, and for a scattering output, the jitter of a rattling stage, the
-  response-surface recipe that verified on the full stage).
+  their model off, and for an output measured at the start to scatter from unit to unit, the
+  jitter of a rattling stage, the response-surface recipe that verified on the full stage).
 
 The models of a problem's requirements are combined into one linearisation (`combine`): the
 units one requirement is fitted over give every output, so where any requirement is fitted over
@@ -237,30 +237,50 @@ class Surface(Secants):
         return (max(low, 1e-6), 100e-6)
 
 
+SCATTER_SHARE = 0.5  # Auto(): above this share of an output's variance over the starting zone off the line, a surface
+
+
 @dataclasses.dataclass(frozen=True)
 class Auto(AbstractConstraintModel):
-    """The default: for an output whose unit-to-unit scatter the features do not carry
-    (`SCATTERING_OUTPUTS`: the jitter) the `Surface` recipe; else `Tangents`, finished on
-    `Secants` where their slopes stall or the check finds their model off; a design fitted over
-    units that is noise-limited (two sets of units disagree on it by more than the requirements'
-    tolerances resolve) is made again on twice the units, up to 128
-    (`propose.AUTO_MAX_UNITS`). Cheap first, moved on where the measurement says so.
+    """The default: cheap first, moved on where a measurement says so. Before the design,
+    `propose_design` measures, over units of the starting zone (`propose.probe_units`, one
+    batch of forward solves giving every output), the share of each output's variance that a
+    line in the features does not carry (`tolerax.design.surface.scatter_share`: one minus the
+    fit's adjusted $R^2$) and keeps it here (`share`). Where it exceeds `SCATTER_SHARE` the output
+    scatters from unit to unit for reasons the features do not carry (the chaotic rattle's
+    jitter), so a tangent at the zone's middle and a line through the zone's own units read
+    noise: the `Surface` recipe. Else `Tangents`, finished on `Secants` where their slopes stall
+    or the check finds their model off. A design fitted over units that is noise-limited (two
+    sets of units disagree on it by more than the requirements' tolerances resolve) is made
+    again on twice the units, up to 128 (`propose.AUTO_MAX_UNITS`).
 
     `units`: the response surface's units (default `Surface`'s): `Auto(units=128)` is the same
     recipe on more units, what a noise-limited answer asks for; the other outputs keep their
     tangents here (where the jitter's surface is fitted, the units' solves give every output, so
     the problem's other outputs are fitted on the surface too: `combine`). `tolerax design
     --secant-units K` with no `--model` gives the jitter `Auto(units=K)` and the other outputs
-    lines through K units."""
+    lines through K units. `share` (a fraction; default `None`, measured by `propose_design`
+    where the statistic is a yield): given, it is not measured again; where there is no
+    measurement (a `MeanPlusKStd` problem, which fits nothing over units) the outputs in
+    `SCATTERING_OUTPUTS`, the jitter, count as scattering."""
 
     units: int | None = None
+    share: float | None = None
 
     def __post_init__(self):
         if self.units is not None and int(self.units) < 2:
             raise ValueError(f"Auto: units must be >= 2 (the response surface's units), got {self.units!r}.")
+        if self.share is not None and not 0.0 <= float(self.share) <= 1.0:
+            raise ValueError(f"Auto: share is a fraction of the output's variance, in [0, 1], got {self.share!r}.")
+
+    @property
+    def scattering_measured(self) -> bool | None:
+        """Whether the measured share says the output scatters (`None`: not measured)."""
+        return None if self.share is None else float(self.share) > SCATTER_SHARE
 
     def resolve(self, requirement):
-        if requirement.output not in SCATTERING_OUTPUTS:
+        scattering = self.scattering_measured
+        if not (requirement.output in SCATTERING_OUTPUTS if scattering is None else scattering):
             return Tangents()
         return Surface() if self.units is None else Surface(units=int(self.units))
 
