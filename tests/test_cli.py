@@ -219,8 +219,15 @@ def test_the_readme_quotes_the_demo_s_pointing(tmp_path):
     """The pointing error the README says the demo prints is what `tolerax demo` prints now."""
     assert cli.main(["demo", "--steps", "0", "--out", str(tmp_path)]) == 0
     text = (tmp_path / "demo.md").read_text()
-    quoted = re.search(r"The demo prints `(RMS pointing error [\d.]+ arcsec, peak [\d.]+ arcsec)`", README).group(1)
-    assert quoted in text
+    quoted = re.search(r"The demo prints `RMS pointing error ([\d.]+) arcsec, peak ([\d.]+) arcsec`", README).groups()
+    printed = re.search(r"RMS pointing error ([\d.]+) arcsec, peak ([\d.]+) arcsec", text).groups()
+    # To the README's last digit, within one count of it either side: the lumped drive rattles
+    # through the window, so its RMS moves in the fifth digit with the build of jax/XLA and NumPy
+    # a fresh install brings (measured: 1931.7 arcsec in one venv, 1931.85 in the next, the
+    # simulation's code unchanged between them); a change of the model or the integrator moves
+    # it by far more.
+    for q, v in zip(quoted, printed):
+        assert abs(float(q) - float(v)) <= 0.1 + 1e-9, (quoted, printed)
 
 
 @pytest.mark.slow
