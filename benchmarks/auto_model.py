@@ -1,16 +1,16 @@
 """What `Auto()` measures to choose a requirement's constraint model: the share of an output's
-variance over the starting zone's units that a line in the features does not carry
-(`tolerax.design.surface.scatter_share`, one minus the adjusted R^2 of a secant fit), per scene
-and output, over several sets of units.
+variance over units drawn within the starting zones that a line in the features does not carry
+(`tolerax.design.probe.scatter_share`, one minus the adjusted R^2 of a least-squares line), per
+scene and output, over several sets of units.
 
     python benchmarks/auto_model.py [--units K] [--seeds 3] [--scenes scan-azimuth,...] [--generated 1,3,5,12]
 
 Scenes: the embedded ones named (lumped, planetary-scaled, full planetary) and the generated
 mechanisms of `design_matrix.py` named by number (never tuned on). At each, the design problem's
 starting zone (`design_problem`'s `x0`: the scene's nominals, its band) and the smoothing width
-`Sequential()` judges at; `--units` units of the zone (default: as many as `Auto()` takes,
-`tolerax.design.propose.probe_units`) (`secant_draws`, seed 1..`--seeds`), one
-batch of forward solves per seed giving every output. The share is about 0 where the features
+`Sequential()` judges at; `--units` units drawn uniformly within the zones (default: as many as
+`Auto()` takes, `PROBE_UNITS`), one `monte_carlo` run per set giving every output, set k from
+`jax.random.key(PROBE_KEY + k - 1)` (the first is the one `propose_design` draws). The share is about 0 where the features
 determine the output (a tangent or a line reads it) and about 1 where it scatters from unit to
 unit for reasons they do not carry (the chaotic rattle's jitter: there a response surface over
 the bounds is the model that verified). Writes `auto_model.md` and `auto_model.json`.
@@ -19,14 +19,14 @@ the bounds is the model that verified). Writes `auto_model.md` and `auto_model.j
 import json
 import time
 
+import jax
 import numpy as np
 
 import harness
 import tolerax as tx
 from tolerax.design.problem import design_problem
-from tolerax.design.propose import probe_units
 from tolerax.design.spec import SCATTER_SHARE
-from tolerax.design.surface import scatter_share
+from tolerax.design.probe import PROBE_KEY, PROBE_UNITS, scatter_share
 from tolerax.design.types import Design
 
 OUTPUTS = ("pointing_rms", "pointing_jitter")
@@ -50,7 +50,7 @@ NOTES = (
 
 def main():
     parser = harness.argument_parser(__doc__)
-    parser.add_argument("--units", type=int, default=None, help="units per seed (default: Auto()'s own, probe_units)")
+    parser.add_argument("--units", type=int, default=PROBE_UNITS, help="units per set (default: Auto()'s own)")
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--scenes", default="scan-azimuth,scan,scan-azimuth-fast,scan-azimuth-planetary")
     parser.add_argument("--generated", default="1,3,5,12", help="design_matrix.py mechanisms (numbers; '' for none)")
@@ -69,12 +69,12 @@ def main():
         pointing = scene.objective(jitter_cutoff=20.0)
         shares, walls = [], []
         for seed in range(1, args.seeds + 1):
-            units = args.units or probe_units(len(tx.design_names(pointing.scene)))
-            problem = design_problem(pointing, yield_=0.9, output=OUTPUTS, secant_units=units, scatter=True, secant_seed=seed)
-            inner = problem.objective.objective
+            units = args.units
+            problem = design_problem(pointing, yield_=0.9)
             x = Design(problem.x0.nominal + problem.x0.band, problem.x0.band)  # Design(middle, half-width)
             start = time.perf_counter()
-            shares.append(np.asarray(scatter_share(inner, x, width), dtype=float))
+            shares.append(np.asarray(scatter_share(pointing, OUTPUTS, x, width, units=units,
+                                                   key=jax.random.key(PROBE_KEY + seed - 1)), dtype=float))
             walls.append(time.perf_counter() - start)
             print(f"{name} seed {seed}: {dict(zip(OUTPUTS, np.round(shares[-1], 3)))} ({walls[-1]:.0f} s)", flush=True)
         shares = np.asarray(shares)
@@ -88,10 +88,10 @@ def main():
         "auto_model", "What Auto() measures: the share of each output's variance over the starting zone a line does not carry",
         harness.command(args), ["scene", "features", "units"] + [f"{o} share: mean [min, max] over seeds; Auto's surface on" for o in OUTPUTS]
         + ["wall s: first (compiles) / later"], rows,
-        about=(f"Units of the starting zone per seed as the column says, {args.seeds} seeds (sets of units), smoothing width "
+        about=(f"Units drawn uniformly within the starting zones, as many per set as the column says, {args.seeds} sets, smoothing width "
                f"{width:g} m; share = residual variance of the secant line / the outputs' sample variance (1 - adjusted R^2). "
-               f"Auto() fits an output on a response surface where its share exceeds {SCATTER_SHARE:g} (seed 1 is the one "
-               "propose_design draws)."), notes=NOTES)
+               f"Auto() fits an output on a response surface where its share exceeds {SCATTER_SHARE:g} (the first set is the "
+               "one propose_design draws)."), notes=NOTES)
 
 
 if __name__ == "__main__":

@@ -215,24 +215,24 @@ def test_the_defaults_reach_the_recipes_that_verified():
 
 
 def test_auto_chooses_by_the_scatter_it_measures_not_by_the_output_name():
-    """`Auto()` measures, over units of the starting zone, the share of each output's variance a
-    line in the features does not carry (`scatter_share`), and fits the outputs above
+    """`Auto()` measures, over units drawn within the starting zones, the share of each output's
+    variance a line in the features does not carry (`tolerax.design.probe.scatter_share`), and fits the outputs above
     `SCATTER_SHARE` on a response surface: an RMS that scatters from unit to unit gets one, a
     jitter a line carries gets tangents. The share agrees with its closed form; a share given
-    is not measured again; a problem without a yield is not measured; the report says what
-    was measured."""
-    from tolerax.design.reliability import LinearisedYield
-    from tolerax.design.surface import scatter_share
+    is not measured again; a problem without a yield, or for a solver on tangents alone, is not
+    measured; the report says what was measured."""
+    from tolerax.design.probe import scatter_share
     from tolerax.design.types import Design
 
     # Closed form: units uniform over middle +- b (b = 10 um) give the line's part a variance
     # sum_i (s_i b)^2 / 3 = 2808 arcsec^2; with sigma = 53 arcsec the share is
-    # 53^2 / (53^2 + 2808) = 0.500. 400 units: the ratio of variances carries ~7 % sampling error.
+    # 53^2 / (53^2 + 2808) = 0.500. 2000 units drawn at random: the ratio of two variance
+    # estimates carries a sampling error of ~0.02 here (0.49-0.52 over three keys), so 0.05.
     line = R.Line(R.scan_scene(), [900.0], [SLOPES], 60e-6, sigma=[53.0])
-    middle = np.full(4, 60e-6)
-    share = scatter_share(LinearisedYield(line, "pointing_rms", 0.9, secant_units=400, scatter=True),
-                          Design(middle, np.full(4, 10e-6)))
-    assert abs(float(share[0]) - 53.0**2 / (53.0**2 + 2808.0)) < 0.06, share
+    share = scatter_share(line, ("pointing_rms",), Design(np.full(4, 60e-6), np.full(4, 10e-6)), units=2000)
+    assert abs(float(share[0]) - 53.0**2 / (53.0**2 + 2808.0)) < 0.05, share
+    with pytest.raises(ValueError, match="too few degrees of freedom"):
+        scatter_share(line, ("pointing_rms",), Design(np.full(4, 60e-6), np.full(4, 10e-6)), units=6)
 
     pointing = R.Line(R.scan_scene(), [900.0, 2.0], [SLOPES * 1e-3, SLOPES], 60e-6, names=("pointing_rms", "pointing_jitter"),
                       jitter_cutoff=20.0, sigma=[30.0, 0.0])
@@ -241,14 +241,16 @@ def test_auto_chooses_by_the_scatter_it_measures_not_by_the_output_name():
     assert found[0].model.share > 0.5 and found[1].model.share < 1e-6, [r.model.share for r in found]
     assert isinstance(found[0].model.resolve(found[0]), tx.Surface) and isinstance(found[1].model.resolve(found[1]), tx.Tangents)
     assert combined.surface is not None and combined.options["log_outputs"] == ("pointing_rms",)
-    (note,) = _propose._auto_notes(found, 4)
-    assert "over 32 units of the starting zone" in note and "pointing_jitter 0.00 (tangents)" in note
+    (note,) = _propose._auto_notes(found)
+    assert "over 50 units drawn within the starting zones" in note and "pointing_jitter 0.00 (tangents)" in note
     assert f"pointing_rms {found[0].model.share:.2f} (a response surface)" in note
     given = [tx.Requirement("pointing_rms", 950.0, model=tx.Auto(share=0.0))]
     found, combined = _propose._requirements(tx.ToleranceProblem(pointing, given, tx.Yield(0.9)), tx.Sequential())
     assert found[0].model == tx.Auto(share=0.0) and combined.surface is None and combined.rescue
     found, _ = _propose._requirements(tx.ToleranceProblem(pointing, 950.0, tx.MeanPlusKStd(1.0)), tx.Sequential())
-    assert found[0].model == tx.Auto() and _propose._auto_notes(found, 4) == ()
+    assert found[0].model == tx.Auto() and _propose._auto_notes(found) == ()
+    found, _ = _propose._requirements(tx.ToleranceProblem(pointing, 950.0, tx.Yield(0.9)), tx.AugmentedLagrangian())
+    assert found[0].model == tx.Auto()  # tangents only: nothing to choose, nothing measured
     with pytest.raises(ValueError, match="share is a fraction"):
         tx.Auto(share=1.5)
 

@@ -29,7 +29,8 @@ from .sequential import sequential_design
 from .solvers import AbstractDesignMethod, Sequential
 from .spec import SCATTER_SHARE, Auto, Combined, Secants, ToleranceProblem, combine, with_model
 from .subproblem import objective_value_and_gradient
-from .surface import scatter_share, secant_standard_error
+from .probe import PROBE_UNITS, scatter_share
+from .surface import secant_standard_error
 from .types import Design
 # The problem and the report live in their own modules; importable from here too (public paths users call).
 from .problem import DesignProblem, FromLowerLimit, OnHalfWidth, RobustPointing, design_problem, feature_sizes  # noqa: F401
@@ -127,7 +128,7 @@ def propose_design(
     say = Phases(progress)
     requirements_, combined = _requirements(problem, solver, say)
     proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=problem.allow_proxy))
-    proxy_notes += _auto_notes(requirements_, len(design_names(pointing.scene)))
+    proxy_notes += _auto_notes(requirements_)
     options = problem.zones.options() | problem.statistic_options() | combined.options | dict(
         cost_model=problem.cost, output=requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_))
     if combined.surface is not None:
@@ -342,44 +343,38 @@ def _on_more_units(problem: ToleranceProblem, units, measured=()) -> TolerancePr
     return None if moved == requirements else dataclasses.replace(problem, requirements=moved)
 
 
-def _measured(problem: ToleranceProblem, requirements, width, say=None) -> tuple[Requirement, ...]:
+def _measured(problem: ToleranceProblem, requirements, solver, say=None) -> tuple[Requirement, ...]:
     """`requirements` with each one on `Auto()` not yet measured given its output's measured
-    `share` (`scatter_share` over `probe_units` units of the problem's starting zone, at smoothing `width`, m; one batch of forward solves for all of them): what `Auto`
-    resolves by. Unmeasured (returned as given) where the statistic is not a yield."""
+    `share` (`probe.scatter_share` over `PROBE_UNITS` units of the problem's starting zone, at
+    the smoothing width `solver` judges at; one Monte Carlo run for all of them): what
+    `Auto` resolves by. Returned as given, unmeasured (`Auto` then goes by the output's name),
+    where nothing could follow from it: the statistic is not a yield (nothing is fitted over
+    units then), `solver` takes tangent slopes only, or each unit draws an uncertain input (a
+    life's wear rate: every requirement is fitted over units anyway)."""
     pending = [r for r in requirements if isinstance(r.model, Auto) and r.model.share is None]
-    if not pending or problem.yield_ is None:
-        return requirements
     pointing = problem.objective
+    if not pending or problem.yield_ is None or not solver.fitted or pointing.uncertain_inputs:
+        return requirements
     outputs = tuple(dict.fromkeys(r.output for r in pending if r.output in pointing.outputs))
     if not outputs:
         return requirements  # refused below, by name
-    units = probe_units(len(design_names(pointing.scene)))
     if say is not None:
-        say(f"Auto(): how much of {', '.join(outputs)}'s scatter a line in the features carries, over {units} units of the "
-            "starting zone ...")
-    built = design_problem(pointing, **(problem.zones.options() | problem.statistic_options()), output=outputs,
-                           secant_units=units, scatter=True)
+        say(f"Auto(): how much of {', '.join(outputs)}'s scatter a line in the features carries, over {PROBE_UNITS} units "
+            "drawn within the starting zones ...")
+    built = design_problem(pointing, **(problem.zones.options() | problem.statistic_options()))
     x = Design(np.asarray(built.x0.nominal) + np.asarray(built.x0.band), np.asarray(built.x0.band))  # Design(middle, half-width)
-    shares = dict(zip(outputs, (float(v) for v in np.atleast_1d(scatter_share(built.objective.objective, x, width)))))
+    shares = dict(zip(outputs, (float(v) for v in scatter_share(pointing, outputs, x, solver.width))))
     return tuple(dataclasses.replace(r, model=dataclasses.replace(r.model, share=shares[r.output]))
                  if r in pending and r.output in shares else r for r in requirements)
 
 
-def probe_units(n_features: int) -> int:
-    """How many units of the starting zone `Auto()`'s measurement takes: max(32, 4 x features
-    + 4). The share is a ratio of two variance estimates, on about units - features - 1 and
-    units - 1 degrees of freedom; at 16 units (4 features) one set of units read a lumped
-    drive's jitter anywhere from 0.17 to 0.70."""
-    return max(32, 4 * int(n_features) + 4)
-
-
-def _auto_notes(requirements, n_features: int) -> tuple[str, ...]:
+def _auto_notes(requirements) -> tuple[str, ...]:
     """The report's line on what `Auto()` measured and chose, per requirement it measured."""
     measured = [(r, r.model) for r in requirements if isinstance(r.model, Auto) and r.model.share is not None]
     if not measured:
         return ()
     parts = [f"{r.output} {m.share:.2f} ({'a response surface' if m.scattering_measured else 'tangents'})" for r, m in measured]
-    return (f"Auto() measured, over {probe_units(n_features)} units of the starting zone, the share of each output's variance a "
+    return (f"Auto() measured, over {PROBE_UNITS} units drawn within the starting zones, the share of each output's variance a "
             f"line in the features does not carry: {', '.join(parts)}; above {SCATTER_SHARE:g} tangents, or a line through one "
             "zone's units, read scatter, and the output is fitted on a response surface over the bounds.",)
 
@@ -394,7 +389,7 @@ def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Re
                           for r in as_requirements(problem.requirements))
     yield_ = problem.yield_
     n = len(design_names(pointing.scene))
-    requirements_ = _measured(problem, requirements_, solver.width, say)
+    requirements_ = _measured(problem, requirements_, solver, say)
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
         # secants over units that draw it, the line carrying it (LinearisedYield).

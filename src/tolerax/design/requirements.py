@@ -26,7 +26,7 @@ from .objectives import UNITS
 
 # Outputs whose scatter from unit to unit is mostly not carried by the features (chaotic
 # rattle): linearised by secants over units, with the fit's residual scatter, where no
-# measurement says otherwise (`Auto()` measures it: `tolerax.design.surface.scatter_share`).
+# measurement says otherwise (`Auto()` measures it: `tolerax.design.probe.scatter_share`).
 SCATTERING_OUTPUTS = frozenset({"pointing_jitter"})
 # Of those, outputs whose scatter grows with their level: their secant line is fitted to their
 # logarithm (a relative scatter). Empty: the log fit is opt-in (`Secants(log=True)`).

@@ -243,10 +243,10 @@ SCATTER_SHARE = 0.5  # Auto(): above this share of an output's variance over the
 @dataclasses.dataclass(frozen=True)
 class Auto(AbstractConstraintModel):
     """The default: cheap first, moved on where a measurement says so. Before the design,
-    `propose_design` measures, over units of the starting zone (`propose.probe_units`, one
-    batch of forward solves giving every output), the share of each output's variance that a
-    line in the features does not carry (`tolerax.design.surface.scatter_share`: one minus the
-    fit's adjusted $R^2$) and keeps it here (`share`). Where it exceeds `SCATTER_SHARE` the output
+    `propose_design` measures, over units drawn within the starting zones (`probe.PROBE_UNITS`,
+    one Monte Carlo run giving every output), the share of each output's variance that a line
+    in the features does not carry (`tolerax.design.probe.scatter_share`: one minus the fit's
+    adjusted $R^2$) and keeps it here (`share`). Where it exceeds `SCATTER_SHARE` the output
     scatters from unit to unit for reasons the features do not carry (the chaotic rattle's
     jitter), so a tangent at the zone's middle and a line through the zone's own units read
     noise: the `Surface` recipe. Else `Tangents`, finished on `Secants` where their slopes stall
@@ -259,9 +259,10 @@ class Auto(AbstractConstraintModel):
     tangents here (where the jitter's surface is fitted, the units' solves give every output, so
     the problem's other outputs are fitted on the surface too: `combine`). `tolerax design
     --secant-units K` with no `--model` gives the jitter `Auto(units=K)` and the other outputs
-    lines through K units. `share` (a fraction; default `None`, measured by `propose_design`
-    where the statistic is a yield): given, it is not measured again; where there is no
-    measurement (a `MeanPlusKStd` problem, which fits nothing over units) the outputs in
+    lines through K units. `share` (a fraction; default `None`, measured by `propose_design`):
+    given, it is not measured again; where nothing is measured, because nothing could follow
+    from it (a `MeanPlusKStd` problem fits nothing over units, a solver on tangents alone takes
+    no surface, a life's drawn wear rate fits every output over units anyway), the outputs in
     `SCATTERING_OUTPUTS`, the jitter, count as scattering."""
 
     units: int | None = None

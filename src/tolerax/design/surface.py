@@ -41,10 +41,8 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     return _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width)
 
 
-def _fit_units(objective: LinearisedYield, middle, band, width, spread: bool = False):
-    """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m).
-    `spread`: one more result, the outputs' standard deviation over the units (k,; the fitted
-    scale), the denominator of `scatter_share`."""
+def _fit_units(objective: LinearisedYield, middle, band, width):
+    """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
     n = middle.shape[0]
     positions = objective.unit_positions(n)
     units = realise(Design(middle, band), positions[:, :n])
@@ -63,26 +61,8 @@ def _fit_units(objective: LinearisedYield, middle, band, width, spread: bool = F
     sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
     root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
     per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
-    fit = (coef[0], coef[1 : 1 + n].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1 : 1 + n] * per_m, sigma,
-           coef[1 + n :].T)
-    return fit + (np.std(values[ok], axis=0, ddof=1),) if spread else fit
-
-
-def scatter_share(objective: LinearisedYield, x: Design, width=None) -> np.ndarray:
-    """The share of each output's variance over the units of the zone `x` (`Design(middle,
-    half-width)`, m) that a line in the features does not carry: $\\sigma^2 / s_y^2$, the fit's
-    residual variance (on its degrees of freedom) over the outputs' own sample variance, i.e.
-    one minus the adjusted $R^2$ of `objective`'s secant fit (its `secant_units` units, one
-    batch of forward solves at smoothing `width`, m). About 0 for an output the features
-    determine (a line, or a curve the zone is narrow against); about 1 for one that scatters
-    from unit to unit for reasons the features do not carry (the chaotic rattle's jitter), where
-    tangents at the zone's middle, or a line through the zone's own units, read noise. Shape
-    (k,), one per output; on the fitted scale (the logarithm for `log_outputs`)."""
-    if objective.secant_units is None:
-        raise ValueError("scatter_share: the objective fits no secant (give LinearisedYield(secant_units=...)).")
-    fit = _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width, spread=True)
-    sigma, spread = fit[4], fit[6]
-    return np.where(spread > 0, np.minimum((sigma / np.where(spread > 0, spread, 1.0)) ** 2, 1.0), 0.0)
+    return (coef[0], coef[1 : 1 + n].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1 : 1 + n] * per_m, sigma,
+            coef[1 + n :].T)
 
 
 def fit_surface(objective: LinearisedYield, lower, upper, width=None) -> Surface:
