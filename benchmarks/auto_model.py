@@ -31,20 +31,21 @@ from tolerax.design.types import Design
 
 OUTPUTS = ("pointing_rms", "pointing_jitter")
 NOTES = (
-    "How the threshold was set: a first pass at 16 units over the four embedded scenes of the default `--scenes` and "
-    "M01, M03, M05, M12 read every RMS share at or below 0.21 (M05, a free base on the Flores law: 0.09-0.21, curvature "
-    "over the zone rather than scatter) and jitter shares from 0.15 (lumped) to 1.0; the full stage's jitter, the case the "
-    "response surface verified on, 0.64-0.75. SCATTER_SHARE = 0.5 (a line carries less than half the variance) was "
-    "fixed then, and M02, M04, M06-M11, M13-M15 and scan-pitch run after it, never looked at before: RMS shares at or "
-    "below 0.002 there, jitter shares 0.01-1.0. At 16 units one mechanism's jitter read 0.17 to 0.70 from one set of "
-    "units to the next; Auto() takes max(32, 4 x features + 4) units (probe_units), the count this table ran at.",
-    "The jitter of a lumped joint scatters or not by mechanism (M02, M04, M13: under 0.07, a line carries it; M06, M07, "
-    "M09: above 0.6): the measurement, not the output's name, decides. A lumped joint's jitter is a proxy either way "
-    "(`check_fidelity`: it is designed only with allow_proxy).",
-    "The margin where it matters is thin: the full stage's jitter read 0.56, 0.66 and 0.87 on three sets of 32 units "
-    "(propose_design draws the first: 0.66), against 0.5; the planetary-scaled M12 and the lumped M03 straddle it. "
-    "Misread as a line, the full stage's jitter goes to tangents, the configuration issue 59 found checking 0.71 "
-    "against 0.9; a larger probe (more units) narrows the read at its cost in forward solves.",
+    "How the threshold was set. A first pass (16 units on a Latin hypercube of the zone, a line fitted through them) over "
+    "the four embedded scenes of the default `--scenes` and M01, M03, M05, M12 read every RMS share at or below 0.21 "
+    "(M05, a free base on the Flores law: curvature over the zone rather than scatter) and the full stage's jitter, the "
+    "case the response surface verified on, at 0.64-0.75; SCATTER_SHARE was set to 0.5 then, and M02, M04, M06-M11, "
+    "M13-M15 and scan-pitch, never looked at before, read RMS shares at or below 0.002. One set of 16 units read a lumped "
+    "jitter anywhere from 0.17 to 0.70, so the measurement moved to more units: 32 on the hypercube (the full stage's "
+    "jitter 0.56 / 0.66 / 0.87), then the 50 units drawn at random within the zones that a yield check's first chunk "
+    "runs (this table: one compiled program for both). On this table SCATTER_SHARE moved to 0.45: the value in the gap "
+    "between the largest lumped reading below it (scan-pitch, 0.43) and the smallest above (M09, 0.50), where every "
+    "scene reads the same decision on all three sets of units. It was chosen on this table, so it is not a held-out "
+    "result; the held-out evidence is the first pass's (the RMS never near the threshold).",
+    "Where it matters: the full stage's jitter reads 0.58 / 0.65 / 0.76 (propose_design draws the first), 0.13 above the "
+    "threshold; every RMS at most 0.17, 0.28 below it. The jitter of a lumped joint scatters or not by mechanism (M02, "
+    "M04, M13: under 0.08, a line carries it; M06, M07: above 0.79): the measurement, not the output's name, decides. A "
+    "lumped joint's jitter is a proxy either way (`check_fidelity`: it is designed only with allow_proxy).",
 )
 
 

@@ -68,10 +68,10 @@ def propose_design(
 
     Each requirement is linearised by its constraint model (`Requirement(model=...)`, default
     `Auto()`: tangent slopes, finished on secants over units where they stall; for an output
-    measured at the start to scatter from unit to unit (over units of the starting zone a line
-    in the features carries less than half its variance: the jitter of a rattling stage), a
-    response surface refitted as the design moves; models
-    fitted over units also solve a twin design on another set of units, the noise band: where
+    measured at the start to scatter from unit to unit (over units drawn within the starting
+    zones more than `SCATTER_SHARE` of its variance lies off a line in the features: the jitter
+    of a rattling stage), a response surface refitted as the design moves; models fitted over
+    units also solve a twin design on another set of units, the noise band: where
     the two costs differ by more than the requirements' tolerances resolve, the status is
     `"noise-limited"`, and a requirement on `Auto()` is designed again on twice the units, up to
     `AUTO_MAX_UNITS`, the report saying so). The continuous optimum is then drawn on whole ISO grades

@@ -237,7 +237,9 @@ class Surface(Secants):
         return (max(low, 1e-6), 100e-6)
 
 
-SCATTER_SHARE = 0.5  # Auto(): above this share of an output's variance over the starting zone off the line, a surface
+# Auto(): above this share of an output's variance over the starting zones off a line in the features, a response
+# surface (how it was set, on which scenes: benchmarks/auto_model.py).
+SCATTER_SHARE = 0.45
 
 
 @dataclasses.dataclass(frozen=True)
