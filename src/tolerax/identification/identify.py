@@ -177,22 +177,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     parameters = check_names(scene, parameters)
     if starts is None:
         starts = min(SCREEN * 2 ** (len(parameters) - 1), SCREEN_MAX)
-    duration = recording.duration if duration is None else float(duration)
-    if duration > recording.duration + 1e-12:
-        raise RecordingError(f"{recording.source}: the recording lasts {recording.duration:g} s, shorter than the model's "
-                             f"{duration:g} s run: record longer or give a shorter duration.")
-    n_save, times = _model_times(recording, duration, n_save)
-    window = times >= settle
-    measured = recording.at(times[window])
-    columns = [AXES.index(a) for a in recording.axes]
-    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start,
-                                  integrator=integrator, **run).forward_mode()
-    units, scale = _scales(scene, parameters)
-    x0 = np.asarray(parameter_values(scene, parameters)) / scale
-    # The problem's data as arrays (traced): one compiled program per scene structure, parameter
-    # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
-    fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
-               jnp.asarray(measured), **_torque_channel(scene, recording, times[window]))
+    fit, x0, scale, units, times, window, measured, duration = _problem(scene, recording, parameters, settle, duration, n_save,
+                                                                        start, integrator, run)
     given = None if widths is None else [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
     final = own_width(scene) if given is None else given[-1]  # the estimate's width: the check, screen and choice run at it
     clock = time.perf_counter()
@@ -207,7 +193,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         # them), at rough_wall's pace: an order of magnitude, not a bound.
         # A step on central secants instead: SECANT_STEP_RUNS runs per (parameter + 1). Where the
         # Jacobian is chosen (secant=None) both are said: the choice is made at the first start.
-        one = rough_wall(scene, duration, objective.integrator)
+        one = rough_wall(scene, duration, fit.objective.integrator)
         screen = starts + 1 if isinstance(starts, int) else 0  # given starts are fitted as they are
         kept = min(STARTS_KEPT, screen) if screen else len(starts)
         p = len(parameters)
@@ -352,6 +338,31 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,
     )
+
+
+def _problem(scene, recording: Recording, parameters, settle, duration, n_save, start, integrator, run):
+    """The least-squares problem `identify` solves, before any solving: `(fit, x0, scale, units,
+    times, window, measured, duration)`: the residual (`_Fit`: `fit.residual(x, width)`, µrad,
+    at parameters x = values / scale), the scene's values as x, the scales and units, the
+    model's save times and the window of them the residual reads, the recording there, the run's
+    length (s). Also what a benchmark races another search on (the same batched cost)."""
+    duration = recording.duration if duration is None else float(duration)
+    if duration > recording.duration + 1e-12:
+        raise RecordingError(f"{recording.source}: the recording lasts {recording.duration:g} s, shorter than the model's "
+                             f"{duration:g} s run: record longer or give a shorter duration.")
+    n_save, times = _model_times(recording, duration, n_save)
+    window = times >= settle
+    measured = recording.at(times[window])
+    columns = [AXES.index(a) for a in recording.axes]
+    objective = PointingObjective(scene, duration=duration, settle=settle, n_save=n_save, start=start,
+                                  integrator=integrator, **run).forward_mode()
+    units, scale = _scales(scene, parameters)
+    x0 = np.asarray(parameter_values(scene, parameters)) / scale
+    # The problem's data as arrays (traced): one compiled program per scene structure, parameter
+    # names and shape, whichever recording, start or width (`_solve`, `_fit_and_jacobian` are module-level).
+    fit = _Fit(objective, parameters, jnp.asarray(scale), jnp.asarray(np.flatnonzero(window)), jnp.asarray(columns),
+               jnp.asarray(measured), **_torque_channel(scene, recording, times[window]))
+    return fit, x0, scale, units, times, window, measured, duration
 
 
 def _torque_channel(scene, recording: Recording, times) -> dict:
