@@ -363,7 +363,12 @@ def _measured(problem: ToleranceProblem, requirements, solver, say=None) -> tupl
             "drawn within the starting zones ...")
     built = design_problem(pointing, **(problem.zones.options() | problem.statistic_options()))
     x = Design(np.asarray(built.x0.nominal) + np.asarray(built.x0.band), np.asarray(built.x0.band))  # Design(middle, half-width)
-    shares = dict(zip(outputs, (float(v) for v in scatter_share(pointing, outputs, x, solver.width))))
+    try:
+        shares = dict(zip(outputs, (float(v) for v in scatter_share(pointing, outputs, x, solver.width))))
+    except ValueError as error:  # too few of the units solved to fit a line: the output's name decides, as unmeasured
+        if say is not None:
+            say(f"Auto(): not measured ({error}); each output's model by its name")
+        return requirements
     return tuple(dataclasses.replace(r, model=dataclasses.replace(r.model, share=shares[r.output]))
                  if r in pending and r.output in shares else r for r in requirements)
 
