@@ -68,11 +68,10 @@ def main():
     for name, load in cases:
         scene = load()
         pointing = scene.objective(jitter_cutoff=20.0)
-        shares, walls = [], []
+        shares, walls, units = [], [], args.units
+        problem = design_problem(pointing, yield_=0.9)
+        x = Design(problem.x0.nominal + problem.x0.band, problem.x0.band)  # the starting zones: Design(middle, half-width)
         for seed in range(1, args.seeds + 1):
-            units = args.units
-            problem = design_problem(pointing, yield_=0.9)
-            x = Design(problem.x0.nominal + problem.x0.band, problem.x0.band)  # Design(middle, half-width)
             start = time.perf_counter()
             shares.append(np.asarray(scatter_share(pointing, OUTPUTS, x, width, units=units,
                                                    key=jax.random.key(PROBE_KEY + seed - 1)), dtype=float))

@@ -321,9 +321,9 @@ def test_a_tangent_model_the_check_finds_off_is_finished_on_secants():
     response above them (2e9 arcsec/m above 95 um on the pin clearance, the zone starting at
     100 +- 10 um), so the Monte Carlo check finds their linear model off by more than half the
     requirement; the design is then finished on secant slopes over units of the zone (the
-    report's note says why), and converges with its check meeting the yield. Before, `Auto()`
-    measured the kinked line as mostly a line (tangents: a kink bends the response; it does not
-    scatter it from unit to unit)."""
+    report's note says why), and converges with its check meeting the yield. At the start
+    `Auto()` measures the kinked line as mostly a line (tangents: a kink bends the response; it
+    does not scatter it from unit to unit)."""
     from tolerax.design import propose as P
     from tolerax.design.features import lost_motion_weights
 
