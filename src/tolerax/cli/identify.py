@@ -92,7 +92,8 @@ def identify_command(parser, args) -> int:
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
         "recording leaves open." + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
                                     "drag too: the estimates are in identification.json)." if physical else "")
-        + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold)." if rugged else ""),
+        + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold, or bound them on one side "
+                    "only)." if rugged else ""),
         "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])
     atomic_write(out / "identification.md", text + "\n")

@@ -17,6 +17,15 @@ MISFIT = 1.5
 # ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
+# A side of an interval that does not hold is open where the cost's rise at 1.96 and 10 standard
+# errors out stays within this many s^2 (the 95 % point of a chi-square on one degree of freedom:
+# the profile likelihood's 95 % interval reaches past 10 standard errors there): the recording
+# does not bound the parameter on that side, as a backlash larger than the recording ever takes
+# up (the flank not reached before it ends) leaves the residual flat above it. With the other
+# side's rise at least 1 / PROFILE_FACTOR of the linearised one at both steps (a steeper rise
+# ends the interval sooner: the linearised end is then conservative), the parameter is bounded
+# on that side only (`Identification.status`).
+OPEN_RISE = 3.841
 # rad: the finest residual the intervals are stated at. Below it the residual is the simulation's
 # own error, not the unit's (noise-free recordings of the model itself: 1e-4 µrad RMS at the same
 # smoothing width, 0.003-0.016 µrad fitted at another, on the lumped scan), and an
@@ -139,15 +148,37 @@ class Identification:
             out.append(None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR))))
         return tuple(out)
 
+    def one_sided(self) -> tuple[str | None, ...]:
+        """Per parameter whose interval does not hold (`holds`): `"below"` where the recording
+        bounds it from below only (the cost's rise along its profile above the estimate stays
+        within `OPEN_RISE` s^2 at 1.96 and 10 standard errors, while below it rises at least
+        1 / `PROFILE_FACTOR` of the linearised rise at both), `"above"` the other way round, else
+        None (also where it holds or was not checked)."""
+        if self.profile is None:
+            return (None,) * len(self.names)
+        steps = np.asarray(PROFILE_STEPS[:2]) ** 2
+        out = []
+        for ratios, held in zip(self.profile[:, :, :2], self.holds()):
+            rise = ratios * steps  # in s^2, each side's at 1.96 and 10 standard errors
+            flat = [bool(np.all(np.isfinite(r)) and np.all(np.abs(r) < OPEN_RISE)) for r in rise]
+            rising = [bool(np.all(np.isfinite(r)) and np.all(r >= 1 / PROFILE_FACTOR)) for r in ratios]
+            side = "below" if rising[0] and flat[1] else "above" if rising[1] and flat[0] else None
+            out.append(side if held is False else None)
+        return tuple(out)
+
     def status(self) -> tuple[str, ...]:
-        """Per parameter: "determined", "in combination", "not determined" (module docstring), or
-        "interval does not hold" where the residual is not quadratic over it (`holds`): the
-        estimate is where the search stopped, not a minimum the recording determines."""
+        """Per parameter: "determined", "in combination", "not determined" (module docstring),
+        "bounded below only" / "bounded above only" where the recording bounds it on one side
+        (`one_sided`: the linearised interval's end there, the other open), or "interval does not
+        hold" where the residual is otherwise not quadratic over it (`holds`): the estimate is
+        where the search stopped, not a minimum the recording determines."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
-        for j, holds in enumerate(self.holds()):
-            if holds is False:
+        for j, (holds, side) in enumerate(zip(self.holds(), self.one_sided())):
+            if side is not None:
+                out.append(f"bounded {side} only")
+            elif holds is False:
                 out.append("interval does not hold")
             elif relative[j] < DETERMINED:
                 out.append("determined")
@@ -227,10 +258,14 @@ class Identification:
         """The estimates, intervals and identifiability as Markdown."""
         lo, hi = self.interval()
         rows = ["| parameter | estimate | 95 % interval | relative standard error | determined? |", "|---|---|---|---|---|"]
+        sides = self.one_sided()
         for j, (name, status) in enumerate(zip(self.names, self.status())):
             rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
             interval += " (does not hold)" if status == "interval does not hold" else ""
+            if sides[j] is not None:
+                interval = (f"≥ {show(lo[j], self.units[j])}, not bounded above" if sides[j] == "below"
+                            else f"≤ {show(hi[j], self.units[j])}, not bounded below")
             rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
         below = self.residual_sd < RESOLVED * (1 - 1e-9)
         lines = [(f"Residual standard deviation {1e6 * self.residual_sd:.3g} µrad over {self.n} samples, below what the "
@@ -257,7 +292,18 @@ class Identification:
                       "impacts), and the estimate with it. The intervals include that spread: "
                       + ", ".join(f"{n} {100 * m:.0f} %" for n, m in zip(self.names, model))
                       + " of each variance is the model's, the rest the recording's noise."]
-        rugged = [j for j, held in enumerate(self.holds()) if held is False]
+        for j in (j for j, side in enumerate(sides) if side is not None):
+            open_ = "above" if sides[j] == "below" else "below"
+            rise = self.profile[j, 1 if open_ == "above" else 0, :2] * np.asarray(PROFILE_STEPS[:2]) ** 2
+            end = show((lo if sides[j] == "below" else hi)[j], self.units[j])
+            notes += ["", f"**{self.names[j]} is bounded {sides[j]} only** ({'≥' if sides[j] == 'below' else '≤'} {end}): "
+                      f"at {PROFILE_STEPS[0]:g} and {PROFILE_STEPS[1]:g} standard errors {open_} the estimate the residual's "
+                      f"cost has risen only {_span(rise)} s² ({OPEN_RISE:g} s², the 95 % threshold), so the recording does not "
+                      f"say how far {open_} it lies: values there reproduce it as well (as a backlash larger than the recording "
+                      "ever takes up does, its far flank not reached before the recording ends). The estimate is not written "
+                      "into the identified scene. To bound it: a recording that reaches that flank (longer after a reversal, "
+                      "a larger amplitude: `tolerax.design_test` chooses the profile)."]
+        rugged = [j for j, (held, side) in enumerate(zip(self.holds(), sides)) if held is False and side is None]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
             many = len(rugged) > 1
