@@ -21,7 +21,13 @@ first (one warm-up recording of each, not counted):
   stopped at the first generation that ends after W: the best cost it has found by then.
 
 Reported: both costs against the noise's expected $N\\sigma^2$, each estimate's error against the
-truth in `identify`'s standard errors, DE's generations and evaluations, and the wall times.
+truth in `identify`'s standard errors, `identify`'s status of each parameter (`Identification.status`:
+an estimate far from the truth is honest only where the status says its interval is not a
+two-sided one), DE's generations and evaluations, and the wall times.
+
+`--along SEED`: instead of the race, recording SEED's cost along each backlash through
+`identify`'s estimate (the other parameters held there) and through the truth, and identify's
+table: where the cost is flat the recording does not bound the backlash on that side.
 """
 
 import argparse
@@ -79,17 +85,41 @@ def race_de(scene, rec, names, budget, seed):
     return float(out.fun), np.exp(out.x) * scale, generations[0], evaluations[0], wall
 
 
+def along(scene, names, axes, seed) -> int:
+    """Recording `seed`'s cost (µrad²) along each backlash, 60 µm to 250 µm, through identify's
+    estimate and through the truth (the other parameters held at each), and identify's table."""
+    truth, rec = recording(scene, names, axes, seed)
+    got = tx.identify(scene, rec, names)
+    fit, _, scale, *_ = _problem(scene, rec, tuple(names), 0.0, None, None, "steady", "auto", {})
+    grid = np.arange(60e-6, 251e-6, 5e-6)
+    print(f"recording {seed}: truth {', '.join(f'{v:.4g}' for v in truth)}; N sigma^2 {got.n * (rec.noise / 1e-6) ** 2:.1f}")
+    for j, name in enumerate(names):
+        if not name.endswith("ring_backlash"):
+            continue
+        for label, at in (("identify's estimate", np.asarray(got.estimate)), ("the truth", truth)):
+            points = np.repeat(at[None], grid.size, axis=0)
+            points[:, j] = grid
+            costs = np.asarray(_costs(fit, jnp.asarray(points / scale), own_width(scene)))
+            print(f"{name} through {label}: " + " ".join(f"{1e6 * g:.0f}:{c:.1f}" for g, c in zip(grid, costs)))
+    print(got.table())
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=5, help="recordings (default 5)")
     parser.add_argument("--dual", action="store_true", help="the lumped dual scan, both joints' parameters")
     parser.add_argument("--out", type=pathlib.Path, default=None)
+    parser.add_argument("--along", type=int, default=None, metavar="SEED",
+                        help="recording SEED's cost along each backlash through identify's estimate and the truth, no race")
     args = parser.parse_args(argv)
     if args.dual:
         scene, axes = tx.scan("dual", fidelity="lumped"), ("azimuth", "pitch")
     else:
         scene, axes = tx.scan("azimuth", fidelity=("lumped", "ideal")), ("azimuth",)
     names = [f"{a}.{p}" for a in axes for p in ("ring_backlash", "drag_torque")]
+    if args.along is not None:
+        return along(scene, names, axes, args.along)
     # Warm-up: both searches' programs compiled on a recording not counted.
     _, warm = recording(scene, names, axes, 999)
     tx.identify(scene, warm, names)
@@ -107,7 +137,8 @@ def main(argv=None) -> int:
         de_err = (de_x - truth) / se
         wins.append(got.cost <= de_cost)
         rows.append(f"| {seed} | {', '.join(f'{v:.4g}' for v in truth)} | {got.cost:.1f} | {de_cost:.1f} | {expected:.1f} | "
-                    f"{np.max(np.abs(id_err)):.2f} | {np.max(np.abs(de_err)):.3g} | {got.screened} + {got.line_screened} | "
+                    f"{np.max(np.abs(id_err)):.2f} | {np.max(np.abs(de_err)):.3g} | {', '.join(got.status())} | "
+                    f"{got.screened} + {got.line_screened} | "
                     f"{gens} / {evals} | {w_id:.1f} | {w_de:.1f} |")
         print(rows[-1], flush=True)
     what = "the lumped dual scan, both encoders" if args.dual else "the lumped azimuth scan"
@@ -121,9 +152,9 @@ def main(argv=None) -> int:
         "identify's wall time.", "",
         f"**identify's cost at or below DE's on {sum(wins)} of {len(wins)} recordings.**", "",
         "| recording | truth | identify's cost (µrad²) | DE's best cost (µrad²) | N sigma² (µrad²) | identify: max error (its SEs) "
-        "| DE: max error (identify's SEs) | identify: screened + line points | DE: generations / evaluations "
-        "| identify wall (s) | DE wall (s) |",
-        "|---|---|---:|---:|---:|---:|---:|---|---|---:|---:|", *rows])
+        "| DE: max error (identify's SEs) | identify's status | identify: screened + line points "
+        "| DE: generations / evaluations | identify wall (s) | DE wall (s) |",
+        "|---|---|---:|---:|---:|---:|---:|---|---|---|---:|---:|", *rows])
     print(text)
     if args.out:
         args.out.write_text(text + "\n")
