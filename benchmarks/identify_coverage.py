@@ -16,6 +16,14 @@ reused).
 
 `--bits`: the encoder's resolution (20 by default; 24 gives steps of 0.37 µrad, fine against
 the noise, where 20 bits' 6.0 µrad steps are three times it and round alike in most recordings).
+`--drags A [P]`: the driven joints' drag torques (N m; the scene says 0.05) are the unit's too and
+identified beside the backlash (from the scene's values). Each parameter's interval is counted by
+what `identify` claims for it (`Identification.status`): a two-sided interval holds the truth
+where the truth lies in it, a one-sided one ("bounded below only") where it lies on its side of
+the bound; a parameter whose interval does not hold (or that is not determined) claims none and
+is counted apart.
+
+    python benchmarks/identify_coverage.py --n 20 --dual --drags 0.04 0.06 --out benchmarks/results/identify_coverage_dual_drags.md
 """
 
 import argparse
@@ -41,6 +49,8 @@ def main(argv=None) -> int:
                         help="the encoder's bits per turn (default 20: steps of 6.0 µrad, three times the noise; 24: 0.37 µrad)")
     parser.add_argument("--dual", action="store_true",
                         help="the lumped dual scan recorded by both encoders: both ring backlashes (azimuth --truth, pitch 130 µm)")
+    parser.add_argument("--drags", type=float, nargs="+", default=None, metavar="NM",
+                        help="the drag torques of the driven joints (N m), identified too (module docstring)")
     args = parser.parse_args(argv)
     if args.dual:
         scene, axes = tx.scan("dual", fidelity="lumped"), ("azimuth", "pitch")
@@ -48,49 +58,67 @@ def main(argv=None) -> int:
     else:
         scene, axes = tx.scan("azimuth", fidelity=("lumped", "ideal")), ("azimuth",)
         chosen, truths = ("azimuth.ring_backlash",), (args.truth,)
+    units = (1e-6,) * len(chosen)  # the printed unit of each parameter in SI: µm for the backlash, N m for a drag
+    if args.drags:
+        if len(args.drags) != len(axes):
+            parser.error(f"--drags: one drag torque per driven joint ({len(axes)})")
+        chosen, truths = chosen + tuple(f"{a}.drag_torque" for a in axes), truths + tuple(args.drags)
+        units += (1.0,) * len(axes)
     names = design_names(scene)
     truth = np.asarray(design_of(scene)).copy()
-    for name, value in zip(chosen, truths):
-        truth[names.index(name)] = value * 1e-6
+    for name, value, unit in zip(chosen, truths, units):
+        if name in names:
+            truth[names.index(name)] = value * unit
+    values = dict(zip(names, truth)) | {n: v * u for n, v, u in zip(chosen, truths, units) if n not in names}
     encoder, noise = 2 * math.pi / 2**args.bits, 2e-6
-    rows, walls, inside, estimates, errors, per_axis = [], [], 0, [], [], {}
+    rows, walls, inside, unclaimed, estimates, errors, per_axis = [], [], 0, 0, [], [], {}
     for seed in range(args.n):
-        rec = tx.synthetic_recording(scene, truth, duration=0.35, n_save=141, noise=noise, quantum=encoder,
+        rec = tx.synthetic_recording(scene, values, duration=0.35, n_save=141, noise=noise, quantum=encoder,
                                      key=jax.random.key(1000 + seed), axes=axes)
         start = time.perf_counter()
         got = tx.identify(scene, rec, list(chosen), starts=(1.0,))
         walls.append(time.perf_counter() - start)
         lo, hi = got.interval()
         cells = []
-        for j, value in enumerate(truths):
-            hit = bool(lo[j] <= value * 1e-6 <= hi[j])
-            inside += hit
-            estimates.append(1e6 * got.estimate[j] - value)
-            errors.append(1e6 * got.standard_error[j])
-            per_axis.setdefault(j, []).append((hit, 1e6 * got.estimate[j] - value, 1e6 * got.standard_error[j]))
-            cells.append(f"{1e6 * got.estimate[j]:.3f} | {1e6 * lo[j]:.3f} – {1e6 * hi[j]:.3f} | {'yes' if hit else 'NO'}")
+        for j, (value, unit, status) in enumerate(zip(truths, units, got.status())):
+            claimed = status not in ("interval does not hold", "not determined")
+            low = -np.inf if status == "bounded above only" else lo[j] / unit
+            high = np.inf if status == "bounded below only" else hi[j] / unit
+            hit = bool(low <= value <= high)
+            inside += hit and claimed
+            unclaimed += not claimed
+            if unit == 1e-6:
+                estimates.append(got.estimate[j] / unit - value)
+                errors.append(got.standard_error[j] / unit)
+            per_axis.setdefault(j, []).append((hit, got.estimate[j] / unit - value, got.standard_error[j] / unit, claimed))
+            shown = "not claimed" if not claimed else "yes" if hit else "NO"
+            cells.append(f"{got.estimate[j] / unit:.4g} | {low:.4g} – {high:.4g} ({status}) | {shown}")
         rows.append(f"| {seed} | {' | '.join(cells)} | "
                     f"{1e6 * got.sigma:.2f} | {got.steps} | {'yes' if got.converged else 'no'} | {walls[-1]:.1f} |")
         print(rows[-1], flush=True)
-    intervals = args.n * len(chosen)
+    intervals = args.n * len(chosen) - unclaimed
     p_low = binom.cdf(inside, intervals, 0.95)
     what = (f"Lumped dual scan recorded by both encoders, ring backlash {args.truth:g} µm (azimuth) and 130 µm (pitch)"
             if args.dual else f"Lumped azimuth scan, ring backlash {args.truth:g} µm")
-    header = " | ".join(f"{n.split('.')[0]}: estimate (µm) | 95 % interval (µm) | holds the truth" for n in chosen)
+    if args.drags:
+        what += f", drag torques {' and '.join(f'{d:g}' for d in args.drags)} N m (identified too, from the scene's 0.05)"
+    header = " | ".join(f"{n}: estimate ({'µm' if u == 1e-6 else 'N m'}) | 95 % interval (status) | holds the truth"
+                        for n, u in zip(chosen, units))
     text = "\n".join([
         "# Identification: coverage of the 95 % intervals on synthetic recordings", "",
         f"`python benchmarks/identify_coverage.py --n {args.n}{' --dual' if args.dual else ''}"
-        f"{'' if args.bits == 20 else f' --bits {args.bits}'}`; {os.cpu_count()} cores, "
+        f"{'' if args.bits == 20 else f' --bits {args.bits}'}{' --drags ' + ' '.join(f'{d:g}' for d in args.drags) if args.drags else ''}`; "
+        f"{os.cpu_count()} cores, "
         f"one used; load average {os.getloadavg()[0]:.2f} at the end.", "",
         f"{what}, identified from the scene's 100 µm; {args.bits}-bit encoder ({1e6 * encoder:.2f} µrad steps) and 2 µrad of "
         "noise, one draw per recording.", "",
         f"**Coverage: {inside} of {intervals} intervals hold the truth** (P(X <= {inside}) = {p_low:.3f} for X ~ "
-        f"Binomial({intervals}, 0.95)). Estimates minus the truth: mean {np.mean(estimates):+.3f} µm, standard deviation "
+        f"Binomial({intervals}, 0.95)){f'; {unclaimed} parameters claimed no interval' if unclaimed else ''}. Backlash estimates minus the truth: mean {np.mean(estimates):+.3f} µm, standard deviation "
         f"{np.std(estimates, ddof=1):.3f} µm against the stated standard error's mean {np.mean(errors):.3f} µm.", "",
         *([] if len(chosen) == 1 else [" ".join(
-            f"{chosen[j].split('.')[0]}: {sum(h for h, _, _ in v)} of {len(v)} hold the truth, estimates' spread "
-            f"{np.std([e for _, e, _ in v], ddof=1):.3f} µm against a stated standard error of {np.mean([s for _, _, s in v]):.3f} µm."
-            for j, v in per_axis.items()), ""]),
+            f"{chosen[j]}: {sum(h and c for h, _, _, c in v)} of {sum(c for *_, c in v)} claimed hold the truth, estimates' spread "
+            f"{np.std([e for _, e, _, _ in v], ddof=1):.3g} against a stated standard error of {np.mean([s for _, _, s, _ in v]):.3g} "
+            f"({'µm' if units[j] == 1e-6 else 'N m'})." for j, v in per_axis.items()), ""]),
         f"Wall time: the first identification {walls[0]:.1f} s (tracing and compiling the Levenberg-Marquardt program "
         f"and the Jacobian's included), the later ones {np.median(walls[1:]):.1f} s (median; two smoothing widths, "
         "a forward-mode solve per step).", "",
