@@ -404,9 +404,22 @@ def test_physical_parameters_are_named_read_and_written_beside_the_clearances(tm
     assert dataclasses.replace(got, profile=np.stack([np.array([[1.6438, 12.8909, np.nan], [-1.2, -0.05, 0.0]]), quadratic,
                                                       quadratic])).status()[0] == "interval does not hold"
     assert rugged.one_sided() == (None, None, None)  # both sides open: not a bound, the interval does not hold
-    drawn, kept = tx.load_scene("scan-azimuth").tolerances(), sided.scene_file(tx.load_scene("scan-azimuth")).tolerances()
+    # The identified scene keeps the part of the drawing's zone (90-110 µm) the bound leaves, and
+    # says the bound in its description: the whole zone where the bound (60.6 µm) lies below it,
+    # its upper part where the bound lies inside, the zone as drawn where it lies wholly below
+    # the bound (said so).
+    drawn = tx.load_scene("scan-azimuth").tolerances()
     k = drawn.names.index("azimuth.ring_backlash")
-    assert (float(kept.nominal[k]), float(kept.band[k])) == (float(drawn.nominal[k]), float(drawn.band[k]))  # the drawing's zone kept
+    for shift, zone in ((0.0, (100e-6, 10e-6)), (40e-6, None), (60e-6, (100e-6, 10e-6))):
+        moved = dataclasses.replace(sided, estimate=sided.estimate + np.array([shift, 0.0, 0.0]))
+        bound = moved.interval()[0][0]
+        written = moved.scene_file(tx.load_scene("scan-azimuth"))
+        kept = written.tolerances()
+        zone = zone or (0.5 * (bound + 110e-6), 0.5 * (110e-6 - bound))
+        assert (float(kept.nominal[k]), float(kept.band[k])) == pytest.approx(zone, abs=1e-12), shift
+        assert f"azimuth.ring_backlash >= {show(bound, 'm').replace('µm', 'um')} (95 %, bounded below only" in written.data["description"]
+        assert ("lies wholly beyond the bound" in written.data["description"]) == (shift == 60e-6)
+    assert (float(drawn.nominal[k]), float(drawn.band[k])) == (100e-6, 10e-6)
     drawn, kept = tx.load_scene("scan-azimuth").tolerances(), rugged.scene_file(tx.load_scene("scan-azimuth")).tolerances()
     k = drawn.names.index("azimuth.ring_backlash")
     assert (float(kept.nominal[k]), float(kept.band[k])) == (float(drawn.nominal[k]), float(drawn.band[k]))

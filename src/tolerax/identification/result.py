@@ -206,19 +206,37 @@ class Identification:
           (`source`: what the recording was).
 
         A parameter whose interval does not hold (`holds`) is not written: its zone (or value)
-        stays the drawing's.
+        stays the drawing's; one the recording bounds on one side only (`one_sided`) keeps the
+        part of the drawing's zone on the bound's side (the drawing's zone whole where it lies
+        there, the description saying so where none of it does).
         """
         from ..io import scenefile as F
         from ..uncertainty.sampling import Tolerances
         from .parameters import MESH_KEYS
 
         features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False]
-        out = scene_file
+        out, lo, hi = scene_file, *self.interval()
+        drawn = scene_file.tolerances()
         if features:
-            distribution = scene_file.tolerances().distribution
-            per_sigma = 3.0 if distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
+            per_sigma = 3.0 if drawn.distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
             out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
-                                                        per_sigma * self.standard_error[features], distribution))
+                                                        per_sigma * self.standard_error[features], drawn.distribution))
+        beyond = []  # one-sided parameters whose whole drawn zone lies outside the recording's bound
+        cut = {}
+        for j, side in enumerate(self.one_sided()):
+            if side is None or self.units[j] != "m" or self.names[j] not in drawn.names:
+                continue
+            k = drawn.names.index(self.names[j])
+            low, high = float(drawn.nominal[k] - drawn.band[k]), float(drawn.nominal[k] + drawn.band[k])
+            bound = float(lo[j]) if side == "below" else float(hi[j])
+            if (bound >= high) if side == "below" else (bound <= low):
+                beyond.append(j)
+            elif low < bound < high:  # else the whole drawn zone is on the bound's side: kept as drawn
+                low, high = (bound, high) if side == "below" else (low, bound)
+                cut[self.names[j]] = (0.5 * (low + high), 0.5 * (high - low))
+        if cut:
+            out = out.with_tolerances(Tolerances(tuple(cut), np.array([c[0] for c in cut.values()]),
+                                                 np.array([c[1] for c in cut.values()]), drawn.distribution))
         scene, writable = dict(out.data["scene"]), self._drag_writable()
         for name, value, held in zip(self.names, self.estimate, self.holds()):
             if name in writable:
@@ -226,11 +244,19 @@ class Identification:
             joint, _, key = name.partition(".")
             if key in MESH_KEYS and held is not False:
                 scene[f"{joint}_stage"] = dict(scene.get(f"{joint}_stage", {})) | {key: float(value)}
-        lo, hi = self.interval()
+        def said(j):
+            n, u, st = self.names[j], self.units[j], self.status()[j]
+            if st == "bounded below only":
+                text = f"{n} >= {show(lo[j], u)} (95 %, {st}"
+            elif st == "bounded above only":
+                text = f"{n} <= {show(hi[j], u)} (95 %, {st}"
+            else:
+                return f"{n} {show(self.estimate[j], u)} ({show(lo[j], u)} to {show(hi[j], u)}, 95 %, {st})"
+            return text + (": its drawn zone lies wholly beyond the bound and is kept as drawn)" if j in beyond else ")")
+
         data = out.data | {"scene": scene, "title": f"Identified unit: {scene_file.title}",
-                           "description": f"Written by tolerax identify from {source}: " + "; ".join(
-                               f"{n} {show(e, u)} ({show(a, u)} to {show(b, u)}, 95 %, {st})".replace("µm", "um")
-                               for n, u, e, a, b, st in zip(self.names, self.units, self.estimate, lo, hi, self.status()))}
+                           "description": f"Written by tolerax identify from {source}: "
+                           + "; ".join(said(j) for j in range(len(self.names))).replace("µm", "um")}
         return F.SceneFile.from_data(data, "identified", "<identified>")
 
     def unwritten(self) -> tuple[str, ...]:
