@@ -328,7 +328,7 @@ class Identification:
                       f"say how far {open_} it lies: values there reproduce it as well (as a backlash larger than the recording "
                       "ever takes up does, its far flank not reached before the recording ends). The estimate is not written "
                       "into the identified scene. To bound it: a recording that reaches that flank (longer after a reversal, "
-                      "a larger amplitude: `tolerax.design_test` chooses the profile)."]
+                      "or a larger amplitude)."]
         rugged = [j for j, (held, side) in enumerate(zip(self.holds(), sides)) if held is False and side is None]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
