@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .check import AtWidth, unit_tolerances
+from .surface import line_fit
 from .types import Design
 from ..uncertainty.montecarlo import monte_carlo
 
@@ -50,10 +51,8 @@ def scatter_share(pointing, outputs, x: Design, width=None, *, units: int = PROB
     ok = np.asarray(ds["success"].values, dtype=bool) & np.all(np.isfinite(y), axis=1)
     band = np.asarray(x.band, dtype=float)
     rows = np.column_stack([np.ones(int(ok.sum())), (values[ok] - np.asarray(x.nominal)) / np.where(band > 0, band, 1.0)])
-    dof = rows.shape[0] - np.linalg.matrix_rank(rows)
+    _, residual, dof = line_fit(rows, y[ok])
     if dof < 2:
         raise ValueError(f"scatter_share: {int(ok.sum())} of {units} units solved, too few for a line in {n} features.")
-    coef = np.linalg.lstsq(rows, y[ok], rcond=None)[0]
-    residual = np.sum((y[ok] - rows @ coef) ** 2, axis=0) / dof
     spread = np.var(y[ok], axis=0, ddof=1)
     return np.where(spread > 0, np.minimum(residual / np.where(spread > 0, spread, 1.0), 1.0), 0.0)

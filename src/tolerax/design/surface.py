@@ -41,6 +41,19 @@ def _secant_noise(objective: LinearisedYield, x: Design, width):
     return _fit_units(objective, jnp.asarray(x.nominal), objective.fit_band(jnp.asarray(x.band)), width)
 
 
+def line_fit(rows, values) -> tuple[np.ndarray, np.ndarray, int]:
+    """The least-squares line of `values` (units, k) on the design matrix `rows` (units, columns):
+    `(coefficients (columns, k), residual variance on its degrees of freedom (k,), degrees of
+    freedom)`, the degrees of freedom the units less the matrix's rank (a feature held fixed, a
+    zero column, takes none); the variance is NaN where there are none. What a secant fit, a
+    response surface and `Auto()`'s probe (`tolerax.design.probe`) each fit."""
+    rows, values = np.asarray(rows, dtype=float), np.asarray(values, dtype=float)
+    dof = int(rows.shape[0] - np.linalg.matrix_rank(rows))
+    coef = np.linalg.lstsq(rows, values, rcond=None)[0]
+    residual = np.sum((values - rows @ coef) ** 2, axis=0) / dof if dof > 0 else np.full(values.shape[1:], np.nan)
+    return coef, residual, dof
+
+
 def _fit_units(objective: LinearisedYield, middle, band, width):
     """`_secant_noise`'s fit over `objective.secant_units` units spread over middle +- band (m)."""
     n = middle.shape[0]
@@ -53,12 +66,11 @@ def _fit_units(objective: LinearisedYield, middle, band, width):
     ok = np.all(np.isfinite(values), axis=1)
     scale = np.where(np.asarray(band) > 0, np.asarray(band), 1.0)
     rows = np.asarray(_design_rows(objective.pointing, units, drawn, middle, jnp.asarray(scale)))[ok]
-    dof = rows.shape[0] - np.linalg.matrix_rank(rows)
+    coef, residual, dof = line_fit(rows, values[ok])  # coef (1 + n + m, k)
     if dof < 1:
         raise ValueError(f"secant_standard_error: {int(ok.sum())} successful units leave no residual to estimate the noise from "
                          f"({n} features): use more secant_units.")
-    coef = np.linalg.lstsq(rows, values[ok], rcond=None)[0]  # (1 + n + m, k)
-    sigma = np.sqrt(np.sum((values[ok] - rows @ coef) ** 2, axis=0) / dof)  # (k,)
+    sigma = np.sqrt(residual)  # (k,)
     root = np.sqrt(np.diag(np.linalg.pinv(rows.T @ rows)))
     per_m = np.where(np.asarray(band) > 0, 1.0 / scale, 0.0)
     return (coef[0], coef[1 : 1 + n].T * per_m, sigma * root[0], sigma[:, None] * root[None, 1 : 1 + n] * per_m, sigma,
