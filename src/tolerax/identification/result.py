@@ -327,7 +327,8 @@ class Identification:
                       f"cost has risen only {_span(rise)} s² ({OPEN_RISE:g} s², the 95 % threshold), so the recording does not "
                       f"say how far {open_} it lies: values there reproduce it as well (as a backlash larger than the recording "
                       "ever takes up does, its far flank not reached before the recording ends). The estimate is not written "
-                      "into the identified scene. To bound it: a recording that reaches that flank (longer after a reversal, "
+                      "into the identified scene (a clearance or backlash keeps the part of its drawn zone the bound leaves). "
+                      "To bound it: a recording that reaches that flank (longer after a reversal, "
                       "or a larger amplitude)."]
         rugged = [j for j, (held, side) in enumerate(zip(self.holds(), sides)) if held is False and side is None]
         if rugged:
