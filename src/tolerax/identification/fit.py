@@ -21,7 +21,7 @@ from .._linearise import secant_once
 from ..design.features import design_of
 from ..design.objectives import PointingObjective
 from .parameters import with_parameters
-from .result import PROFILE_STEPS
+from .result import PROFILE_FACTOR, PROFILE_STEPS
 
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
 # Levenberg-Marquardt's relative and absolute tolerance on the step (log µm, log of the scene's
@@ -148,20 +148,30 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) 
     assessment already: no program compiled for the check), `REALISATIONS_ALONE` of them, against
     `residual`, the assessment's own at `x` from that program (µrad).
 
-    Returns `(ratios (parameters, 2 sides, steps), realisations' x (k, p), their residuals (k, n))`."""
+    The same rise is read along each parameter's own line ($x \\pm k\\,\\sigma_j e_j$, the others
+    held at the estimate) at the first two steps: any choice of the others costs at least the
+    profile's, so where either path's cost stays low the profile's does too (`line`, read by
+    `Identification.one_sided`). In a batch those points ride in its padding; one at a time they
+    are costed only for a parameter whose path check failed.
+
+    Returns `(ratios (parameters, 2 sides, steps), line ratios (parameters, 2 sides, 2 steps),
+    realisations' x (k, p), their residuals (k, n))`."""
     se = np.sqrt(np.maximum(np.diag(cov_x), 0.0))
     ratio = np.full((x.size, 2, len(PROFILE_STEPS)), np.nan)
-    points, where = [x], []
+    line = np.full((x.size, 2, 2), np.nan)
     checked = math.isfinite(s2) and s2 > 0  # a residual of exactly zero: no scale to check against
-    for j in range(x.size if checked else 0):
-        if not (np.isfinite(se[j]) and se[j] > 0):
-            continue
-        for side, sign in enumerate((-1.0, 1.0)):
-            for m, k in enumerate(PROFILE_STEPS):
-                point = x + sign * k * cov_x[:, j] / se[j]
-                if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
-                    points.append(point)
-                    where.append((j, side, m, k))
+    usable = [j for j in range(x.size if checked else 0) if np.isfinite(se[j]) and se[j] > 0]
+
+    def steps(js, along):  # (point, (table, j, side, m, k)) for the parameters js, inside the bounds
+        for j in js:
+            for side, sign in enumerate((-1.0, 1.0)):
+                for m, k in enumerate(PROFILE_STEPS if along == "path" else PROFILE_STEPS[:2]):
+                    point = x + sign * k * (cov_x[:, j] / se[j] if along == "path" else se[j] * np.eye(x.size)[j])
+                    if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
+                        yield point, (ratio if along == "path" else line, j, side, m, k)
+
+    checks = list(steps(usable, "path")) + (list(steps(usable, "line")) if batch is not None else [])
+    points, where = [x, *(p for p, _ in checks)], [w for _, w in checks]
     if batch is None:
         realised = _realisation_points(x, REALISATIONS_ALONE)
         residuals = np.stack([np.asarray(residual)] + [np.asarray(_fit_and_jacobian(fit, jnp.asarray(p), width)[3])
@@ -173,13 +183,22 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) 
         residuals = _in_batches(fit, table, width, batch)
     costs = np.sum(residuals**2, axis=1)  # [0]: x's, the assessment's own (batch None) or in the batch's program
     spread = math.sqrt(2.0) * float(np.std(np.concatenate([costs[:1], costs[len(points):]]), ddof=1))  # between two realisations
-    for (j, side, m, k), c in zip(where, costs[1:len(points)]):
-        if k * k * s2 >= COST_NOISE * spread:
-            ratio[j, side, m] = (c - costs[0]) / (k * k * s2)
-    if batch is None:  # x's residual is the assessment's own: its step is the 0 `_model_noise` counts
-        return ratio, realised, residuals[len(points):]
+
+    def read(where_, costs_):
+        for (table_, j, side, m, k), c in zip(where_, costs_):
+            if k * k * s2 >= COST_NOISE * spread:
+                table_[j, side, m] = (c - costs[0]) / (k * k * s2)
+
+    read(where, costs[1:len(points)])
+    if batch is None:  # the lines one point at a time, only where the path's check failed
+        seen = [ratio[j, :, :2][np.isfinite(ratio[j, :, :2])] for j in usable]  # as `Identification.holds` reads them
+        failed = [j for j, r in zip(usable, seen) if r.size and not np.all((r > 1 / PROFILE_FACTOR) & (r < PROFILE_FACTOR))]
+        more = list(steps(failed, "line"))
+        read([w for _, w in more], [float(np.sum(np.asarray(_fit_and_jacobian(fit, jnp.asarray(p), width)[3]) ** 2))
+                                   for p, _ in more])
+        return ratio, line, realised, residuals[len(points):]  # x's residual is the assessment's own: its step the 0 `_model_noise` counts
     # x in the batch's program: one more realisation beside the assessment's
-    return ratio, np.vstack([x[None], realised]), np.vstack([residuals[:1], residuals[len(points):]])
+    return ratio, line, np.vstack([x[None], realised]), np.vstack([residuals[:1], residuals[len(points):]])
 
 
 def _realisation_points(x, k: int) -> np.ndarray:

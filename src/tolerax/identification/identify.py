@@ -323,7 +323,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, r)
+    profile, line, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, r)
     model_cov, model_rms = _model_noise(jac, estimate_x, r, realised_x, realised, cov_x, s2)
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles, "
                   f"the model's own realisations ({len(realised)}: {model_rms:.2g} µrad rms apart)")
@@ -339,7 +339,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         cost=float(np.sum(r**2)), times=times[window], measured=measured, fitted=fitted, directions=directions,
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, line_screened=line_screened,
         noise=recording.noise,
-        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, jacobian=jacobian, **torque,
+        scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, profile_line=line,
+        jacobian=jacobian, **torque,
     )
 
 

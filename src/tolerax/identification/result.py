@@ -75,7 +75,9 @@ class Identification:
     - `profile` ((parameters, 2, 3)): the intervals checked against the residual itself
       (`identify`'s `_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
       estimate along each parameter's profile path, over the rise the linearised model predicts
-      there; 1 where the residual is quadratic out to there. `holds` reads it.
+      there; 1 where the residual is quadratic out to there. `holds` reads it. `profile_line`
+      ((parameters, 2, 2)): the same rise at 1.96 and 10 standard errors along the parameter's
+      own line, the others held at the estimate (NaN where not costed), which `one_sided` reads.
     - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
       mode through the solve, or central secants), and why, in words.
     - `torque_measured`, `torque_fitted` (N m, (saves, axes)) where the recording had a motor
@@ -102,6 +104,7 @@ class Identification:
     scene: object = dataclasses.field(repr=False, default=None)
     wall: dict = dataclasses.field(default_factory=dict)
     profile: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    profile_line: np.ndarray | None = dataclasses.field(repr=False, default=None)
     jacobian: str = ""  # the residual's Jacobian, and why (`identify(secant=...)`)
     torque_measured: np.ndarray | None = dataclasses.field(repr=False, default=None)
     torque_fitted: np.ndarray | None = dataclasses.field(repr=False, default=None)
@@ -150,17 +153,20 @@ class Identification:
 
     def one_sided(self) -> tuple[str | None, ...]:
         """Per parameter whose interval does not hold (`holds`): `"below"` where the recording
-        bounds it from below only (the cost's rise along its profile above the estimate stays
-        within `OPEN_RISE` s^2 at 1.96 and 10 standard errors, while below it rises at least
-        1 / `PROFILE_FACTOR` of the linearised rise at both), `"above"` the other way round, else
-        None (also where it holds or was not checked)."""
+        bounds it from below only (the cost's rise above the estimate stays within `OPEN_RISE`
+        s^2 at 1.96 and 10 standard errors along its profile path or along its own line, the
+        others held: either costs at least the profile's, so the profile stays within it too;
+        while below it rises at least 1 / `PROFILE_FACTOR` of the linearised rise at both along
+        the path), `"above"` the other way round, else None (also where it holds or was not
+        checked)."""
         if self.profile is None:
             return (None,) * len(self.names)
         steps = np.asarray(PROFILE_STEPS[:2]) ** 2
+        lines = np.full((len(self.names), 2, 2), np.nan) if self.profile_line is None else self.profile_line
         out = []
-        for ratios, held in zip(self.profile[:, :, :2], self.holds()):
-            rise = ratios * steps  # in s^2, each side's at 1.96 and 10 standard errors
-            flat = [bool(np.all(np.isfinite(r)) and np.all(np.abs(r) < OPEN_RISE)) for r in rise]
+        for ratios, line, held in zip(self.profile[:, :, :2], lines, self.holds()):
+            flat = [any(bool(np.all(np.isfinite(r)) and np.all(np.abs(r * steps) < OPEN_RISE)) for r in pair)
+                    for pair in zip(ratios, line)]  # each side: the path's or the line's rise in s^2
             rising = [bool(np.all(np.isfinite(r)) and np.all(r >= 1 / PROFILE_FACTOR)) for r in ratios]
             side = "below" if rising[0] and flat[1] else "above" if rising[1] and flat[0] else None
             out.append(side if held is False else None)
@@ -320,7 +326,10 @@ class Identification:
                       + " of each variance is the model's, the rest the recording's noise."]
         for j in (j for j, side in enumerate(sides) if side is not None):
             open_ = "above" if sides[j] == "below" else "below"
-            rise = self.profile[j, 1 if open_ == "above" else 0, :2] * np.asarray(PROFILE_STEPS[:2]) ** 2
+            o = 1 if open_ == "above" else 0
+            rises = [r * np.asarray(PROFILE_STEPS[:2]) ** 2 for r in (self.profile[j, o, :2], *(
+                () if self.profile_line is None else (self.profile_line[j, o],)))]
+            rise = min((r for r in rises if np.all(np.isfinite(r))), key=lambda r: float(np.max(np.abs(r))))
             end = show((lo if sides[j] == "below" else hi)[j], self.units[j])
             notes += ["", f"**{self.names[j]} is bounded {sides[j]} only** ({'≥' if sides[j] == 'below' else '≤'} {end}): "
                       f"at {PROFILE_STEPS[0]:g} and {PROFILE_STEPS[1]:g} standard errors {open_} the estimate the residual's "
