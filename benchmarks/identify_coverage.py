@@ -27,6 +27,7 @@ is counted apart.
 """
 
 import argparse
+import collections
 import math
 import os
 import pathlib
@@ -71,7 +72,7 @@ def main(argv=None) -> int:
             truth[names.index(name)] = value * unit
     values = dict(zip(names, truth)) | {n: v * u for n, v, u in zip(chosen, truths, units) if n not in names}
     encoder, noise = 2 * math.pi / 2**args.bits, 2e-6
-    rows, walls, inside, unclaimed, estimates, errors, per_axis = [], [], 0, 0, [], [], {}
+    rows, walls, inside, unclaimed, estimates, errors, per_axis, statuses = [], [], 0, 0, [], [], {}, {}
     for seed in range(args.n):
         rec = tx.synthetic_recording(scene, values, duration=0.35, n_save=141, noise=noise, quantum=encoder,
                                      key=jax.random.key(1000 + seed), axes=axes)
@@ -87,9 +88,10 @@ def main(argv=None) -> int:
             hit = bool(low <= value <= high)
             inside += hit and claimed
             unclaimed += not claimed
-            if unit == 1e-6:
+            if unit == 1e-6 and claimed:
                 estimates.append(got.estimate[j] / unit - value)
                 errors.append(got.standard_error[j] / unit)
+            statuses.setdefault(j, []).append(status)
             per_axis.setdefault(j, []).append((hit, got.estimate[j] / unit - value, got.standard_error[j] / unit, claimed))
             shown = "not claimed" if not claimed else "yes" if hit else "NO"
             cells.append(f"{got.estimate[j] / unit:.4g} | {low:.4g} – {high:.4g} ({status}) | {shown}")
@@ -113,11 +115,13 @@ def main(argv=None) -> int:
         f"{what}, identified from the scene's 100 µm; {args.bits}-bit encoder ({1e6 * encoder:.2f} µrad steps) and 2 µrad of "
         "noise, one draw per recording.", "",
         f"**Coverage: {inside} of {intervals} intervals hold the truth** (P(X <= {inside}) = {p_low:.3f} for X ~ "
-        f"Binomial({intervals}, 0.95)){f'; {unclaimed} parameters claimed no interval' if unclaimed else ''}. Backlash estimates minus the truth: mean {np.mean(estimates):+.3f} µm, standard deviation "
+        f"Binomial({intervals}, 0.95)){f'; {unclaimed} parameters claimed no interval' if unclaimed else ''}. Backlash estimates minus the truth{' (where an interval was claimed)' if unclaimed else ''}: mean {np.mean(estimates):+.3f} µm, standard deviation "
         f"{np.std(estimates, ddof=1):.3f} µm against the stated standard error's mean {np.mean(errors):.3f} µm.", "",
         *([] if len(chosen) == 1 else [" ".join(
-            f"{chosen[j]}: {sum(h and c for h, _, _, c in v)} of {sum(c for *_, c in v)} claimed hold the truth, estimates' spread "
-            f"{np.std([e for _, e, _, _ in v], ddof=1):.3g} against a stated standard error of {np.mean([s for _, _, s, _ in v]):.3g} "
+            f"{chosen[j]}: {sum(h and c for h, _, _, c in v)} of {sum(c for *_, c in v)} claimed hold the truth "
+            f"({', '.join(f'{n} {s}' for s, n in collections.Counter(statuses[j]).most_common())}); claimed estimates' spread "
+            f"{np.std([e for _, e, _, c in v if c], ddof=1) if sum(c for *_, c in v) > 1 else float('nan'):.3g} against a stated "
+            f"standard error of {np.mean([s for _, _, s, c in v if c]) if any(c for *_, c in v) else float('nan'):.3g} "
             f"({'µm' if units[j] == 1e-6 else 'N m'})." for j, v in per_axis.items()), ""]),
         f"Wall time: the first identification {walls[0]:.1f} s (tracing and compiling the Levenberg-Marquardt program "
         f"and the Jacobian's included), the later ones {np.median(walls[1:]):.1f} s (median; two smoothing widths, "
