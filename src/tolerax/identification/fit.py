@@ -21,7 +21,7 @@ from .._linearise import secant_once
 from ..design.features import design_of
 from ..design.objectives import PointingObjective
 from .parameters import with_parameters
-from .result import PROFILE_FACTOR, PROFILE_STEPS
+from .result import PROFILE_STEPS, interval_holds
 
 UNIT = 1e-6  # rad: the residual's unit (µrad); features in µm inside the solve
 # Levenberg-Marquardt's relative and absolute tolerance on the step (log µm, log of the scene's
@@ -191,8 +191,7 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) 
 
     read(where, costs[1:len(points)])
     if batch is None:  # the lines one point at a time, only where the path's check failed
-        seen = [ratio[j, :, :2][np.isfinite(ratio[j, :, :2])] for j in usable]  # as `Identification.holds` reads them
-        failed = [j for j, r in zip(usable, seen) if r.size and not np.all((r > 1 / PROFILE_FACTOR) & (r < PROFILE_FACTOR))]
+        failed = [j for j in usable if interval_holds(ratio[j]) is False]
         more = list(steps(failed, "line"))
         read([w for _, w in more], [float(np.sum(np.asarray(_fit_and_jacobian(fit, jnp.asarray(p), width)[3]) ** 2))
                                    for p, _ in more])

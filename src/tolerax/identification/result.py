@@ -37,6 +37,15 @@ RESOLVED = 0.1e-6
 MODEL_NOTED = 0.1
 
 
+def interval_holds(ratios) -> bool | None:
+    """One parameter's profile check (`Identification.holds`): its ratios ((2 sides, steps), the
+    cost's rise over the linearised one) at 1.96 and 10 standard errors all within
+    `PROFILE_FACTOR` of 1; None where none was read (NaN: not checked)."""
+    ratios = np.asarray(ratios)[:, :2]
+    seen = ratios[np.isfinite(ratios)]
+    return None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR)))
+
+
 def show(value: float, unit: str) -> str:
     """A parameter's value for a report: µm for a length, else 4 significant digits and the unit."""
     if unit == "m":
@@ -145,11 +154,7 @@ class Identification:
         sides)? None where it was not checked (an interval reaching past the bounds)."""
         if self.profile is None:
             return (None,) * len(self.names)
-        out = []
-        for ratios in self.profile[:, :, :2]:
-            seen = ratios[np.isfinite(ratios)]
-            out.append(None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR))))
-        return tuple(out)
+        return tuple(interval_holds(ratios) for ratios in self.profile)
 
     def one_sided(self) -> tuple[str | None, ...]:
         """Per parameter whose interval does not hold (`holds`): `"below"` where the recording
@@ -250,8 +255,10 @@ class Identification:
             joint, _, key = name.partition(".")
             if key in MESH_KEYS and held is not False:
                 scene[f"{joint}_stage"] = dict(scene.get(f"{joint}_stage", {})) | {key: float(value)}
+        statuses = self.status()
+
         def said(j):
-            n, u, st = self.names[j], self.units[j], self.status()[j]
+            n, u, st = self.names[j], self.units[j], statuses[j]
             if st == "bounded below only":
                 text = f"{n} >= {show(lo[j], u)} (95 %, {st}"
             elif st == "bounded above only":
