@@ -141,8 +141,9 @@ class Check:
                  progress: bool = False):
         """`yield_check` of design `x` (`Design(middle, half-width)`, m) against `requirements`
         (one per output of `objective`) on this check's units (`key_for(drawn)`), run as it says
-        (chunks, backend, checkpoints), at smoothing `width` (m): a tuple of `YieldCheck`s, one
-        per requirement, however many."""
+        (chunks, backend, checkpoints), simulated at the scene's own smoothing widths against
+        the linear model at `width` (m, the one the design was solved at): a tuple of
+        `YieldCheck`s, one per requirement, however many."""
         got = yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
                           int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
                           progress=progress)
@@ -235,6 +236,20 @@ def _model(objective, x, width):
     return objective.model(x, width)
 
 
+def own_width(pointing):
+    """The smoothing width (m) of `pointing`'s scene as an array where every stage shares one (so
+    that `AtWidth` at it has the structure of `AtWidth` at any other width, and one compiled
+    program serves both), else `None` (each stage keeps its own); `None` too for an objective
+    without a scene (a closed form)."""
+    from .objectives import _widths
+
+    scene = getattr(pointing, "scene", None)
+    if scene is None:
+        return None
+    widths = {float(w) for w in _widths(scene)}
+    return jnp.asarray(widths.pop(), dtype=float) if len(widths) == 1 else None
+
+
 class AtWidth(eqx.Module):
     """An objective (`AbstractObjective`) as a Monte Carlo model at one smoothing width:
     `AtWidth(objective, width)(values)` is `objective(values, width)` (`width` in m; `None`: the
@@ -266,8 +281,12 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m) with
     `objective`'s pointing model and compare them with its linearised model on the same units
     (see `YieldCheck`); each unit draws the objective's uncertain inputs too (a life's wear
-    rate: `LinearisedYield`). The units are one `tolerax.monte_carlo` run (`unit_tolerances`,
-    `key`; at smoothing `width`, m) in chunks of `chunk` units on `backend` (`workers`,
+    rate: `LinearisedYield`). The linear model is the one the design was solved on, at
+    smoothing `width` (m; `None`: the scene's own); the units are simulated at the scene's own
+    smoothing widths (`own_width`), what a built unit is, so the check's shift carries the
+    smoothing's bias (a wide width rounds the contacts off and reads the jitter high) as well
+    as the line's. The units are one `tolerax.monte_carlo` run (`unit_tolerances`,
+    `key`) in chunks of `chunk` units on `backend` (`workers`,
     `client`, a progress bar with `progress`, as `monte_carlo`'s), its chunks kept under `out`
     where given (a subfolder per design, units, key and model). A tuple `output` (two
     requirements, e.g. RMS and jitter): `requirement` one per output, and one `YieldCheck` per
@@ -279,7 +298,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     x = Design(jnp.asarray(x.nominal), jnp.asarray(x.band))
     width = None if width is None else jnp.asarray(width, dtype=float)
     tolerances = unit_tolerances(objective.pointing, x)
-    model = AtWidth(objective.pointing, width)
+    model = AtWidth(objective.pointing, own_width(objective.pointing))
     folder = None
     if out is not None:  # one subfolder per design, units, key and model: another never meets these chunks
         said = json.dumps([tolerances.to_json(), key_settings(key), int(n), _fingerprint(model)], sort_keys=True)
