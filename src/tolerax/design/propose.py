@@ -126,8 +126,11 @@ def propose_design(
                          "not: use Sequential(), or check=None.")
     pointing = problem.objective
     say = Phases(progress)
+    # The fidelity each requirement is read at, before anything is simulated (Auto()'s probe).
+    given = tuple(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)) for r in as_requirements(problem.requirements))
+    _computed(pointing, given)
+    proxy_notes = tuple(check_fidelity(pointing.scene, given, allow_proxy=problem.allow_proxy))
     requirements_, combined = _requirements(problem, solver, say)
-    proxy_notes = tuple(check_fidelity(pointing.scene, requirements_, allow_proxy=problem.allow_proxy))
     proxy_notes += _auto_notes(requirements_)
     options = problem.zones.options() | problem.statistic_options() | combined.options | dict(
         cost_model=problem.cost, output=requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_))
@@ -386,14 +389,15 @@ def _auto_notes(requirements) -> tuple[str, ...]:
 
 def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Requirement, ...], Combined]:
     """The problem's requirements, each with its constraint model resolved (an `Auto()` one
-    measured first: `_measured`) and its unit the objective's, checked against what the
-    objective computes and what the solver takes, and their models combined into one
-    linearisation (`combine`)."""
+    measured: `_measured`, after the checks that need no simulation) and its unit the
+    objective's, checked against what the objective computes and what the solver takes, and
+    their models combined into one linearisation (`combine`)."""
     pointing = problem.objective
     requirements_ = tuple(with_model(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)))
                           for r in as_requirements(problem.requirements))
     yield_ = problem.yield_
     n = len(design_names(pointing.scene))
+    _computed(pointing, requirements_)
     requirements_ = _measured(problem, requirements_, solver, say)
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
@@ -406,12 +410,6 @@ def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Re
         if not all(r.model.resolve(r).options(r, n)["scatter"] for r in requirements_):
             raise ValueError(f"propose_design: each unit draws {', '.join(pointing.uncertain_inputs)} (the life's spread), whose "
                              "secant fits keep the scatter of what neither the features nor the rate explain: leave scatter on.")
-    for r in requirements_:
-        if r.output not in pointing.outputs:
-            raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
-                             f"{r.text()}; it computes {', '.join(pointing.outputs)}"
-                             + (" (the jitter needs PointingObjective(..., jitter_cutoff=20.0): Hz, the start of the stability band)."
-                                if r.output == "pointing_jitter" else "."))
     combined = combine(requirements_, n, problem.zones.min_clearance)
     if combined.secants and yield_ is None:
         fitted = next(r for r in requirements_ if r.model.resolve(r).fitted)
@@ -426,6 +424,16 @@ def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Re
     logs = combined.options.get("log_outputs", ())
     requirements_ = tuple(resolved(r, secants=combined.secants, log_fit=r.output in logs) for r in requirements_)
     return requirements_, combined
+
+
+def _computed(pointing, requirements):
+    """Refuse a requirement on an output `pointing` does not compute, naming what it does."""
+    for r in requirements:
+        if r.output not in pointing.outputs:
+            raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
+                             f"{r.text()}; it computes {', '.join(pointing.outputs)}"
+                             + (" (the jitter needs PointingObjective(..., jitter_cutoff=20.0): Hz, the start of the stability band)."
+                                if r.output == "pointing_jitter" else "."))
 
 
 def _tolerances(requirements_, problem, width) -> np.ndarray:
