@@ -33,8 +33,8 @@ def drawn_on_grades(problem, result: OptimisationResult, grade, outcomes, target
     whole ISO grades (`round_to_grades`, from its fractional grades `grade` (n,), with its
     linear model: the `outcomes`' linearised outputs and the result's band sensitivities (m, n)
     against the `targets` (m,) it was solved for), checked on `check`'s units
-    (`Check.key_for(drawn=True)`, simulated at the scene's own smoothing width against the linear model at `width`, m) against the `requirements` (m,) where
-    there is a check and a yield `yield_`. Where it misses (its check short of the yield, or its
+    (`Check.key_for(drawn=True)`, simulated at the scene's own smoothing width against the
+    linear model at `width`, m) against the `requirements` (m,) where there is a check and a yield `yield_`. Where it misses (its check short of the yield, or its
     linear model over a requirement), tighter grades are tried: rounded from every continuous
     grade one lower, then two (`TIGHTER_GRADES`), each checked on the same units; the first that
     meets is returned, else the last tried, its `tightened` saying how far."""
