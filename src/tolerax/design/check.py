@@ -284,9 +284,9 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     rate: `LinearisedYield`). The linear model is the one the design was solved on, at
     smoothing `width` (m; `None`: the scene's own); the units are simulated at the scene's own
     smoothing widths (`own_width`), what a built unit is, so the check's shift carries the
-    smoothing's bias (a wider width rounds the contacts off, which moves the vibration outputs) as well
-    as the line's. The units are one `tolerax.monte_carlo` run (`unit_tolerances`,
-    `key`) in chunks of `chunk` units on `backend` (`workers`,
+    smoothing's bias (a wider width rounds the contacts off, which moves the vibration
+    outputs) as well as the line's. The units are one `tolerax.monte_carlo` run
+    (`unit_tolerances`, `key`) in chunks of `chunk` units on `backend` (`workers`,
     `client`, a progress bar with `progress`, as `monte_carlo`'s), its chunks kept under `out`
     where given (a subfolder per design, units, key and model). A tuple `output` (two
     requirements, e.g. RMS and jitter): `requirement` one per output, and one `YieldCheck` per

@@ -34,8 +34,9 @@ def drawn_on_grades(problem, result: OptimisationResult, grade, outcomes, target
     linear model: the `outcomes`' linearised outputs and the result's band sensitivities (m, n)
     against the `targets` (m,) it was solved for), checked on `check`'s units
     (`Check.key_for(drawn=True)`, simulated at the scene's own smoothing width against the
-    linear model at `width`, m) against the `requirements` (m,) where there is a check and a yield `yield_`. Where it misses (its check short of the yield, or its
-    linear model over a requirement), tighter grades are tried: rounded from every continuous
+    linear model at `width`, m) against the `requirements` (m,) where there is a check and a
+    yield `yield_`. Where it misses (its check short of the yield, or its linear model over a
+    requirement), tighter grades are tried: rounded from every continuous
     grade one lower, then two (`TIGHTER_GRADES`), each checked on the same units; the first that
     meets is returned, else the last tried, its `tightened` saying how far."""
     size, lower, upper = np.asarray(problem.features.size_mm), problem.lower, problem.upper
