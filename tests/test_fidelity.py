@@ -34,8 +34,9 @@ def test_which_fidelity_reads_which_output():
 
 
 def test_propose_design_refuses_the_jitter_on_the_scaled_stage():
-    """Before any simulation (no Auto() probe, no compile: seconds): the scaled stage's jitter requirement is refused, naming the joint
-    and the remedy; on the full stage the same requirement passes the check."""
+    """Before any simulation (no Auto() probe, no compile: seconds): the scaled stage's jitter
+    requirement is refused, naming the joint and the remedy; on the full stage the same
+    requirement passes the check."""
     sf = tx.load_scene("scan-azimuth-fast")
     pointing = sf.objective(jitter_cutoff=20.0)
     with pytest.raises(ValueError, match="planetary-scaled"):
