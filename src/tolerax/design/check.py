@@ -239,14 +239,10 @@ def _model(objective, x, width):
 def own_width(pointing):
     """The smoothing width (m) of `pointing`'s scene as an array where every stage shares one (so
     that `AtWidth` at it has the structure of `AtWidth` at any other width, and one compiled
-    program serves both), else `None` (each stage keeps its own); `None` too for an objective
-    without a scene (a closed form)."""
+    program serves both), else `None` (each stage keeps its own)."""
     from .objectives import _widths
 
-    scene = getattr(pointing, "scene", None)
-    if scene is None:
-        return None
-    widths = {float(w) for w in _widths(scene)}
+    widths = {float(w) for w in _widths(pointing.scene)}
     return jnp.asarray(widths.pop(), dtype=float) if len(widths) == 1 else None
 
 

@@ -126,11 +126,11 @@ def propose_design(
                          "not: use Sequential(), or check=None.")
     pointing = problem.objective
     say = Phases(progress)
-    # The fidelity each requirement is read at, before anything is simulated (Auto()'s probe).
-    given = tuple(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)) for r in as_requirements(problem.requirements))
-    _computed(pointing, given)
+    # What the objective computes and the fidelity each requirement is read at, before anything
+    # is simulated (Auto()'s probe).
+    given = _given(problem)
     proxy_notes = tuple(check_fidelity(pointing.scene, given, allow_proxy=problem.allow_proxy))
-    requirements_, combined = _requirements(problem, solver, say)
+    requirements_, combined = _requirements(problem, solver, say, given)
     proxy_notes += _auto_notes(requirements_)
     options = problem.zones.options() | problem.statistic_options() | combined.options | dict(
         cost_model=problem.cost, output=requirements_[0].output if len(requirements_) == 1 else tuple(r.output for r in requirements_))
@@ -387,17 +387,31 @@ def _auto_notes(requirements) -> tuple[str, ...]:
             "zone's units, read scatter, and the output is fitted on a response surface over the bounds.",)
 
 
-def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Requirement, ...], Combined]:
-    """The problem's requirements, each with its constraint model resolved (an `Auto()` one
-    measured: `_measured`, after the checks that need no simulation) and its unit the
-    objective's, checked against what the objective computes and what the solver takes, and
-    their models combined into one linearisation (`combine`)."""
+def _given(problem: ToleranceProblem) -> tuple[Requirement, ...]:
+    """The problem's requirements with their constraint models (`with_model`) and the objective's
+    units, each refused (`ValueError`, naming what the objective computes) where the objective
+    does not compute its output."""
     pointing = problem.objective
-    requirements_ = tuple(with_model(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)))
-                          for r in as_requirements(problem.requirements))
+    given = tuple(with_model(dataclasses.replace(r, unit=pointing.units.get(r.output, r.unit)))
+                  for r in as_requirements(problem.requirements))
+    for r in given:
+        if r.output not in pointing.outputs:
+            raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
+                             f"{r.text()}; it computes {', '.join(pointing.outputs)}"
+                             + (" (the jitter needs PointingObjective(..., jitter_cutoff=20.0): Hz, the start of the stability band)."
+                                if r.output == "pointing_jitter" else "."))
+    return given
+
+
+def _requirements(problem: ToleranceProblem, solver, say=None, given=None) -> tuple[tuple[Requirement, ...], Combined]:
+    """The problem's requirements (`given`, else `_given(problem)`), each with its constraint
+    model resolved (an `Auto()` one measured: `_measured`) and its unit the objective's, checked
+    against what the solver takes, and their models combined into one linearisation
+    (`combine`)."""
+    pointing = problem.objective
+    requirements_ = _given(problem) if given is None else given
     yield_ = problem.yield_
     n = len(design_names(pointing.scene))
-    _computed(pointing, requirements_)
     requirements_ = _measured(problem, requirements_, solver, say)
     if pointing.uncertain_inputs:
         # Each unit draws the life's wear rate (its spread): every requirement is linearised by
@@ -424,16 +438,6 @@ def _requirements(problem: ToleranceProblem, solver, say=None) -> tuple[tuple[Re
     logs = combined.options.get("log_outputs", ())
     requirements_ = tuple(resolved(r, secants=combined.secants, log_fit=r.output in logs) for r in requirements_)
     return requirements_, combined
-
-
-def _computed(pointing, requirements):
-    """Refuse a requirement on an output `pointing` does not compute, naming what it does."""
-    for r in requirements:
-        if r.output not in pointing.outputs:
-            raise ValueError(f"propose_design: the pointing objective does not compute {r.output!r}, the output of the requirement "
-                             f"{r.text()}; it computes {', '.join(pointing.outputs)}"
-                             + (" (the jitter needs PointingObjective(..., jitter_cutoff=20.0): Hz, the start of the stability band)."
-                                if r.output == "pointing_jitter" else "."))
 
 
 def _tolerances(requirements_, problem, width) -> np.ndarray:
