@@ -339,14 +339,21 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
         problem, solver = seen[-1]
         assert [r.model for r in problem.requirements] == [expected] and solver == tx.Sequential()
         assert problem.statistic == tx.Yield(0.99) and "stopped here by the test" in capsys.readouterr().err
-    # --secant-units alone (no --model): the jitter keeps the automatic recipe on K units (what a
-    # noise-limited answer asks for), the RMS is fitted by lines through K units.
+    # --secant-units alone (no --model): every requirement on the automatic model on K units,
+    # whatever its output's name; its measurement then picks, output by output, a response surface
+    # on K units (a scattering output) or a line through K units (the others), and unmeasured
+    # (here: propose_design, which measures, is stopped) each goes by its output's name.
     scene.write_text(text.replace('model = "surface"\n', ""))
     assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.9", "--jitter", "0.3", "--allow-proxy",
                      "--secant-units", "9", "--out", str(tmp_path / "o")]) == 2
     problem, _ = seen[-1]
-    assert [r.model for r in problem.requirements] == [tx.Secants(units=9, scatter=False, twin=False), tx.Auto(units=9)]
-    assert [r.model.resolve(r) for r in problem.requirements][1] == tx.Surface(units=9)
+    assert [r.model for r in problem.requirements] == [tx.Auto(units=9), tx.Auto(units=9)]
+    line, surface = tx.Secants(units=9, scatter=False, twin=False), tx.Surface(units=9)
+    assert [r.model.resolve(r) for r in problem.requirements] == [line, surface]
+    rms, jitter = problem.requirements
+    for share, expected in ((0.9, surface), (0.05, line)):  # measured: the share decides, not the name
+        assert [dataclasses.replace(r.model, share=share).resolve(r) for r in (rms, jitter)] == [expected, expected]
+    assert tx.Auto().resolve(rms) == tx.Tangents() and tx.Auto(share=0.9).resolve(rms) == tx.Surface()
     capsys.readouterr()
     # The solver by name: --method slsqp is tx.SLSQP() (--outer: its iterations per width).
     assert cli.main(["design", str(scene), "--requirement", "500", "--method", "slsqp", "--outer", "50", "--out", str(tmp_path / "o")]) == 2
@@ -361,7 +368,7 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     assert [r.model for r in tx.load_scene(str(scene)).problem().requirements] == [tx.Secants(), None]
     assert cli.main(["design", str(scene), "--secant-units", "9", "--out", str(tmp_path / "o")]) == 2
     problem, _ = seen[-1]
-    assert [r.model for r in problem.requirements] == [tx.Secants(units=9), tx.Secants(units=9, scatter=False, twin=False)]
+    assert [r.model for r in problem.requirements] == [tx.Secants(units=9), tx.Auto(units=9)]
     capsys.readouterr()
     for table, where, message in (('{ pointing_rms = "secant" }', "pointing_rms", "model='secant' is unknown"),
                                   ('{ pointing_jiter = "surface" }', "pointing_jiter", "did you mean 'pointing_jitter'")):

@@ -99,8 +99,8 @@ def optimiser_options(parser):
     parser.add_argument("--secant-units", type=count(2), default=None, metavar="K",
                         help="with --yield: fit the linearised yield's value and slopes over K units of the zone (more than the "
                         "features; forward solves only) instead of forward-mode tangents at its middle, which are rough where "
-                        "contacts rattle (alone: Secants(units=K, scatter=False, twin=False), but the jitter keeps its response surface, on K "
-                        "units: Auto(units=K); with --model secants or surface, their units)")
+                        "contacts rattle (alone: the automatic model on K units, Auto(units=K): each output's measured scatter picks a "
+                        "response surface on K units or a line through K units; with --model secants or surface, their units)")
 
 
 PATH = __doc__[__doc__.index("The engineer's path"):__doc__.index("SCENE is a built-in")].strip()

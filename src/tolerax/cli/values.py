@@ -10,9 +10,8 @@ class DesignValues:
     and the constraint model every requirement takes: `model` (`--model`, or the scene's one
     name) for all; else each requirement's own (a scene's table by output; `None`: its default,
     `Auto()`). With `secant_units` (`--secant-units K`): a fitted model on K units; where no model
-    is named, a scattering output (the jitter) keeps the automatic recipe on K units,
-    `Auto(units=K)`, and every other output is fitted by lines through K units, without scatter
-    or twin."""
+    is named, the automatic one on K units, `Auto(units=K)` (its measurement picks a response
+    surface or a line through K units, output by output)."""
 
     statistic: object
     zones: object
@@ -26,20 +25,16 @@ class DesignValues:
 
     def problem(self, pointing, requirements):
         """The `ToleranceProblem` of `pointing` (an objective) and `requirements`."""
-        from ..design.requirements import SCATTERING_OUTPUTS, as_requirements
+        from ..design.requirements import as_requirements
         from ..design.spec import Auto, Secants, ToleranceProblem
 
         def model(r):
             if self.model is not None:  # --model, or the scene's one name
                 return self.model
             if r.model is not None:  # the scene's own for this output (a table by output)
-                return r.model if self.secant_units is None or not isinstance(r.model, Secants) else \
+                return r.model if self.secant_units is None or not isinstance(r.model, (Secants, Auto)) else \
                     dataclasses.replace(r.model, units=self.secant_units)
-            if self.secant_units is None:
-                return None  # Auto()
-            if r.output in SCATTERING_OUTPUTS:  # the automatic recipe kept, on K units (a noise band's remedy)
-                return Auto(units=self.secant_units)
-            return Secants(units=self.secant_units, scatter=False, twin=False)
+            return None if self.secant_units is None else Auto(units=self.secant_units)  # None: Auto()
 
         found = tuple(dataclasses.replace(r, model=model(r)) for r in as_requirements(requirements))
         return ToleranceProblem(pointing, found, self.statistic, self.zones, self.cost, self.allow_proxy)

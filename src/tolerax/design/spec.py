@@ -256,12 +256,15 @@ class Auto(AbstractConstraintModel):
     sets of units disagree on it by more than the requirements' tolerances resolve) is made
     again on twice the units, up to 128 (`propose.AUTO_MAX_UNITS`).
 
-    `units`: the response surface's units (default `Surface`'s): `Auto(units=128)` is the same
-    recipe on more units, what a noise-limited answer asks for; the other outputs keep their
-    tangents here (where the jitter's surface is fitted, the units' solves give every output, so
-    the problem's other outputs are fitted on the surface too: `combine`). `tolerax design
-    --secant-units K` with no `--model` gives the jitter `Auto(units=K)` and the other outputs
-    lines through K units. `share` (a fraction; default `None`, measured by `propose_design`):
+    `units` (optional): fit over K units, whichever fit the measurement picks: a scattering
+    output's response surface on K units (default: `Surface`'s), any other output's line through
+    K units of the zone (`Secants(units=K, scatter=False, twin=False)`: its scatter is small by
+    the measurement), where without `units` it takes tangents. `Auto(units=128)` is the same
+    recipe on more units, what a noise-limited answer asks for (`propose_design` moves only the
+    requirements already fitted over units); `tolerax design --secant-units K` with no `--model`
+    gives every requirement `Auto(units=K)`. Where a surface is fitted, its units' solves give
+    every output, so the problem's other outputs are fitted on the surface too (`combine`).
+    `share` (a fraction; default `None`, measured by `propose_design`):
     given, it is not measured again; where nothing is measured, because nothing could follow
     from it (a `MeanPlusKStd` problem fits nothing over units, a solver on tangents alone takes
     no surface, a life's drawn wear rate fits every output over units anyway), the outputs in
@@ -284,7 +287,7 @@ class Auto(AbstractConstraintModel):
     def resolve(self, requirement):
         scattering = self.scattering_measured
         if not (requirement.output in SCATTERING_OUTPUTS if scattering is None else scattering):
-            return Tangents()
+            return Tangents() if self.units is None else Secants(units=int(self.units), scatter=False, twin=False)
         return Surface() if self.units is None else Surface(units=int(self.units))
 
     def options(self, requirement, n_features):
