@@ -1,7 +1,8 @@
 """What is done to a solved design before it is proposed, as functions on its result.
 
 - `noise_band`: a design whose slopes are fitted over simulated units (secants, a response
-  surface) is solved again on another set of units; `noise_verdict` reads the two costs: where
+  surface) is solved again on another set of units (`twin_problem`), from the design, against
+  the requirements it was solved for; `noise_verdict` reads the two costs: where
   they differ by more than the requirements' tolerances resolve, the fitted slopes' noise, not
   the mechanism, decides the design (`"noise-limited"`).
 - `drawn_on_grades`: the continuous optimum on whole ISO 286 grades (`round_to_grades`), checked
@@ -24,7 +25,7 @@ from .types import Design, OptimisationResult
 
 TIGHTER_GRADES = 2  # how many grades below the continuous ones the drawable design is rounded from, at most
 
-__all__ = ["TIGHTER_GRADES", "drawn_missed", "drawn_on_grades", "noise_band", "noise_verdict"]
+__all__ = ["TIGHTER_GRADES", "drawn_missed", "drawn_on_grades", "noise_band", "noise_verdict", "twin_problem"]
 
 
 def drawn_on_grades(problem, result: OptimisationResult, grade, outcomes, targets, requirements, yield_=None, check=None,
@@ -78,11 +79,27 @@ def drawn_missed(d: DrawableDesign, yield_) -> str:
 
 def noise_band(rebuild, result: OptimisationResult, seed: int, solve) -> tuple:
     """The noise band of a design fitted over units: `rebuild(seed)` the same problem on another
-    set of units (`secant_seed`), `solve(problem)` its design (the same solver, rounds and
-    check). Returns `(this cost, the other's, seed, whether the other converged)`, what
-    `noise_verdict` reads."""
+    set of units (`secant_seed`), `solve(problem)` its design. Returns `(this cost, the
+    other's, seed, whether the other converged)`, what `noise_verdict` reads."""
     other = solve(rebuild(seed))
     return float(result.cost), float(other.cost), int(seed), bool(other.converged)
+
+
+def twin_problem(rebuild, fitted, seed: int):
+    """The problem the noise band solves again (`noise_band`'s `rebuild`): `rebuild(**options)`
+    (`design_problem` with the design's options) on another set of units, `secant_seed=seed`.
+    Where `fitted` (the problem the design was last solved on) is on a response surface, the
+    surface is fitted again on the other units over the same box, and the design held inside
+    it as the last round held it (`rounds._surface_rounds`): the fit the answer rests on, on
+    other units, not the rounds' path to its box again. Secants draw their units about the
+    design as it moves: the problem on other units is the twin."""
+    surface = getattr(fitted.objective.objective, "surface", None)
+    if surface is None:
+        return rebuild(secant_seed=seed)
+    lo, hi = np.asarray(surface.center - surface.half), np.asarray(surface.center + surface.half)
+    twin = rebuild(secant_seed=seed, surface_box=(lo, hi))
+    return dataclasses.replace(twin, lower=Design(np.maximum(np.asarray(twin.lower.nominal), lo), twin.lower.band),
+                               zone_upper=hi)
 
 
 def noise_verdict(band, outcomes, units, other_converged=None, surface: bool = False) -> tuple[str, str]:

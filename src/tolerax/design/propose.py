@@ -18,13 +18,13 @@ import numpy as np
 from ..eta import human_seconds, rough_wall
 from .check import Check, as_requirement, model_off
 from .cost import grade_of
-from .finish import TIGHTER_GRADES, drawn_missed, drawn_on_grades, noise_band, noise_verdict
+from .finish import TIGHTER_GRADES, drawn_missed, drawn_on_grades, noise_band, noise_verdict, twin_problem
 from .features import design_names, lost_motion_weights
 from .fidelity import check_fidelity
 from .objectives import PointingObjective
 from .outcome import SETTLED_STEPS, diagnose, tightest_reach
 from .phases import Phases
-from .rounds import _secant_rescue, _solve_and_check
+from .rounds import ROUND_STEP, _secant_rescue, _solve_and_check
 from .sequential import sequential_design
 from .solvers import AbstractDesignMethod, Sequential
 from .spec import SCATTER_SHARE, Auto, Combined, Secants, ToleranceProblem, combine, with_model
@@ -71,7 +71,9 @@ def propose_design(
     measured at the start to scatter from unit to unit (over units drawn within the starting
     zones more than `SCATTER_SHARE` of its variance lies off a line in the features: the jitter
     of a rattling stage), a response surface refitted as the design moves; models fitted over
-    units also solve a twin design on another set of units, the noise band: where
+    units also solve a twin design, the noise band: the fit the design rests on (its last response
+    surface, over the same box, or its secants) on another set of units, the design solved
+    again on it from where it is, against the requirements it was solved for; where
     the two costs differ by more than the requirements' tolerances resolve, the status is
     `"noise-limited"`, and a requirement on `Auto()` is designed again on twice the units, up to
     `AUTO_MAX_UNITS`, the report saying so). The continuous optimum is then drawn on whole ISO grades
@@ -184,11 +186,15 @@ def propose_design(
             notes += rescue
         targets = checked[-1][2] if checked else requirements  # the (shifted) requirements the returned design was solved for
         if combined.twin:
+            # The noise band: the fit the design rests on (its last surface, or its secants) on
+            # another set of units, the design solved again on it from where it is, against the
+            # requirements it was solved for (a check's shift included).
             seed = int(options.get("secant_seed", 1)) + 1
-            say(f"the noise band: the design again on another set of units (seed {seed}) ...")
-            twin_costs = noise_band(lambda s: design_problem(pointing, **(options | {"secant_seed": s})), result, seed,
-                                    lambda p: _solve_and_check(p, requirements, tol, solver, check, progress, None, rounds=rounds,
-                                                               say=say)[1])
+            say(f"the noise band: the design's fit again on another set of units (seed {seed}), solved again from the design ...")
+            rebuild = lambda **more: design_problem(pointing, **(options | more))  # noqa: E731
+            twin_costs = noise_band(lambda s: twin_problem(rebuild, built, s), result, seed,
+                                    lambda p: solver.solve(p, as_requirement(targets), tol, progress=progress,
+                                                           **(dict(x0=result.x, step=ROUND_STEP) if solver.restarts else {})))
     what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
     status, diagnosis = diagnose(
         objective=result.objective, requirement=targets, tol=tol, converged=bool(result.converged),
