@@ -85,12 +85,13 @@ def noise_band(rebuild, result: OptimisationResult, seed: int, solve) -> tuple:
     return float(result.cost), float(other.cost), int(seed), bool(other.converged)
 
 
-def twin_problem(rebuild, fitted, seed: int):
+def twin_problem(rebuild, fitted, seed: int, first_box=None):
     """The problem the noise band solves again (`noise_band`'s `rebuild`): `rebuild(**options)`
     (`design_problem` with the design's options) on another set of units, `secant_seed=seed`.
     Where `fitted` (the problem the design was last solved on) is on a response surface, the
-    surface is fitted again on the other units over the same box, and the design held inside
-    it as the last round held it (`rounds._surface_rounds`): the fit the answer rests on, on
+    surface is fitted again on the other units over the same box, and, where that box is a
+    later round's (not `first_box`, the first surface's `(lower, upper)`, m), the design held
+    inside it as that round held it (`rounds._surface_rounds`): the fit the answer rests on, on
     other units, not the rounds' path to its box again. Secants draw their units about the
     design as it moves: the problem on other units is the twin."""
     surface = getattr(fitted.objective.objective, "surface", None)
@@ -98,6 +99,8 @@ def twin_problem(rebuild, fitted, seed: int):
         return rebuild(secant_seed=seed)
     lo, hi = np.asarray(surface.center - surface.half), np.asarray(surface.center + surface.half)
     twin = rebuild(secant_seed=seed, surface_box=(lo, hi))
+    if first_box is not None and np.allclose(lo, first_box[0], rtol=1e-12, atol=0) and np.allclose(hi, first_box[1], rtol=1e-12, atol=0):
+        return twin  # the first surface's box: the design was not held inside it
     return dataclasses.replace(twin, lower=Design(np.maximum(np.asarray(twin.lower.nominal), lo), twin.lower.band),
                                zone_upper=hi)
 

@@ -192,7 +192,7 @@ def propose_design(
             seed = int(options.get("secant_seed", 1)) + 1
             say(f"the noise band: the design's fit again on another set of units (seed {seed}), solved again from the design ...")
             rebuild = lambda **more: design_problem(pointing, **(options | more))  # noqa: E731
-            twin_costs = noise_band(lambda s: twin_problem(rebuild, built, s), result, seed,
+            twin_costs = noise_band(lambda s: twin_problem(rebuild, built, s, options.get("surface_box")), result, seed,
                                     lambda p: solver.solve(p, as_requirement(targets), tol, progress=progress,
                                                            **(dict(x0=result.x, step=ROUND_STEP) if solver.restarts else {})))
     what = "" if yield_ is None else f" ({yield_:.1%} quantile)"
