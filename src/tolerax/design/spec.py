@@ -181,9 +181,11 @@ class Secants(AbstractConstraintModel):
     the fit's residual scatter in the quantile (`scatter`): an output whose scatter from unit
     to unit the features do not carry (chaotic rattle). `units` default: max(16, 2 x features
     + 2). `log`: the line fitted to the output's logarithm (a scatter relative to its level);
-    `reach` (m): the units span the zone's middle +- at least this much; `twin`: solve the
-    design again with another set of units and report both costs (the noise band: where they
-    differ by more than the requirements' tolerances resolve, the status is noise-limited)."""
+    `reach` (m): the units span the zone's middle +- at least this much; `twin`: fit again on
+    another set of units (a response surface over its last box) and solve the design again on
+    that fit from where it is, against the requirements it was solved for, and report both
+    costs (the noise band, `finish.twin_problem`: where they differ by more than the
+    requirements' tolerances resolve, the status is noise-limited)."""
 
     units: int | None = None
     scatter: bool = True
