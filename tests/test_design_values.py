@@ -461,6 +461,12 @@ def test_auto_moves_a_noise_limited_design_on_to_more_units(monkeypatch):
     assert again.requirements[0].model == tx.Auto(units=16) and P._on_more_units(problem, 16) is None
     measured = (dataclasses.replace(problem.requirements, model=tx.Auto(units=8, share=0.7)),)
     assert P._on_more_units(problem, 8, measured).requirements[0].model == tx.Auto(units=16, share=0.7)
+    # A requirement on Auto() that stays on tangents keeps its measurement in the move too (the
+    # probe does not run again on more units).
+    rms = tx.Requirement("pointing_rms", 700.0)
+    both = dataclasses.replace(problem, requirements=(rms, problem.requirements))
+    shares = (dataclasses.replace(rms, model=tx.Auto(share=0.01)), dataclasses.replace(problem.requirements, model=tx.Auto(units=8, share=0.7)))
+    assert [r.model for r in P._on_more_units(both, 8, shares).requirements] == [tx.Auto(share=0.01), tx.Auto(units=16, share=0.7)]
     named = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_jitter", requirement, model=tx.Surface(units=8)),))
     tangents = dataclasses.replace(problem, requirements=(tx.Requirement("pointing_rms", 700.0),))
     assert P._on_more_units(named, 8) is None and P._on_more_units(tangents, 8) is None

@@ -333,23 +333,28 @@ def _on_more_units(problem: ToleranceProblem, units, measured=()) -> TolerancePr
     """`problem` with each requirement on `Auto()` (its default) that is fitted over units
     moved to `Auto(units=2 x units)`, where that stays within `AUTO_MAX_UNITS`; `None` where no
     requirement is (a model named by the user is kept as named). `measured`: the requirements
-    as `_requirements` gave them (in the problem's order): their `Auto` keeps its measured
-    `share`, so the move does not measure again."""
+    as `_requirements` gave them (in the problem's order): every `Auto` keeps its measured
+    `share`, moved or not, so the design on more units does not measure again."""
     if units is None or 2 * int(units) > AUTO_MAX_UNITS:
         return None
     requirements = as_requirements(problem.requirements)
     shares = [m.model.share if isinstance(m.model, Auto) else None for m in measured] or [None] * len(requirements)
 
-    def moved_model(r, share):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
+    def moved_model(r):  # its model resolved once (with_model replaces the requirement: a flagged one warns each time)
         model = with_model(r).model
         if not isinstance(model, Auto):
             return None
-        model = model if share is None else dataclasses.replace(model, share=share)
         return dataclasses.replace(model, units=2 * int(units)) if model.resolve(r).fitted else None
 
-    moved = tuple(r if (m := moved_model(r, share)) is None else dataclasses.replace(r, model=m)
-                  for r, share in zip(requirements, shares))
-    return None if moved == requirements else dataclasses.replace(problem, requirements=moved)
+    def kept_share(r, share):  # an Auto() requirement not moved keeps its measurement too (else the probe runs again)
+        model = with_model(r).model
+        return r if share is None or not isinstance(model, Auto) else dataclasses.replace(r, model=dataclasses.replace(model, share=share))
+
+    measured_ = [kept_share(r, share) for r, share in zip(requirements, shares)]
+    moved = tuple(r if (m := moved_model(r)) is None else dataclasses.replace(r, model=m) for r in measured_)
+    if all(a is b or a == b for a, b in zip(moved, measured_)):
+        return None  # nothing moved on to more units
+    return dataclasses.replace(problem, requirements=moved)
 
 
 def _measured(problem: ToleranceProblem, requirements, solver, say=None) -> tuple[Requirement, ...]:
