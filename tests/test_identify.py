@@ -562,6 +562,79 @@ def test_secants_are_chosen_where_the_forward_mode_jacobian_is_not_the_residual_
         assert (differs > SECANT_SWITCH) == (chosen == "secants"), (ripple, differs)
 
 
+def test_a_parameter_the_recording_does_not_see_is_bounded_by_its_profile():
+    r"""`tolerax.identification.profile.profile_bounds` on a closed-form `_Fit` whose second
+    parameter has a plateau: the output $a e^{-t} + k\,\mathrm{softplus}(w - b)\,(e^{-t} + t/2)$
+    does not move with $b$ above the wall $w$ = 2 (a backlash the recording never takes up),
+    and below it part of $b$'s effect is absorbed by $a$. From an estimate on the plateau (b = 5,
+    the truth 4): the upper side open, the lower bound just past the true profile's 95 % crossing
+    (the profile computed by numpy's least squares over $a$ on a fine grid: its crossing lies
+    within the bisected bracket, an eighth of a grid step, inside the bound stated), and the line alone ($a$ held)
+    crossing nearer the estimate than the profile (what a bound from it would overstate). Then
+    the result: "bounded below only", its bound in the table and the identified scene (the part
+    of the drawn zone above it), and a profile closed on both sides "bounded by its profile"."""
+    import jax.numpy as jnp
+
+    from tolerax.identification.fit import BOUND, UNIT, _Fit
+    from tolerax.identification.profile import BISECTIONS, GRID, NEAREST, profile_bounds
+    from tolerax.identification.result import OPEN_RISE, Identification
+
+    t = np.linspace(0.0, 1.0, 60)
+    shape = np.exp(-t) + 0.5 * t
+
+    def wall(b):
+        return 0.01 * jax.nn.softplus((2.0 - b) / 0.01)
+
+    class Plateau(_Fit):
+        def outputs(self, x, width):
+            angles = UNIT * 200.0 * (x[0] * jnp.exp(-t) + 3.0 * wall(x[1]) * shape)[:, None]
+            return ((angles - self.measured) / UNIT).ravel(), (angles, jnp.zeros_like(angles))
+
+    # In µrad / 200: the residual a recording's (a 2 µrad noise, Levenberg-Marquardt's tolerances set for it).
+    noise = 0.01
+    measured = 3.0 * np.exp(-t) + noise * np.random.default_rng(3).standard_normal(t.size)
+    fit = Plateau(objective=None, names=("a", "b"), scale=jnp.ones(2), rows=jnp.arange(60), columns=jnp.arange(1),
+                  measured=jnp.asarray(UNIT * 200.0 * measured[:, None]))
+    a_hat = float(np.linalg.lstsq(np.exp(-t)[:, None], measured, rcond=None)[0][0])  # b on the plateau: no wall term
+    x, x0 = np.array([a_hat, 5.0]), np.array([3.0, 3.0])
+    cost = float(np.sum((a_hat * np.exp(-t) - measured) ** 2))
+    cost, s2 = 200.0**2 * cost, 200.0**2 * cost / (t.size - 2)
+    centre, reach = np.log(x0), np.full(2, math.log(BOUND))
+    bounds, lowest, solves = profile_bounds(fit, x, cost, s2, 0.0, x0, [1], None, 20, centre, reach)
+    assert np.isnan(bounds[0]).all() and bounds[1, 1] == math.inf and 0 < solves <= 6 + 3
+    assert cost - 0.01 * OPEN_RISE * s2 < lowest[1] <= cost  # nowhere lower than the plateau (a 0.01 of the threshold: LM's tolerance)
+    # The true profile: a re-fitted by linear least squares at each b of a fine grid.
+    fine = np.linspace(1.0, 5.0, 40001)
+    walls = np.asarray(wall(jnp.asarray(fine)))
+    profile = [np.sum((measured - 3.0 * w * shape - np.exp(-t) * np.dot(np.exp(-t), measured - 3.0 * w * shape)
+                       / np.dot(np.exp(-t), np.exp(-t))) ** 2) for w in walls]
+    crossing = fine[np.flatnonzero(200.0**2 * np.asarray(profile) - cost <= OPEN_RISE * s2)[0]]  # the lowest b inside the interval
+    step = math.exp(np.diff(np.log(np.geomspace(NEAREST, math.log(5.0 * BOUND / 3.0), GRID)))[-1] / 2**BISECTIONS)
+    assert bounds[1, 0] <= crossing and bounds[1, 0] > 5.0 * math.exp(-math.log(5.0 / crossing) * step), (bounds, crossing)
+    print(f"bound {bounds[1, 0]:.4f}, profile crossing {crossing:.4f}, {solves} re-fits")
+    line = [np.sum((measured - a_hat * np.exp(-t) - 3.0 * w * shape) ** 2) for w in walls]
+    assert fine[np.flatnonzero(200.0**2 * np.asarray(line) - cost <= OPEN_RISE * s2)[0]] > crossing + 0.01  # the line: too tight a bound
+    # The result reads it: bounded below only, with the profile's bound, written as the drawn zone above it.
+    got = Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([150e-6]),
+                         covariance=np.array([[1.0]]), sigma=1e-6, n=60, cost=100.0, times=None, measured=None, fitted=None,
+                         directions=((1e4, np.ones(1)),), steps=3, converged=True, starts=(100.0,), screened=65,
+                         profile=np.full((1, 2, 3), np.nan), profile_bound=np.array([[95e-6, math.inf]]),
+                         profile_lowest=np.array([100.0]))
+    assert got.one_sided() == ("below",) and got.status() == ("bounded below only",)
+    assert "≥ 95.00 µm, not bounded above" in got.table() and "the recording does not see it at the estimate" in got.table()
+    assert "is not the minimum" not in got.table()
+    written = got.scene_file(tx.load_scene("scan-azimuth"))  # the drawn zone 90-110 µm: 95-110 kept
+    k = written.tolerances().names.index("azimuth.ring_backlash")
+    assert (float(written.tolerances().nominal[k]), float(written.tolerances().band[k])) == pytest.approx((102.5e-6, 7.5e-6), abs=1e-12)
+    assert "azimuth.ring_backlash >= 95.00 um (95 %, bounded below only)" in written.data["description"]
+    closed = dataclasses.replace(got, profile_bound=np.array([[95e-6, 105e-6]]), profile_lowest=np.array([80.0]))
+    assert closed.status() == ("bounded by its profile",) and closed.one_sided() == (None,)
+    assert "95.00 µm – 105.00 µm (profile likelihood)" in closed.table() and "is not the minimum" in closed.table()
+    kept = closed.scene_file(tx.load_scene("scan-azimuth")).tolerances()
+    assert (float(kept.nominal[k]), float(kept.band[k])) == pytest.approx((100e-6, 5e-6), abs=1e-12)
+    assert dataclasses.replace(got, profile_bound=np.array([[-math.inf, math.inf]])).status() == ("not determined",)
+
+
 def test_identify_s_choice_of_jacobian_on_a_closed_form_fit():
     """`_choose_jacobian` itself (what `identify(secant=None)` runs at its first start) on a
     closed-form `_Fit` (the same decay-with-ripple as above, in place of a simulated scene): with

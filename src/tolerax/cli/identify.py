@@ -2,6 +2,7 @@
 
 import argparse
 import json
+import math
 import pathlib
 import sys
 import time
@@ -50,8 +51,6 @@ def identify_command(parser, args) -> int:
         print(f"tolerax identify: {err}", file=sys.stderr)
         return 2
     if args.noise is not None or args.encoder_bits is not None:  # the encoder's stated noise: the misfit is judged against it
-        import math
-
         step = 0.0 if args.encoder_bits is None else 2 * math.pi / 2**args.encoder_bits
         recording = dataclasses.replace(recording, noise=math.hypot(1e-6 * (args.noise or 0.0), step / math.sqrt(12)))
     if recording.torque is not None and (args.angles_only or args.torque_noise is not None):
@@ -81,7 +80,7 @@ def identify_command(parser, args) -> int:
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
     # (Identification.scene_file), the drag where the file can hold it, the meshes' stiffness and damping.
     physical = got.unwritten()
-    rugged = [n for n, held in zip(got.names, got.holds()) if held is False]
+    rugged = [n for n, held, walked in zip(got.names, got.holds(), got.walked()) if held is False or walked]
     from ..io import scenefile as F
 
     path = F.save_scene(got.scene_file(scene_file, recording.source), out / "identified.toml")
@@ -93,13 +92,14 @@ def identify_command(parser, args) -> int:
         "recording leaves open." + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
                                     "drag too: the estimates are in identification.json)." if physical else "")
         + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold, or bound them on one side "
-                    "only)." if rugged else ""),
+                    "only or by their profile: the part of a drawn zone inside the bounds is kept)." if rugged else ""),
         "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])
     atomic_write(out / "identification.md", text + "\n")
     atomic_write(out / "identification.json", json.dumps({
         "names": list(got.names), "units": list(got.units), "estimate": [float(v) for v in got.estimate],
         "standard_error": [float(v) for v in got.standard_error], "status": list(got.status()), "interval_holds": list(got.holds()),
+        "interval_95": [[float(v) if math.isfinite(v) else None for v in pair] for pair in zip(*got.bounds())],
         "sigma_rad": got.sigma, "residual_sd_rad": got.residual_sd, "noise_rad": got.noise, "samples": got.n, "converged": got.converged, "jacobian": got.jacobian, "wall_s": wall}
         | ({} if got.torque_fitted is None else {"torque_residual_sd_n_m": float(np.std(got.torque_fitted - got.torque_measured)),
                                                  "torque_noise_n_m": recording.torque_noise}), indent=2) + "\n")
@@ -180,8 +180,6 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
 
 def plan_test_command(parser, args) -> int:
     """`tolerax plan-test SCENE --parameters ...`: the scan whose recording determines them best."""
-    import math
-
     from ..identification.testdesign import design_test
 
     read = _scene_and_parameters(parser, args)

@@ -36,7 +36,9 @@ model's realisations, `COST_NOISE` times); an interval whose ratio at 1.96 or 10
 `PROFILE_FACTOR` does not hold (`Identification.holds`, the status says so); where it rises on one
 side and stays within the 95 % threshold out to 10 standard errors on the other, the parameter is
 bounded on one side only (`Identification.one_sided`: a backlash larger than the recording takes
-up). The identifiability
+up). Where the recording does not see a parameter at its estimate at all (its linearised interval
+past the bounds: the plateau itself), its profile-likelihood bounds are read instead, the others
+re-fitted (`tolerax.identification.profile`). The identifiability
 table is the eigen-decomposition of the relative Fisher information $D J^TJ D / s^2$
 ($D$ = the estimates): a direction whose relative standard error is below `DETERMINED` is
 determined; a parameter is determined itself, determined only in combination (it loads on a
@@ -76,9 +78,10 @@ from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
 from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
                   _in_batches, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
+from .profile import profile_bounds
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
 from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
-from .result import DETERMINED, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
+from .result import DETERMINED, LOADING, OPEN_RISE, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 # Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
 # one more, for the rough time said before the work: timed on the lumped azimuth scan with one
@@ -327,6 +330,17 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     model_cov, model_rms = _model_noise(jac, estimate_x, r, realised_x, realised, cov_x, s2)
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles, "
                   f"the model's own realisations ({len(realised)}: {model_rms:.2g} µrad rms apart)")
+    # A parameter the recording does not see at its estimate (its linearised interval reaching past
+    # the bounds, on no determined direction: not "in combination"): its profile-likelihood bounds
+    # instead (a backlash on the plateau above its flank).
+    se_x, seen = np.sqrt(np.maximum(np.diag(cov_x), 0.0)), np.abs(vectors[:, 1.0 / np.sqrt(values) < DETERMINED]) > LOADING
+    walk = [j for j in range(len(parameters)) if not se_x[j] < DETERMINED * estimate_x[j] and not seen[j].any()
+            and not (x0[j] / BOUND < estimate_x[j] - 1.96 * se_x[j] and estimate_x[j] + 1.96 * se_x[j] < x0[j] * BOUND)]
+    bounds, lowest, solves = profile_bounds(fit, estimate_x, float(np.sum(r**2)), s2, widths[-1], x0, walk, screened or None,
+                                            lm_steps, centre, reach)
+    lap("profile", walk and f"the profile-likelihood bounds of {', '.join(parameters[j] for j in walk)} (the recording does "
+                            f"not see {'them' if len(walk) > 1 else 'it'} at the estimate): {solves} re-fits")
+    converged = converged and not np.any(lowest < float(np.sum(r**2)) - OPEN_RISE * s2)  # a lower cost along a profile: not the minimum
     n = r.size
     directions = tuple(sorted(((1.0 / math.sqrt(v), vectors[:, k]) for k, v in enumerate(values)), key=lambda d: d[0]))
     estimate = scale * estimate_x
@@ -340,7 +354,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, line_screened=line_screened,
         noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, profile_line=line,
-        jacobian=jacobian, **torque,
+        jacobian=jacobian, profile_bound=bounds * scale[:, None], profile_lowest=lowest, **torque,
     )
 
 

@@ -78,8 +78,8 @@ class Identification:
     - `wall` (s): where the call's wall time went, by phase: `"check"` (the recording's command
       against the scene's), `"screen"` (the starts' costs), `"fit"` (Levenberg-Marquardt from each
       start through each width), `"assess"` (the Jacobian at the estimate, the covariance, the
-      polish where one ran, and the intervals' check); tracing and compiling included where a
-      program was new.
+      polish where one ran, and the intervals' check), `"profile"` (the profile-likelihood bounds
+      where they were read); tracing and compiling included where a program was new.
     - `scene`: the identified unit (the scene with the estimates).
     - `profile` ((parameters, 2, 3)): the intervals checked against the residual itself
       (`identify`'s `_profile`): the cost's rise at 1.96, 10 and 100 standard errors below and above the
@@ -87,6 +87,12 @@ class Identification:
       there; 1 where the residual is quadratic out to there. `holds` reads it. `profile_line`
       ((parameters, 2, 2)): the same rise at 1.96 and 10 standard errors along the parameter's
       own line, the others held at the estimate (NaN where not costed), which `one_sided` reads.
+    - `profile_bound` ((parameters, 2), the parameters' units): for a parameter the recording
+      does not see at its estimate (its linearised interval reaching past the bounds), the 95 %
+      profile-likelihood interval's lower and upper ends, the others re-fitted
+      (`tolerax.identification.profile`), -inf / inf where the recording leaves that side open;
+      NaN for the others. `profile_lowest` (µrad²): the lowest cost met along each such profile,
+      below `cost` by more than the threshold where the estimate is not the minimum.
     - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
       mode through the solve, or central secants), and why, in words.
     - `torque_measured`, `torque_fitted` (N m, (saves, axes)) where the recording had a motor
@@ -120,6 +126,8 @@ class Identification:
     model_covariance: np.ndarray | None = dataclasses.field(repr=False, default=None)
     model_rms: float = 0.0
     line_screened: int = 0
+    profile_bound: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    profile_lowest: np.ndarray | None = dataclasses.field(repr=False, default=None)
 
     @property
     def residual_sd(self) -> float:
@@ -148,6 +156,17 @@ class Identification:
         z = float(norm.ppf(0.5 + level / 2))
         return self.estimate - z * self.standard_error, self.estimate + z * self.standard_error
 
+    def walked(self) -> np.ndarray:
+        """Per parameter: were its profile-likelihood bounds read (`profile_bound`)?"""
+        return np.zeros(len(self.names), bool) if self.profile_bound is None else ~np.isnan(self.profile_bound).any(axis=1)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each parameter's 95 % interval as stated: the profile-likelihood one where it was read
+        (`profile_bound`, -inf / inf on an open side), else the linearised one (`interval`)."""
+        lo, hi = self.interval()
+        walked = self.walked()
+        return (np.where(walked, self.profile_bound[:, 0], lo), np.where(walked, self.profile_bound[:, 1], hi)) if walked.any() else (lo, hi)
+
     def holds(self) -> tuple[bool | None, ...]:
         """Per parameter: does its linearised interval hold (the cost's rise along its profile at
         1.96 and 10 standard errors within `PROFILE_FACTOR` of the linearised rise on both
@@ -163,9 +182,11 @@ class Identification:
         others held: either costs at least the profile's, so the profile stays within it too;
         while below it rises at least 1 / `PROFILE_FACTOR` of the linearised rise at both along
         the path), `"above"` the other way round, else None (also where it holds or was not
-        checked)."""
+        checked). Where the profile-likelihood bounds were read instead (`profile_bound`):
+        `"below"` where its lower end is finite and its upper open, `"above"` the other way round."""
+        walked = self.walked()
         if self.profile is None:
-            return (None,) * len(self.names)
+            return tuple(self._walked_side(j) for j in range(len(self.names))) if walked.any() else (None,) * len(self.names)
         steps = np.asarray(PROFILE_STEPS[:2]) ** 2
         lines = np.full((len(self.names), 2, 2), np.nan) if self.profile_line is None else self.profile_line
         out = []
@@ -175,20 +196,32 @@ class Identification:
             rising = [bool(np.all(np.isfinite(r)) and np.all(r >= 1 / PROFILE_FACTOR)) for r in ratios]
             side = "below" if rising[0] and flat[1] else "above" if rising[1] and flat[0] else None
             out.append(side if held is False else None)
-        return tuple(out)
+        return tuple(self._walked_side(j) if walked[j] else side for j, side in enumerate(out))
+
+    def _walked_side(self, j) -> str | None:
+        if not self.walked()[j]:
+            return None
+        low, high = np.isfinite(self.profile_bound[j])
+        return "below" if low and not high else "above" if high and not low else None
 
     def status(self) -> tuple[str, ...]:
         """Per parameter: "determined", "in combination", "not determined" (module docstring),
         "bounded below only" / "bounded above only" where the recording bounds it on one side
-        (`one_sided`: the linearised interval's end there, the other open), or "interval does not
+        (`one_sided`: the linearised interval's end there, or the profile likelihood's, the other
+        open), "bounded by its profile" where the profile-likelihood interval is read and closed
+        on both sides (`profile_bound`: the recording does not see it at the estimate, yet bounds
+        it; "not determined" where that interval is open on both), or "interval does not
         hold" where the residual is otherwise not quadratic over it (`holds`): the estimate is
         where the search stopped, not a minimum the recording determines."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
+        walked = self.walked()
         for j, (holds, side) in enumerate(zip(self.holds(), self.one_sided())):
             if side is not None:
                 out.append(f"bounded {side} only")
+            elif walked[j]:
+                out.append("bounded by its profile" if np.all(np.isfinite(self.profile_bound[j])) else "not determined")
             elif holds is False:
                 out.append("interval does not hold")
             elif relative[j] < DETERMINED:
@@ -219,31 +252,34 @@ class Identification:
         A parameter whose interval does not hold (`holds`) is not written: its zone (or value)
         stays the drawing's; one the recording bounds on one side only (`one_sided`) keeps the
         part of the drawing's zone on the bound's side (the drawing's zone whole where it lies
-        there, the description saying so where none of it does).
+        there, the description saying so where none of it does), and one whose profile-likelihood
+        interval was read (`profile_bound`) the part of the drawing's zone inside it.
         """
         from ..io import scenefile as F
         from ..uncertainty.sampling import Tolerances
         from .parameters import MESH_KEYS
 
-        features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False]
-        out, lo, hi = scene_file, *self.interval()
+        walked = self.walked()
+        features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False and not walked[j]]
+        out, (lo, hi) = scene_file, self.bounds()
         drawn = scene_file.tolerances()
         if features:
             per_sigma = 3.0 if drawn.distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
             out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
                                                         per_sigma * self.standard_error[features], drawn.distribution))
-        beyond = []  # one-sided parameters whose whole drawn zone lies outside the recording's bound
+        beyond = []  # bounded parameters whose whole drawn zone lies outside the recording's bounds
         cut = {}
         for j, side in enumerate(self.one_sided()):
-            if side is None or self.units[j] != "m" or self.names[j] not in drawn.names:
+            if (side is None and not walked[j]) or self.units[j] != "m" or self.names[j] not in drawn.names:
                 continue
             k = drawn.names.index(self.names[j])
             low, high = float(drawn.nominal[k] - drawn.band[k]), float(drawn.nominal[k] + drawn.band[k])
-            bound = float(lo[j]) if side == "below" else float(hi[j])
-            if (bound >= high) if side == "below" else (bound <= low):
+            least = float(lo[j]) if walked[j] or side == "below" else -math.inf  # the recording's bounds, open: inf
+            most = float(hi[j]) if walked[j] or side == "above" else math.inf
+            if least >= high or most <= low:
                 beyond.append(j)
-            elif low < bound < high:  # else the whole drawn zone is on the bound's side: kept as drawn
-                low, high = (bound, high) if side == "below" else (low, bound)
+            elif least > low or most < high:  # else the whole drawn zone is inside the bounds: kept as drawn
+                low, high = max(low, least), min(high, most)
                 cut[self.names[j]] = (0.5 * (low + high), 0.5 * (high - low))
         if cut:
             out = out.with_tolerances(Tolerances(tuple(cut), np.array([c[0] for c in cut.values()]),
@@ -263,6 +299,9 @@ class Identification:
                 text = f"{n} >= {show(lo[j], u)} (95 %, {st}"
             elif st == "bounded above only":
                 text = f"{n} <= {show(hi[j], u)} (95 %, {st}"
+            elif walked[j]:
+                text = (f"{n} {show(lo[j], u)} to {show(hi[j], u)} (95 % profile likelihood, {st}" if st == "bounded by its profile"
+                        else f"{n} not bounded by the recording ({st}")
             else:
                 return f"{n} {show(self.estimate[j], u)} ({show(lo[j], u)} to {show(hi[j], u)}, 95 %, {st})"
             return text + (": its drawn zone lies wholly beyond the bound and is kept as drawn)" if j in beyond else ")")
@@ -295,13 +334,15 @@ class Identification:
 
     def table(self) -> str:
         """The estimates, intervals and identifiability as Markdown."""
-        lo, hi = self.interval()
+        (lo, hi), walked = self.bounds(), self.walked()
         rows = ["| parameter | estimate | 95 % interval | relative standard error | determined? |", "|---|---|---|---|---|"]
         sides = self.one_sided()
         for j, (name, status) in enumerate(zip(self.names, self.status())):
             rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
             interval += " (does not hold)" if status == "interval does not hold" else ""
+            if status == "bounded by its profile":
+                interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])} (profile likelihood)"
             if sides[j] is not None:
                 interval = (f"≥ {show(lo[j], self.units[j])}, not bounded above" if sides[j] == "below"
                             else f"≤ {show(hi[j], self.units[j])}, not bounded below")
@@ -331,7 +372,7 @@ class Identification:
                       "impacts), and the estimate with it. The intervals include that spread: "
                       + ", ".join(f"{n} {100 * m:.0f} %" for n, m in zip(self.names, model))
                       + " of each variance is the model's, the rest the recording's noise."]
-        for j in (j for j, side in enumerate(sides) if side is not None):
+        for j in (j for j, side in enumerate(sides) if side is not None and not walked[j]):
             open_ = "above" if sides[j] == "below" else "below"
             o = 1 if open_ == "above" else 0
             rises = [r * np.asarray(PROFILE_STEPS[:2]) ** 2 for r in (self.profile[j, o, :2], *(
@@ -346,6 +387,8 @@ class Identification:
                       "into the identified scene (a clearance or backlash keeps the part of its drawn zone the bound leaves). "
                       "To bound it: a recording that reaches that flank (longer after a reversal, "
                       "or a larger amplitude)."]
+        for j in np.flatnonzero(walked):
+            notes += ["", self._walked_note(j, lo[j], hi[j])]
         rugged = [j for j, (held, side) in enumerate(zip(self.holds(), sides)) if held is False and side is None]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
@@ -368,6 +411,28 @@ class Identification:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
         return "\n".join(lines)
+
+
+    def _walked_note(self, j, low, high) -> str:
+        """The table's note on a parameter whose profile-likelihood bounds were read."""
+        n, u, s2 = self.names[j], self.units[j], (self.sigma / 1e-6) ** 2
+        sides = [f"{'below' if k == 0 else 'above'} it the profile (the other parameters re-fitted) rises past the "
+                 f"threshold at {show(b, u)}" if np.isfinite(b) else
+                 f"{'below' if k == 0 else 'above'} it the cost along its own line (the others held, which costs at least "
+                 "the profile's) stays within the threshold out to the bound of the fit (a factor 100 of the scene's value)"
+                 for k, b in enumerate((low, high))]
+        text = (f"**{n}: the recording does not see it at the estimate** ({show(self.estimate[j], u)}, its linearised interval "
+                f"reaching past the bounds), so its 95 % interval is the profile likelihood's ({OPEN_RISE:g} s² above the "
+                f"lowest cost): {sides[0]}; {sides[1]}. ")
+        if self.profile_lowest is not None and self.profile_lowest[j] < self.cost - OPEN_RISE * s2:
+            text += (f"Along it the cost falls to {self.profile_lowest[j]:.1f} µrad² against the estimate's {self.cost:.1f}: the "
+                     "estimate is not the minimum (identify again with starts nearer the bound). ")
+        if np.isfinite(low) != np.isfinite(high):
+            text += ("Values on the open side reproduce the recording as well (a backlash larger than the recording ever takes "
+                     "up: its far flank not reached before it ends); the estimate is one point of that plateau, not written "
+                     "into the identified scene (a clearance or backlash keeps the part of its drawn zone the bound leaves). "
+                     "To bound it: a recording that reaches that flank (longer after a reversal, or a larger amplitude).")
+        return text
 
 
 def _span(ratios) -> str:
