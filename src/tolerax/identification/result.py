@@ -422,8 +422,8 @@ class Identification:
                  "the profile's) stays within the threshold out to the bound of the fit (a factor 100 of the scene's value)"
                  for k, b in enumerate((low, high))]
         text = (f"**{n}: the recording does not see it at the estimate** ({show(self.estimate[j], u)}, its linearised interval "
-                f"reaching past the bounds), so its 95 % interval is the profile likelihood's ({OPEN_RISE:g} s² above the "
-                f"lowest cost): {sides[0]}; {sides[1]}. ")
+                f"reaching past the bounds), so its 95 % interval is the profile likelihood's (the values whose cost rises "
+                f"at most {OPEN_RISE:g} s² above the estimate's): {sides[0]}; {sides[1]}. ")
         if self.profile_lowest is not None and self.profile_lowest[j] < self.cost - OPEN_RISE * s2:
             text += (f"Along it the cost falls to {self.profile_lowest[j]:.1f} µrad² against the estimate's {self.cost:.1f}: the "
                      "estimate is not the minimum (identify again with starts nearer the bound). ")
