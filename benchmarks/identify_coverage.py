@@ -28,9 +28,10 @@ is counted apart.
 `--pitch P`: the dual's pitch ring backlash (µm, 130 by default). At 250 the truth lies on the
 plateau the recording never takes up (flat above ~160 µm): the estimate lands anywhere on it, and
 its interval is the profile likelihood's (`Identification.profile_bound`, counted as claimed:
-"bounded below only" holds where the truth lies above the bound).
+"bounded below only" holds where the truth lies above the bound). No result of it is committed;
+to measure it (the table is printed; `--out FILE` writes it too):
 
-    python benchmarks/identify_coverage.py --n 10 --dual --pitch 250 --out benchmarks/results/identify_coverage_plateau.md
+    python benchmarks/identify_coverage.py --n 10 --dual --pitch 250
 """
 
 import argparse

@@ -187,8 +187,19 @@ def _from_columns(columns: dict, where: str) -> Recording:
     axes = tuple(a for a in AXES if (a, "measured") in found)
     if not axes:
         raise RecordingError(f"{where}: no '<axis> measured [unit]' column (azimuth or pitch).")
+    unmeasured = sorted({(a, kind) for a, kind in found if a not in axes}, key=lambda k: (AXES.index(k[0]), k[1]))
+    if unmeasured:
+        a, kind = unmeasured[0]
+        raise RecordingError(f"{where}: a '{a} {kind}' column but no '{a} measured' one: the {a} axis is fitted on its "
+                             f"measured angle; give its '{a} measured [unit]' column, or drop its other columns.")
     measured = np.stack([found[(a, "measured")] for a in axes], axis=1)
-    commanded = np.stack([found[(a, "commanded")] for a in axes], axis=1) if all((a, "commanded") in found for a in axes) else None
+    commands = [a for a in axes if (a, "commanded") in found]
+    if commands and len(commands) != len(axes):
+        # Dropping them would check the recording's test against the scene's drive on no axis at all.
+        raise RecordingError(f"{where}: a commanded column for {', '.join(commands)} but not for "
+                             f"{', '.join(a for a in axes if a not in commands)}: give every recorded axis its commanded "
+                             "angle, or none.")
+    commanded = np.stack([found[(a, "commanded")] for a in axes], axis=1) if commands else None
     torques = [a for a in axes if (a, "torque") in found]
     if torques and len(torques) != len(axes):
         raise RecordingError(f"{where}: a torque column for {', '.join(torques)} but not for "
