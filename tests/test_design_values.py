@@ -355,9 +355,15 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
         assert [dataclasses.replace(r.model, share=share).resolve(r) for r in (rms, jitter)] == [expected, expected]
     assert tx.Auto().resolve(rms) == tx.Tangents() and tx.Auto(share=0.9).resolve(rms) == tx.Surface()
     capsys.readouterr()
-    # The solver by name: --method slsqp is tx.SLSQP() (--outer: its iterations per width).
-    assert cli.main(["design", str(scene), "--requirement", "500", "--method", "slsqp", "--outer", "50", "--out", str(tmp_path / "o")]) == 2
+    # The solver by name: --solver slsqp is tx.SLSQP() (--outer: its iterations per width); the
+    # former --method still names it for one release, and says what replaces it.
+    assert cli.main(["design", str(scene), "--requirement", "500", "--solver", "slsqp", "--outer", "50", "--out", str(tmp_path / "o")]) == 2
     assert seen[-1][1] == tx.SLSQP(max_iterations=50) and "stopped here by the test" in capsys.readouterr().err
+    assert cli.main(["design", str(scene), "--requirement", "500", "--method", "slsqp", "--outer", "50", "--out", str(tmp_path / "o")]) == 2
+    assert seen[-1][1] == tx.SLSQP(max_iterations=50) and "--method is deprecated" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["design", str(scene), "--solver", "slsqp", "--method", "sequential", "--out", str(tmp_path / "o")])
+    assert exit_.value.code == 2 and "disagree" in capsys.readouterr().err
     with pytest.raises(ValueError, match="units must be >= 2"):
         tx.Auto(units=1)
     # A model per output: a table by output name, the outputs it does not name on Auto(); the
@@ -386,7 +392,7 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
 
 
 @dataclasses.dataclass(frozen=True)
-class WideSlopes(tx.design.spec.AbstractConstraintModel):
+class WideSlopes(tx.AbstractConstraintModel):
     """A constraint model of one's own: tangent slopes taken at a wider smoothing width than
     the design is judged at (what `Tangents(slope_width=...)` also does, written anew)."""
 
@@ -397,7 +403,7 @@ class WideSlopes(tx.design.spec.AbstractConstraintModel):
 
 
 @dataclasses.dataclass(frozen=True)
-class TwelveUnits(tx.design.spec.AbstractConstraintModel):
+class TwelveUnits(tx.AbstractConstraintModel):
     """A constraint model of one's own fitted over units: a line through 12 units of the zone
     without the fit's scatter."""
 

@@ -7,7 +7,7 @@ import time
 
 from .._files import atomic_write, save_figure
 from .common import (check_clipping, check_out, claim_out, command_line, has_features, human_seconds, load_average,
-                     read_scene_file, rough_wall, scene_and_settings, scene_jitter, with_tolerances)
+                     read_scene_file, rough_wall, scene_and_settings, scene_jitter, with_life, with_tolerances)
 
 
 def studies_command(parser, args) -> int:
@@ -43,11 +43,8 @@ def studies_command(parser, args) -> int:
 
 def montecarlo_command(parser, args) -> int:
     out = check_out(parser, args.out, "montecarlo", force=args.force, resumes=True)
-    scene_file = read_scene_file(parser, args)
+    scene_file = montecarlo_scene(parser, args)
     if scene_file is None:
-        return 2
-    scene_file = with_tolerances(scene_file, args.band, args.distribution)
-    if not has_features(scene_file, "montecarlo"):
         return 2
     requirement = args.requirement if args.requirement is not None else scene_file.requirement
     scene_jitter(args, scene_file)
@@ -62,6 +59,27 @@ def montecarlo_command(parser, args) -> int:
         print(f"tolerax montecarlo: jitter yield {j['yield']:.3f} [{j['yield_low']:.3f}, {j['yield_high']:.3f}] (95 % Wilson) of "
               f"{int(j['n_used'])} units at jitter above {cutoff:g} Hz <= {args.jitter:g} arcsec")
     return 0 if summary["pointing_rms"]["n_failed"] == 0 else 3
+
+
+def montecarlo_scene(parser, args):
+    """The scene file `tolerax montecarlo` simulates, from its arguments: `args.scene` with
+    its `[run]` overrides, `--band` and `--distribution` in its `[tolerances]` and `--life YEARS`
+    in its `[life]` (`with_life`); `None` where it cannot be simulated (the reason is printed:
+    an invalid file, no feature to tolerance, a `--life` where nothing wears), before any
+    simulation."""
+    scene_file = read_scene_file(parser, args)
+    if scene_file is None:
+        return None
+    scene_file = with_tolerances(scene_file, args.band, args.distribution)
+    if not has_features(scene_file, "montecarlo"):
+        return None
+    if args.life is not None:
+        try:
+            scene_file = with_life(scene_file, args.life)
+        except ValueError as err:  # a SceneFileError: the [life] the flag made
+            print(f"tolerax montecarlo --life: {err}", file=sys.stderr)
+            return None
+    return scene_file
 
 
 def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, requirement, allow_clip, command, jitter_cutoff=None, quiet=False,
@@ -168,6 +186,12 @@ def run_command(parser, args) -> int:
     scene_file = read_scene_file(parser, args, n_save=args.n_save, start=args.start)
     if scene_file is None:
         return 2
+    if args.life is not None:
+        try:
+            scene_file = with_life(scene_file, args.life)
+        except ValueError as err:  # a SceneFileError: the [life] the flag made
+            print(f"tolerax run --life: {err}", file=sys.stderr)
+            return 2
     out = check_out(parser, args.out if args.out is not None else pathlib.Path("tolerax-out") / scene_file.name, "run", force=args.force)
     estimate = rough_wall(scene_file.build(), scene_file.run["duration"], scene_file.objective().integrator)
     guess = "" if estimate is None else f", roughly {human_seconds(max(estimate, 1.0))} on one core plus compilation"

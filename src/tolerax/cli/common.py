@@ -119,6 +119,44 @@ def with_tolerances(scene_file, band_um=None, distribution=None):
     return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
 
 
+# What a scene in which nothing wears needs, said where `--life` added (or completed) its [life]:
+# the scene file's own key, which every command reads (`design` says its --fidelity too).
+NOTHING_WEARS_FIX = (" Give a joint planetary fidelity in the scene file ([scene] fidelity, e.g. [\"planetary\", \"ideal\"]; "
+                     "the built-in scan-azimuth-planetary is one).")
+
+
+def with_life(scene_file, years, spread=False, *, fix=NOTHING_WEARS_FIX):
+    """`scene_file` with its `[life]` lasting `years` in orbit (its other keys kept; without a
+    `[life]`, the table's defaults: duty 1, sputtered MoS2 at its median rate, 2 points) and,
+    with `spread`, each unit's wear rate drawn over the lubricant's band (`spread = true`): what
+    `--life YEARS` (and design's `--wear-spread`) make of a scene.
+
+    **Arguments:**
+
+    - `scene_file`: a `tolerax.io.scenefile.SceneFile`.
+    - `years`: the mission's life, years in orbit (> 0).
+    - `spread`: draw each unit's wear rate over the lubricant's published band.
+    - `fix`: the sentence added where nothing in the scene wears (what to do about it).
+
+    **Returns:** the `SceneFile` with its `[life]`; `SceneFileError` where the table cannot be
+    (nothing in the scene wears: no joint at planetary fidelity), naming the flags that made the
+    table, not a line of the user's file."""
+    from ..io import scenefile as F
+
+    data = copy.deepcopy(scene_file.data)
+    had = "life" in data
+    data["life"] = {**data.get("life", {}), "years": float(years)} | ({"spread": True} if spread else {})
+    try:
+        return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
+    except F.SceneFileError as err:  # the table (or its keys) came from the flags: no line of the user's file to point at
+        if err.table != "life":
+            raise
+        flag = f"--life {years:g}" + (" --wear-spread" if spread else "")
+        what = "the [life] table that " + flag + (" completed" if had else " added")
+        raise F.SceneFileError(f"{what}: {err.message}{fix if 'nothing wears' in err.message else ''}", scene_file.source, None,
+                               "", None) from None
+
+
 OWNER = ".tolerax-command"  # in an output folder: the command whose results it holds
 # Results written before folders were marked: the files by which each command's folder is known.
 _SIGNS = (("demo.md", "demo"), ("bench.png", "demo"), ("design.md", "design"), ("tradeoff.json", "tradeoff"),

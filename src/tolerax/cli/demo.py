@@ -54,12 +54,12 @@ def demo_command(parser, args) -> int:
         pointing = F.load_scene(DEFAULT_SCENE).objective()
         print(f"tolerax demo: tolerance proposal on {DEFAULT_SCENE} ({pointing.duration} s per unit): requirement "
               f"{args.requirement} arcsec on mean + 1 std of the RMS pointing error over {args.draws} units, "
-              f"method {args.method} (see `tolerax design` for the options).")
+              f"solver {args.solver} (see `tolerax design` for the options).")
         start = time.perf_counter()
         try:
             from ..design import solvers, spec
 
-            solver = (solvers.Sequential(max_gradients=20 if args.outer is None else args.outer) if args.method == "sequential"
+            solver = (solvers.Sequential(max_gradients=20 if args.outer is None else args.outer) if args.solver == "sequential"
                       else solvers.AugmentedLagrangian(max_outer=3 if args.outer is None else args.outer, inner_steps=args.steps))
             problem = spec.ToleranceProblem(pointing, args.requirement, spec.MeanPlusKStd(units=args.draws))
             report = _propose.propose_design(problem, solver, progress=True)
@@ -75,8 +75,8 @@ def demo_command(parser, args) -> int:
                 save_figure(fig, out / "design" / name, dpi=120)
                 plt.close(fig)
             used = int(report.result.history.steps[-1])
-            lines += [f"{used} {'gradients' if args.method == 'sequential' else 'optimiser steps'} over {args.draws} units "
-                      f"({args.method}) in {design_wall:.1f} s of wall time (compilation included). Files: `design/`.", "",
+            lines += [f"{used} {'gradients' if args.solver == 'sequential' else 'optimiser steps'} over {args.draws} units "
+                      f"({args.solver}) in {design_wall:.1f} s of wall time (compilation included). Files: `design/`.", "",
                       report.table()]
         else:
             lines.append(f"Failed after {design_wall:.1f} s (see the message above).")

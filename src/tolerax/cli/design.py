@@ -12,7 +12,7 @@ from .._files import atomic_write, save_figure
 from .commands import run_monte_carlo
 from .values import DesignValues
 from .common import (check_out, claim_out, command_line, has_features, human_seconds, load_average, read_scene_file, scene_jitter,
-                     rough_wall, scene_and_settings, settings, versions)
+                     rough_wall, scene_and_settings, settings, versions, with_life)
 
 NOT_A_PROPOSAL = 4  # the exit code of design and tradeoff where the answer is not a proposal (tolerax.design.outcome)
 
@@ -35,8 +35,8 @@ def _design_setup(parser, args, command):
         args.yield_ = tol["yield"]  # the scene's [tolerances] yield; --yield overrides it
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
         parser.error(f"--yield must be a fraction in (0, 1), e.g. 0.99, got {args.yield_!r}")
-    if args.yield_ is not None and args.method == "augmented-lagrangian":
-        parser.error("--yield needs --method sequential or slsqp (its Monte Carlo check re-solves the design)")
+    if args.yield_ is not None and args.solver == "augmented-lagrangian":
+        parser.error("--yield needs --solver sequential or slsqp (its Monte Carlo check re-solves the design)")
     if args.check is not None and args.yield_ is None:
         parser.error("--check needs --yield (it checks the yield of the proposal)")
     if args.secant_units is not None and args.yield_ is None:
@@ -64,7 +64,7 @@ def _design_setup(parser, args, command):
 
     solver = {"sequential": lambda: solvers.Sequential(widths, 20 if args.outer is None else args.outer),
               "augmented-lagrangian": lambda: solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner),
-              "slsqp": lambda: solvers.SLSQP(widths, 100 if args.outer is None else args.outer)}[args.method]()
+              "slsqp": lambda: solvers.SLSQP(widths, 100 if args.outer is None else args.outer)}[args.solver]()
     model = model_of(model_name)
     if args.secant_units is not None and model is not None:
         model = dataclasses.replace(model, units=args.secant_units)
@@ -182,7 +182,8 @@ def design_command(parser, args) -> int:
                   "planetary-scaled joints, which do not read the jitter as the full stage does.")
     if args.life is not None:
         try:
-            scene_file = with_life(scene_file, args.life, args.wear_spread)
+            scene_file = with_life(scene_file, args.life, args.wear_spread, fix=" Set --fidelity planetary (every joint at the full stage) or "
+                                  "give the scene a joint at planetary fidelity.")
         except F.SceneFileError as err:
             print(f"tolerax design --life: {err}", file=sys.stderr)
             return 2
@@ -215,7 +216,7 @@ def design_command(parser, args) -> int:
     print(f"tolerax design: {scene_file.name} ({scene_file.source}), {pointing.duration} s per unit, window from "
           f"{pointing.settle} s; requirement {requirement} arcsec (RMS pointing, {_statistic(args)})"
           + (f" and jitter above {cutoff:g} Hz <= {args.jitter} arcsec" if cutoff else "")
-          + "".join(f" and {r.text()}" for r in more) + f"; method {args.method}.")
+          + "".join(f" and {r.text()}" for r in more) + f"; solver {args.solver}.")
     if not args.quiet:
         unit = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
         print(f"tolerax design: integrated with {pointing.integrated_with}"
@@ -344,28 +345,6 @@ def with_problem(scene_file, requirement, more=(), yield_=None, jitter=None, cut
     if model is not None:
         tol["model"] = model
     return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
-
-
-def with_life(scene_file, years, spread=False):
-    """`scene_file` with its `[life]` lasting `years` in orbit (its other keys kept; without a
-    `[life]`, the table's defaults: duty 1, sputtered MoS2 at its median rate, 2 points) and,
-    with `spread`, each unit's wear rate drawn over the lubricant's band (`spread = true`).
-    `SceneFileError` where nothing in the scene wears."""
-    from ..io import scenefile as F
-
-    data = copy.deepcopy(scene_file.data)
-    had = "life" in data
-    data["life"] = {**data.get("life", {}), "years": float(years)} | ({"spread": True} if spread else {})
-    try:
-        return F.SceneFile.from_data(data, scene_file.name, scene_file.source)
-    except F.SceneFileError as err:  # the table (or its keys) came from the flags: no line of the user's file to point at
-        if err.table != "life":
-            raise
-        flag = f"--life {years:g}" + (" --wear-spread" if spread else "")
-        what = "the [life] table that " + flag + (" completed" if had else " added")
-        fix = (" Set --fidelity planetary (every joint at the full stage) or give the scene a joint at planetary fidelity."
-               if "nothing wears" in err.message else "")
-        raise F.SceneFileError(f"{what}: {err.message}{fix}", scene_file.source, None, "", None) from None
 
 
 def with_fidelity(scene_file, fidelity):

@@ -57,14 +57,41 @@ RESUME = {
 }
 
 
+# `--solver`'s names -> the design solver classes they build (tolerax.design.solvers).
+SOLVERS = {"sequential": "Sequential", "augmented-lagrangian": "AugmentedLagrangian", "slsqp": "SLSQP"}
+
+
+def solver_option(parser, names, text):
+    """`--solver NAME` (one of `names`, a design solver class by its name on the command line),
+    and the former `--method NAME`, still taken for one release (hidden; `main` says what
+    replaces it)."""
+    parser.add_argument("--solver", choices=tuple(names), default=None, help=text)
+    parser.add_argument("--method", choices=tuple(names), default=None, help=argparse.SUPPRESS)
+
+
+def _solver_of(command_parser, args) -> None:
+    """`args.solver` from `--solver`, else the deprecated `--method` (said on stderr), else
+    `"sequential"`; both given and different: refused (exit 2)."""
+    if not hasattr(args, "solver"):
+        return
+    if args.method is not None:
+        if args.solver is not None and args.solver != args.method:
+            command_parser.error(f"--solver {args.solver} and --method {args.method} disagree; give --solver alone")
+        print(f"tolerax {args.command}: --method is deprecated and will be removed; use --solver {args.method} (the design solver "
+              f"tolerax.{SOLVERS[args.method]}()).", file=sys.stderr)
+        args.solver = args.method
+    args.solver = args.solver or "sequential"
+
+
 def optimiser_options(parser):
     """The proposal's options, shared by `design` and `tradeoff`."""
     parser.add_argument("--draws", type=count(2), default=4,
                         help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
-    parser.add_argument("--method", choices=("sequential", "augmented-lagrangian", "slsqp"), default="sequential",
-                        help="optimiser (default sequential: a stack-up linearised from the simulation at each iterate, "
-                        "solved exactly in a trust region; slsqp: SciPy's SLSQP on the same problem, the reference, tangent "
-                        "slopes only; see tolerax.design.solvers)")
+    solver_option(parser, SOLVERS,
+                  "the design solver (default sequential, tolerax.Sequential(): a stack-up linearised from the simulation "
+                  "at each iterate, solved exactly in a trust region; augmented-lagrangian, tolerax.AugmentedLagrangian(): "
+                  "Adam on an augmented Lagrangian, no yield; slsqp, tolerax.SLSQP(): SciPy's SLSQP on the same problem, the "
+                  "reference, tangent slopes only)")
     parser.add_argument("--outer", type=count(1), default=None,
                         help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
                         "iterations (default 6); slsqp: its iterations per width (default 100)")
@@ -136,12 +163,13 @@ def main(argv=None) -> int:
                       help="simulated time, s (default 1, one scan period; with --bench 2); the pointing window starts at 0.3 s "
                       "when the run is longer")
     demo.add_argument("--steps", type=count(0), default=6,
-                      help="0 skips the proposal; with --method augmented-lagrangian: steps per outer iteration (default 6)")
+                      help="0 skips the proposal; with --solver augmented-lagrangian: steps per outer iteration (default 6)")
     demo.add_argument("--outer", type=count(1), default=None,
                       help="sequential: gradients per smoothing width at most (default 20); augmented-lagrangian: outer "
                       "iterations (default 3)")
-    demo.add_argument("--method", choices=("sequential", "augmented-lagrangian"), default="sequential",
-                      help="the proposal's optimiser (default sequential; see tolerax.propose_design)")
+    solver_option(demo, ("sequential", "augmented-lagrangian"),
+                  "the proposal's design solver (default sequential, tolerax.Sequential(); augmented-lagrangian, "
+                  "tolerax.AugmentedLagrangian())")
     demo.add_argument("--draws", type=count(2), default=2,
                       help="manufactured units in the robust objective, mean + 1 std (default 2, at least 2)")
     demo.add_argument("--requirement", type=positive, default=700.0,
@@ -168,6 +196,10 @@ def main(argv=None) -> int:
     run.add_argument("--settle", type=non_negative, default=None, help="override run.settle (start of the pointing window), s")
     run.add_argument("--n-save", type=count(2), default=None, help="override run.n_save (saved times)")
     run.add_argument("--start", choices=("rest", "steady", "loaded"), default=None, help="override run.start")
+    run.add_argument("--life", type=positive, default=None, metavar="YEARS",
+                     help="then the window again over a mission of YEARS years, the clearances grown by wear (life.md): the "
+                     "scene's [life] years (its other keys kept; without one, sputtered MoS2 at its median rate, duty 1, 2 life "
+                     "points). Needs a joint at planetary fidelity")
     integrator_option(run)
     run.add_argument("--progress", action="store_true", help="show the integrator's progress")
     design = sub.add_parser(
@@ -253,6 +285,12 @@ def main(argv=None) -> int:
                     "scene's [tolerances] jitter, which a proposal carries)")
     mc.add_argument("--jitter-cutoff", type=positive, default=JITTER_CUTOFF, metavar="HZ",
                     help="with --jitter: the stability band's start, Hz (default: the scene's [tolerances] jitter_cutoff, else 20)")
+    mc.add_argument("--life", type=positive, default=None, metavar="YEARS",
+                    help="each unit also over a mission of YEARS years, its clearances grown by wear (its outputs at the end "
+                    "of life: *_eol; the requirement's yield there too): the scene's [life] years (its other keys kept: "
+                    "lubricant, duty, points, flanks, spread; without one, sputtered MoS2 at its median rate, duty 1, 2 life "
+                    "points). Each unit costs points + 1 runs. Needs a joint at planetary fidelity (default: the scene's "
+                    "[life], if any)")
     mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
     mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
     mc.add_argument("--seed", type=int, default=0)
@@ -296,6 +334,7 @@ def main(argv=None) -> int:
         "plan-test": (plan_test, plan_test_command),
     }
     command_parser, command = commands[args.command]
+    _solver_of(command_parser, args)
     from ..cache import enable_compilation_cache
 
     enable_compilation_cache()  # a later command on the same scene structure skips its compilation (TOLERAX_CACHE=off: not)
