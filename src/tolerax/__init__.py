@@ -44,7 +44,7 @@ _FACE = {
     "design.features": ("design_names", "design_of", "lost_motion_weights", "tolerances_of", "with_design"),
     "design.objectives": ("AbstractMetric", "AbstractObjective", "PointingObjective"),
     "design.propose": ("DesignReport", "propose_design"),
-    "design.spec": ("Auto", "MeanPlusKStd", "Secants", "Surface", "Tangents", "ToleranceProblem", "Yield", "Zones"),
+    "design.spec": ("AbstractConstraintModel", "Auto", "MeanPlusKStd", "Secants", "Surface", "Tangents", "ToleranceProblem", "Yield", "Zones"),
     "design.solvers": ("AbstractDesignMethod", "AugmentedLagrangian", "SLSQP", "Sequential"),
     "design.report": ("RequirementOutcome",),
     "design.outcome": ("DesignStatus",),

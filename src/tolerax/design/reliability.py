@@ -287,19 +287,19 @@ class LinearisedYield(eqx.Module):
 
     `secant_reach` (m, with `secant_units`): the secant units span the middle +- at least this
     much, wider than a narrower zone: the line is the response's trend over that neighbourhood.
-    Where a chaotic output's trend is small against its scatter per micrometre (the jitter:
-    about 1 % per um against a 29 % scatter, `jitter_reach.md`), a fit over a tight zone's
-    units is noise; over +-25 um with 32 units a slope's standard error is about 0.4 % per um.
-    The quantile is still over the zone's own units (its band), the residual scatter that of the
-    wider fit (which includes the trend's curvature over it: conservative). Measured: with it the
-    full stage's stability design still stalls far above the requirement
-    (design_stability_planetary_log.md).
+    Where a chaotic output's trend per micrometre is small against its scatter over units (the
+    jitter of a rattling stage), a fit over a tight zone's units is noise: a slope's standard
+    error falls as $\\sigma / (\\text{reach} \\sqrt{K})$ for $K$ units spread over the reach, so a
+    wider reach resolves the trend. The quantile is still over the zone's own units (its band),
+    the residual scatter that of the wider fit (which includes the trend's curvature over it:
+    conservative). It does not by itself make the full stage's stability design converge
+    (benchmarks/README.md, design).
 
     `surface` (optional, a `Surface` from `fit_surface`): one line per output fitted once over a
     fixed box of feature values (the design bounds' range) instead of over each zone: the value
     at a zone's middle $m$ is $f_0 + s\\cdot(m - c)$, its slopes and scatter the surface's, with no
     simulation per evaluation. Where an output's trend is resolved only across the whole bounds
-    (the jitter: `jitter_reach.md`), a local fit follows noise and the global one does not; what
+    (the jitter of a rattling stage), a local fit follows noise and the global one does not; what
     the line misses of the response's curvature over the box is in its scatter (conservative).
     Checked by the Monte Carlo verification like any linearisation.
 
