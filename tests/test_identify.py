@@ -274,6 +274,8 @@ def test_the_command_line_says_an_interval_that_does_not_hold_and_exits_3(tmp_pa
     report = (out / "identification.md").read_text()
     assert "**The interval of azimuth.ring_backlash does not hold**" in report and "interval does not hold |" in report
     assert "Kept at the scene's values and zones: azimuth.ring_backlash" in report
+    # The way on to the unit's end-of-life pointing (the scene has no [life] of its own).
+    assert "spreads it over what the recording leaves open (`--life YEARS`: at the end of a mission" in report
     assert json.loads((out / "identification.json").read_text())["interval_holds"] == [False]
     drawn, kept = tx.load_scene("scan-azimuth").tolerances(), tx.load_scene(str(out / "identified.toml")).tolerances()
     k = drawn.names.index("azimuth.ring_backlash")
