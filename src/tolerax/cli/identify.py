@@ -90,8 +90,9 @@ def identify_command(parser, args) -> int:
         f"The unit as a scene file: `{path}` (its values under [design], each identified zone's standard deviation the standard error, in the file's distribution; an identified drag as its drag_torque where one joint's drag acts, a mesh family's stiffness or damping in its joint's stage table): "
         f"`tolerax run {path}` simulates it, `tolerax montecarlo {path} --out {out / 'montecarlo'}` spreads it over what the "
         "recording leaves open" + (" (with its [life]: at the end of life too)" if scene_file.life is not None else
-                                   " (`--life YEARS`: at the end of a mission of that many years too, where a joint wears)") + "." + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
-                                    "drag too: the estimates are in identification.json)." if physical else "")
+                                   " (`--life YEARS`: at the end of a mission of that many years too, where a joint wears)") + "."
+        + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
+           "drag too: the estimates are in identification.json)." if physical else "")
         + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold, or bound them on one side "
                     "only or by their profile: the part of a drawn zone inside the bounds is kept)." if rugged else ""),
         "", "Reproduce with:", "", "```", command_line(args), "```", "",
