@@ -204,6 +204,12 @@ class Identification:
         low, high = np.isfinite(self.profile_bound[j])
         return "below" if low and not high else "above" if high and not low else None
 
+    def misfit(self) -> bool:
+        """Does the model miss part of the unit? The residual's standard deviation above `MISFIT`
+        times the recording's stated noise (and above what the simulation resolves, `RESOLVED`);
+        False where no noise is stated (nothing to judge it against)."""
+        return bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))
+
     def status(self) -> tuple[str, ...]:
         """Per parameter: "determined", "in combination", "not determined" (module docstring),
         "bounded below only" / "bounded above only" where the recording bounds it on one side
@@ -212,11 +218,18 @@ class Identification:
         on both sides (`profile_bound`: the recording does not see it at the estimate, yet bounds
         it; "not determined" where that interval is open on both), or "interval does not
         hold" where the residual is otherwise not quadratic over it (`holds`): the estimate is
-        where the search stopped, not a minimum the recording determines."""
+        where the search stopped, not a minimum the recording determines.
+
+        With a misfit (`misfit`: the residual well above the recording's noise) "determined" and
+        "in combination" read "determined (model misfit)" and "in combination (model misfit)":
+        the recording determines the parameter *of this model*, but the interval counts only the
+        residual's spread, not the bias of what the model leaves out (a lower fidelity than the
+        unit's, a parameter left at the scene's value), which can be many standard errors (the
+        full stage read by the lumped joint: +5 % on a backlash, 16 standard errors)."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
-        walked = self.walked()
+        walked, misfit = self.walked(), self.misfit()
         for j, (holds, side) in enumerate(zip(self.holds(), self.one_sided())):
             if side is not None:
                 out.append(f"bounded {side} only")
@@ -225,9 +238,9 @@ class Identification:
             elif holds is False:
                 out.append("interval does not hold")
             elif relative[j] < DETERMINED:
-                out.append("determined")
+                out.append("determined" + " (model misfit)" * misfit)
             elif any(abs(v[j]) > LOADING for v in good):
-                out.append("in combination")
+                out.append("in combination" + " (model misfit)" * misfit)
             else:
                 out.append("not determined")
         return tuple(out)
@@ -253,7 +266,9 @@ class Identification:
         stays the drawing's; one the recording bounds on one side only (`one_sided`) keeps the
         part of the drawing's zone on the bound's side (the drawing's zone whole where it lies
         there, the description saying so where none of it does), and one whose profile-likelihood
-        interval was read (`profile_bound`) the part of the drawing's zone inside it.
+        interval was read (`profile_bound`) the part of the drawing's zone inside it. With a
+        misfit (`misfit`) the estimates are written as identified, their status in the
+        description saying "(model misfit)": their zones do not count the misfit's bias.
         """
         from ..io import scenefile as F
         from ..uncertainty.sampling import Tolerances
@@ -359,12 +374,14 @@ class Identification:
                     + ")." if self.screened else ").")
                  + (f" The residual's Jacobian: {self.jacobian}." if self.jacobian else ""), "", *rows, "", "Directions (relative standard error: combination):", ""]
         notes = []
-        misfit = bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))  # not below what the model resolves
+        misfit = self.misfit()
         if misfit:
             notes += ["", f"**The residual ({1e6 * self.residual_sd:.3g} µrad) is {self.residual_sd / self.noise:.2g}x the recording's stated "
                       f"noise ({1e6 * self.noise:.3g} µrad): the model misses part of the unit** (a lower fidelity than the "
                       "unit's, or a parameter left at the scene's value). The intervals scale with the residual but do not "
-                      "count that bias: the estimates can be off by more than they say."]
+                      "count that bias: the estimates can be off by more than they say (the status reads \"(model misfit)\"). "
+                      "To bound the bias: identify with the model at the unit's fidelity, or free the parameter left at "
+                      "the scene's value."]
         model = self.model_share()
         if np.any(model > MODEL_NOTED):
             notes += ["", f"The model does not reproduce its own run: at points 1e-9 from the estimate its output moves by "
