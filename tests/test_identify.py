@@ -136,6 +136,20 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     slipped = Recording(rec.time, rec.measured * math.pi / 180, rec.axes, rec.commanded * math.pi / 180, source="unit8.csv")
     with pytest.raises(RecordingError, match=r"0.01745x apart: the header's unit is likely wrong \(values in rad under a \[deg\] header"):
         identify(scene, slipped, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
+    # Without a commanded column the measured angle is held against the model's output at the
+    # scene's values: degrees under a [rad] header span 57x it, the slip named; one of another
+    # test's span (3.5x) is refused too, with no slip named; the recording itself passes.
+    from tolerax.identification.recording import _check_measured
+
+    degrees = Recording(rec.time, np.degrees(rec.measured), rec.axes, None, source="unit9.csv")
+    with pytest.raises(RecordingError, match=r"unit9.csv: the recording's measured azimuth angle spans .* the scene's output .*"
+                                             r"57.\d+x apart: the header's unit is likely wrong \(values in deg under a \[rad\] header"):
+        identify(scene, degrees, ["azimuth.ring_backlash"], starts=(1.0,), widths=(None,))
+    model = synthetic_recording(scene, duration=0.35, n_save=141).measured  # the scene at its own values
+    with pytest.raises(RecordingError, match="not the scene's test") as info:
+        _check_measured(degrees, 3.5 * rec.measured, model)
+    assert "apart" not in str(info.value)
+    _check_measured(rec, rec.measured, model)
     # A rough time is said before any work (the command line prints it): 20 steps of
     # SECANT_STEP_RUNS (central secants) or LM_STEP_RUNS (forward mode) x 2 runs, then the
     # interval's check (the profile at 3 steps both sides, and the Jacobian at the estimate) and the

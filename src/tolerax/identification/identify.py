@@ -80,7 +80,7 @@ from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bo
                   _in_batches, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .profile import profile_bounds
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
-from .recording import ANGLE_UNITS, AXES, Recording, RecordingError
+from .recording import AXES, Recording, RecordingError, _check_measured, _unit_slip
 from .result import DETERMINED, LOADING, OPEN_RISE, PROFILE_STEPS, RESOLVED, Identification, show  # noqa: F401 (Identification, show: imported from here by callers)
 
 # Runs of the scene (at rough_wall's pace) a Levenberg-Marquardt step costs per parameter and
@@ -177,7 +177,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
 
     **Returns:** an `Identification`. Raises `RecordingError` where the recording does not fit
     the scene (its length; its commanded angle, where it has one, not the scene's drive to
-    `COMMAND_TOLERANCE` or 1 % of its range) and `ValueError` for unknown parameters, a scene
+    `COMMAND_TOLERANCE` or 1 % of its range; without one, its measured angle's span more than
+    `recording.SPAN_FACTOR` times the model's at the scene's values, or less than its inverse; a
+    unit slip named) and `ValueError` for unknown parameters, a scene
     value that is not > 0, or starts outside the bounds.
     """
     parameters = check_names(scene, parameters)
@@ -231,8 +233,11 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
             say(f"identify: {line} ({now - clock:.1f} s)")
         clock = now
 
-    if recording.commanded is not None:  # the test must be the scene's: else a different command is fitted as clearance
-        commanded = np.asarray(_fit_and_jacobian(fit, jnp.asarray(x0), final)[2])
+    # The test must be the scene's: else a different command (or a unit slip) is fitted as clearance.
+    _, angles, commanded = (np.asarray(a) for a in _fit_and_jacobian(fit, jnp.asarray(x0), final)[:3])
+    if recording.commanded is None:  # the measured angle's span against the model's at the scene's values
+        _check_measured(recording, measured, angles)
+    else:
         recorded = recording.at(times[window], "commanded")
         off = np.abs(recorded - commanded)
         if np.max(off) > max(COMMAND_TOLERANCE, 0.01 * float(np.max(np.abs(commanded)))):
@@ -242,7 +247,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 f"{recorded[i, j]:.6g} rad against the scene's {commanded[i, j]:.6g} rad at {times[window][i]:g} s. The "
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance." + _unit_slip(recorded[:, j], commanded[:, j]))
-    lap("check", "the recording's command checked against the scene's" if recording.commanded is not None else None)
+    lap("check", "the recording checked against the scene's drive")
     centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
     x_starts, screened = _starts(fit, x0, final, starts, search)
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
@@ -446,21 +451,6 @@ def _scales(scene, parameters):
                          "give the scene a positive starting value (they are estimated on a log scale).")
     units = parameter_units(scene, parameters)
     return units, np.array([UNIT if u == "m" else v for u, v in zip(units, values)])
-
-
-def _unit_slip(recorded, commanded) -> str:
-    """A sentence naming the unit slip where the recorded command is the scene's times the factor
-    between two angle units (values in one written under the other's header) to 1 %, else ""."""
-    big = np.abs(commanded) > 0.5 * np.max(np.abs(commanded))
-    if not np.any(big):
-        return ""
-    ratio = float(np.median(recorded[big] / commanded[big]))
-    units = {f: u for u, f in ANGLE_UNITS.items()}  # one name per factor (µrad for urad and µrad alike)
-    for said, written in ((s, w) for s in units for w in units if s != w):
-        if abs(ratio / (said / written) - 1) < 0.01:
-            return (f" The two are {ratio:.4g}x apart: the header's unit is likely wrong (values in {units[written]} under a "
-                    f"[{units[said]}] header?).")
-    return ""
 
 
 def synthetic_recording(scene, values=None, *, duration: float, n_save: int, start: str = "steady", noise: float = 0.0,

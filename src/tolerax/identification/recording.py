@@ -246,3 +246,46 @@ def read_recording(path) -> Recording:
             raise RecordingError(f"{where}:{i}: a value that is not a number: {line!r}.") from None
     data = np.asarray(rows, dtype=float)
     return _from_columns({h: data[:, j] for j, h in enumerate(headers)}, where)
+
+
+# A recording without a commanded column is held against the model's output at the scene's
+# values (`_check_measured`): a measured angle whose span lies outside this factor of the model's
+# either way is not the scene's test (or its unit is wrong). Lost motion changes the span by far
+# less (100 µm of backlash on a 40 mm ring: 2.5 mrad of output angle, against a 1 degree scan's
+# 17 mrad). Judged where the model's output spans at least SPAN_JUDGED (rad): a
+# dwell's span is the rattle's.
+SPAN_FACTOR = 3.0
+SPAN_JUDGED = 1e-3
+
+
+def _check_measured(recording: Recording, measured, model) -> None:
+    """Refuse (`RecordingError`) a recording whose measured angle (rad, (saves, axes) in the
+    residual's window) spans more than `SPAN_FACTOR` times the `model`'s output angle (rad, the
+    same shape: the scene at its own values) on that axis or less than its inverse, where the
+    model's spans at least `SPAN_JUDGED`: another test than the scene's, or values under the
+    wrong unit's header (named where the two are a unit's factor apart)."""
+    for j, axis in enumerate(recording.axes):
+        simulated, recorded = float(np.ptp(model[:, j])), float(np.ptp(measured[:, j]))
+        if simulated >= SPAN_JUDGED and not 1 / SPAN_FACTOR <= recorded / simulated <= SPAN_FACTOR:
+            raise RecordingError(
+                f"{recording.source}: the recording's measured {axis} angle spans {recorded:.6g} rad, the scene's output at its "
+                f"own values {simulated:.6g} rad: not the scene's test, or its unit is wrong. The model must run the test's "
+                "profile (the scene's scan or profile_times/profile_angles), with the recording's unit stated in its header."
+                + _unit_slip(measured[:, j], model[:, j], within=0.1))
+
+
+def _unit_slip(recorded, reference, within: float = 0.01) -> str:
+    """A sentence naming the unit slip where the `recorded` angle is the scene's `reference` (its
+    command, or its output at its own values) times the factor between two angle units (values
+    in one written under the other's header) to `within` (1 % against a command; an output
+    carries the clearances' lost motion too, and no two factors lie closer than 3.2x), else ""."""
+    big = np.abs(reference) > 0.5 * np.max(np.abs(reference))
+    if not np.any(big):
+        return ""
+    ratio = float(np.median(recorded[big] / reference[big]))
+    units = {f: u for u, f in ANGLE_UNITS.items()}  # one name per factor (µrad for urad and µrad alike)
+    for said, written in ((s, w) for s in units for w in units if s != w):
+        if abs(ratio / (said / written) - 1) < within:
+            return (f" The two are {ratio:.4g}x apart: the header's unit is likely wrong (values in {units[written]} under a "
+                    f"[{units[said]}] header?).")
+    return ""
