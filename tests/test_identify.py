@@ -265,6 +265,12 @@ def test_the_command_line_refuses_a_bad_recording_before_any_work(tmp_path, caps
     assert cli.main(["identify", "scan-azimuth", str(torque), "--out", str(tmp_path / "tq")]) == 2  # no noises stated
     err = capsys.readouterr().err
     assert "has a motor torque but does not state its noise" in err and "--torque-noise MNM" in err and "--angles-only" in err
+    # Bounds that cannot be: refused, with what to write, before any work.
+    for bounds, said in (("azimuth.ring_backlash=300:20", "must be 0 < low < high"), ("azimuth.ring_backlash=20", "NAME=LOW:HIGH"),
+                         ("azimuth.ring_backlash=200:300", "lies outside its bounds"), ("pitch.ring_backlash=1:2", "not identified here")):
+        assert cli.main(["identify", "scan-azimuth", str(good), "--parameters", "azimuth.ring_backlash", "--bounds", bounds,
+                         "--out", str(tmp_path / "b")]) == 2, bounds
+        assert said in capsys.readouterr().err and not (tmp_path / "b").exists()
     with pytest.raises(SystemExit) as info:
         cli.main(["plan-test", "scan-azimuth", "--parameters", "pitch.drag_torque", "--out", str(tmp_path / "plan")])
     assert info.value.code == 2 and "physical parameters: azimuth.drag_torque" in capsys.readouterr().err
@@ -286,7 +292,10 @@ def test_the_command_line_says_an_interval_that_does_not_hold_and_exits_3(tmp_pa
     rec = Recording(np.linspace(0.0, 0.35, 36), np.zeros(36)).write_csv(tmp_path / "unit.csv")
     scene = tx.load_scene("scan-azimuth").build()
 
-    def rugged(scene_, recording, parameters, **_):
+    given = {}
+
+    def rugged(scene_, recording, parameters, **options):
+        given.update(options)
         return Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([60.65e-6]),
                               covariance=np.array([[1e-20]]), sigma=3.8e-6, n=36, cost=1.0, times=recording.time,
                               measured=recording.measured, fitted=recording.measured, directions=((1e-4, np.ones(1)),), steps=2,
@@ -296,7 +305,8 @@ def test_the_command_line_says_an_interval_that_does_not_hold_and_exits_3(tmp_pa
     monkeypatch.setattr(I, "identify", rugged)
     out = tmp_path / "id"
     assert cli.main(["identify", "scan-azimuth", str(rec), "--parameters", "azimuth.ring_backlash", "--out", str(out),
-                     "--quiet"]) == 3
+                     "--quiet", "--bounds", "azimuth.ring_backlash=20:300"]) == 3
+    assert given["bounds"] == {"azimuth.ring_backlash": pytest.approx((20e-6, 300e-6))}  # µm on the command line, m to identify
     report = (out / "identification.md").read_text()
     assert "**The interval of azimuth.ring_backlash does not hold**" in report and "interval does not hold |" in report
     assert "Kept at the scene's values and zones: azimuth.ring_backlash" in report
@@ -648,7 +658,7 @@ def test_a_parameter_the_recording_does_not_see_is_bounded_by_its_profile():
     of the drawn zone above it), and a profile closed on both sides "bounded by its profile"."""
     import jax.numpy as jnp
 
-    from tolerax.identification.fit import BOUND, UNIT, _Fit
+    from tolerax.identification.fit import BOUND, UNIT, _Fit, _starts, centre_reach, limits_of
     from tolerax.identification.profile import BISECTIONS, GRID, NEAREST, profile_bounds
     from tolerax.identification.result import OPEN_RISE, Identification
 
@@ -673,7 +683,14 @@ def test_a_parameter_the_recording_does_not_see_is_bounded_by_its_profile():
     cost = float(np.sum((a_hat * np.exp(-t) - measured) ** 2))
     cost, s2 = 200.0**2 * cost, 200.0**2 * cost / (t.size - 2)
     centre, reach = np.log(x0), np.full(2, math.log(BOUND))
-    bounds, lowest, solves = profile_bounds(fit, x, cost, s2, 0.0, x0, [1], None, 20, centre, reach)
+    bounds, lowest, solves = profile_bounds(fit, x, cost, s2, 0.0, np.stack([x0 / BOUND, x0 * BOUND]), [1], None, 20, centre, reach)
+    # Given bounds: the open side reaches to them (b <= 8 here), the screen's points are kept inside them.
+    limits = limits_of(("a", "b"), x0, np.ones(2), {"b": (1.0, 8.0)})
+    assert np.allclose(limits, [[3.0 / BOUND, 1.0], [3.0 * BOUND, 8.0]])
+    given, _, _ = profile_bounds(fit, x, cost, s2, 0.0, limits, [1], None, 20, *centre_reach(limits))
+    assert given[1, 1] == math.inf and given[1, 0] == pytest.approx(bounds[1, 0], rel=0.05)
+    screen, _ = _starts(fit, x0, 0.0, 64, 4.0, limits)
+    assert np.all((screen > limits[0]) & (screen < limits[1]))
     assert np.isnan(bounds[0]).all() and bounds[1, 1] == math.inf and 0 < solves <= 6 + 3
     assert cost - 0.01 * OPEN_RISE * s2 < lowest[1] <= cost  # nowhere lower than the plateau (a 0.01 of the threshold: LM's tolerance)
     # The true profile: a re-fitted by linear least squares at each b of a fine grid.

@@ -35,6 +35,33 @@ def _run_settings(scene_file) -> dict:
     return {"start": scene_file.run["start"], "integrator": scene_file.integrator(OBJECTIVE_INTEGRATOR.max_steps)}
 
 
+def _bounds(given, scene, parameters) -> dict | str:
+    """`--bounds NAME=LOW:HIGH ...` as `identify`'s `bounds` (SI: a clearance's µm to m), or the
+    reason it cannot be (a name not identified, a form that is not LOW:HIGH, not 0 < LOW < HIGH):
+    checked before any run."""
+    import numpy as np
+
+    from ..identification.fit import limits_of
+    from ..identification.parameters import parameter_units, parameter_values
+
+    out = {}
+    for item in given:
+        name, _, span = item.partition("=")
+        low, _, high = span.partition(":")
+        try:
+            low, high = float(low), float(high)
+        except ValueError:
+            return f"--bounds {item!r}: write NAME=LOW:HIGH (µm for a clearance or backlash, SI for the others), e.g. azimuth.ring_backlash=20:300."
+        unit = parameter_units(scene, [name])[0] if name in parameters else "m"
+        out[name] = (1e-6 * low, 1e-6 * high) if unit == "m" else (low, high)
+    values = np.asarray(parameter_values(scene, parameters), dtype=float)
+    try:
+        limits_of(parameters, values, np.ones(len(parameters)), out)
+    except ValueError as err:
+        return str(err).replace("identify: ", "--bounds: ") + " (--bounds take µm for a clearance or backlash.)"
+    return out
+
+
 def identify_command(parser, args) -> int:
     import dataclasses
 
@@ -60,6 +87,10 @@ def identify_command(parser, args) -> int:
     if read is None:
         return 2
     scene_file, scene, parameters = read
+    bounds = _bounds(args.bounds or (), scene, parameters)
+    if isinstance(bounds, str):
+        print(f"tolerax identify: {bounds}", file=sys.stderr)
+        return 2
     out = check_out(parser, args.out, "identify", force=args.force)
     duration = recording.duration if args.duration is None else args.duration
     print(f"tolerax identify: {', '.join(parameters)} of {scene_file.title} from {recording.source} "
@@ -70,7 +101,7 @@ def identify_command(parser, args) -> int:
     try:
         starts = {} if args.starts is None else {"starts": tuple(args.starts)}
         got = identify(scene, recording, parameters, settle=args.settle, duration=duration, search=args.search,
-                       progress=not args.quiet, **starts, **run)
+                       progress=not args.quiet, bounds=bounds, **starts, **run)
     except (RecordingError, ValueError) as err:
         print(f"tolerax identify: {err}" + (" On the command line: --torque-noise MNM with --noise or --encoder-bits, or "
                                             "--angles-only." if "motor torque" in str(err) else ""), file=sys.stderr)
@@ -165,6 +196,9 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
     parser.add_argument("--starts", type=positive, nargs="+", default=None,
                         help="starting points as multiples of the scene's values (default: the best 2 of 32 points screened "
                         "within --search of them, doubled for each further parameter)")
+    parser.add_argument("--bounds", nargs="+", default=None, metavar="NAME=LOW:HIGH",
+                        help="what the unit can physically have, e.g. azimuth.ring_backlash=20:300 (µm for a clearance or "
+                        "backlash, SI for the others; default a factor 100 of the scene's value either side)")
     parser.add_argument("--search", type=float, default=2.0,
                         help="the screened box: within this factor of the scene's values either side (default 2)")
     parser.add_argument("--noise", type=positive, default=None,

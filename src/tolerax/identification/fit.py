@@ -130,14 +130,15 @@ def _polish(fit: "_Fit", w0, width, centre, reach):
     return sol.value, jnp.sum(fn(sol.value, width) ** 2)
 
 
-def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) -> tuple:
+def _profile(fit: "_Fit", x, limits, cov_x, s2, width, batch: int | None, residual) -> tuple:
     """The linearised intervals checked against the residual itself, and the model's own
     realisations at `x` (`_model_noise`).
 
     The check: for each parameter $j$ the cost at $x \\pm k\\,\\Sigma e_j / \\sigma_j$ (the
     linearised profile path: the other parameters at their conditional best, where the linearised
     cost rises by exactly $k^2 s^2$) for $k$ in `PROFILE_STEPS`, as its rise over $k^2 s^2$: 1
-    where the cost is quadratic out to there; NaN where a point would leave the bounds, the
+    where the cost is quadratic out to there; NaN where a point would leave the bounds (`limits`:
+    the lower and upper ends, x's units, (2, p)), the
     standard error is not finite, or the rise $k^2 s^2$ is below `COST_NOISE` times the cost's
     own spread over the model's realisations (the difference of two: a rise the model cannot
     reproduce is not a measurement of the residual's shape).
@@ -167,7 +168,7 @@ def _profile(fit: "_Fit", x, x0, cov_x, s2, width, batch: int | None, residual) 
             for side, sign in enumerate((-1.0, 1.0)):
                 for m, k in enumerate(PROFILE_STEPS if along == "path" else PROFILE_STEPS[:2]):
                     point = x + sign * k * (cov_x[:, j] / se[j] if along == "path" else se[j] * np.eye(x.size)[j])
-                    if np.all(point > x0 / BOUND) and np.all(point < x0 * BOUND):
+                    if np.all(point > limits[0]) and np.all(point < limits[1]):
                         yield point, (ratio if along == "path" else line, j, side, m, k)
 
     checks = list(steps(usable, "path")) + (list(steps(usable, "line")) if batch is not None else [])
@@ -255,34 +256,72 @@ def _costs(fit: "_Fit", points, width) -> np.ndarray:
     return np.sum(np.asarray(_residuals(fit, points, width)) ** 2, axis=1)
 
 
-def _starts(fit, x0, width, starts, search: float):
+def _starts(fit, x0, width, starts, search: float, limits):
     """The Levenberg-Marquardt starts (x): `starts` multiples of `x0` as given, or (an int) the
     `STARTS_KEPT` lowest-cost of `starts` points of a scrambled Sobol sequence over the box
-    $[x_0/s, s\\,x_0]$ (log-uniform, $s$ = `search`) and `x0` itself, costed against the recording
-    in one batched run at the scene's width. Returns `(starts, screened)`, `screened` the number
-    of points costed (0 where the starts were given)."""
+    $[x_0/s, s\\,x_0]$ (log-uniform, $s$ = `search`; moved inside the bounds `limits`, (2, p)) and
+    `x0` itself, costed against the recording in one batched run at the scene's width. Returns
+    `(starts, screened)`, `screened` the number of points costed (0 where the starts were given)."""
     if isinstance(starts, int):
         from scipy.stats import qmc
 
         if starts < 1 or not 1 < search < BOUND:
             raise ValueError(f"identify: starts={starts!r} must be >= 1 and search={search!r} in (1, {BOUND:g}).")
         unit = qmc.Sobol(len(x0), scramble=True, seed=0).random(starts)
-        points = np.vstack([x0, x0 * search ** (2 * unit - 1)])
+        points = np.vstack([x0, inside(x0 * search ** (2 * unit - 1), limits)])
         cost = np.asarray(_costs(fit, jnp.asarray(points), width))
         cost = np.where(np.isfinite(cost), cost, np.inf)
         return points[np.argsort(cost)[:STARTS_KEPT]], len(points)
     out = []
     for factor in starts:
-        if not 1 / BOUND < float(factor) < BOUND:
+        if not np.all((limits[0] < x0 * float(factor)) & (x0 * float(factor) < limits[1])):
             raise ValueError(f"identify: a start {factor!r} times the scene's values is outside the bounds (a factor {BOUND:g} "
-                             "either side): start nearer.")
+                             "either side of the scene's values, or those given): start nearer.")
         out.append(x0 * float(factor))
     return out, 0
 
 
+def limits_of(names, x0, scale, bounds) -> np.ndarray:
+    """The fit's bounds in x (the parameters over `scale`), `(2, p)`: each parameter's
+    `bounds[name]` (`(low, high)`, its SI unit: m for a clearance), else a factor `BOUND` either
+    side of its scene's value `x0`. `ValueError` for a name not identified, bounds that are not
+    0 < low < high (finite), or a scene's value outside its bounds (it is the first start)."""
+    bounds = dict(bounds or {})
+    unknown = sorted(set(bounds) - set(names))
+    if unknown:
+        raise ValueError(f"identify: bounds for {', '.join(unknown)}, which is not identified here (the parameters: "
+                         f"{', '.join(names)}).")
+    out = np.stack([x0 / BOUND, x0 * BOUND])
+    for j, name in enumerate(names):
+        if name not in bounds:
+            continue
+        low, high = (float(v) for v in bounds[name])
+        if not (0 < low < high < math.inf):
+            raise ValueError(f"identify: the bounds of {name} must be 0 < low < high, finite (its SI unit: m for a clearance), "
+                             f"got ({low!r}, {high!r}).")
+        out[:, j] = low / scale[j], high / scale[j]
+        if not out[0, j] < x0[j] < out[1, j]:
+            raise ValueError(f"identify: the scene's value of {name} ({x0[j] * scale[j]:.6g}, SI) lies outside its bounds "
+                             f"({low:.6g}, {high:.6g}): it is the first start; give the scene a value inside them.")
+    return out
+
+
+def centre_reach(limits) -> tuple[np.ndarray, np.ndarray]:
+    """`_bounded`'s centre and reach for the bounds `limits` ((2, p)): their geometric middle
+    and half their span, in the logarithm."""
+    logs = np.log(np.asarray(limits, dtype=float))
+    return logs.mean(axis=0), 0.5 * (logs[1] - logs[0])
+
+
+def inside(points, limits):
+    """`points` (x, (k, p)) moved inside the open bounds `limits` ((2, p)), by a relative 1e-9."""
+    return np.clip(points, limits[0] * (1 + 1e-9), limits[1] * (1 - 1e-9))
+
+
 def _bounded(w, centre, reach):
     """x from the optimiser's unbounded variable `w`: $\\log x = c + R\\tanh(w/R)$, inside a factor
-    $e^R$ either side of the scene's value $e^c$ (`BOUND`); $w = \\log x - c$ near the centre."""
+    $e^R$ either side of $e^c$, the bounds' geometric middle (`limits_of`); $w = \\log x - c$ near
+    the centre."""
     return jnp.exp(centre + reach * jnp.tanh(w / reach))
 
 

@@ -76,7 +76,7 @@ import numpy as np
 from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
-from .fit import (BOUND, REALISATIONS_ALONE, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
+from .fit import (REALISATIONS_ALONE, centre_reach, inside, limits_of, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
                   _in_batches, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .profile import profile_bounds
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
@@ -114,7 +114,7 @@ def _model_times(recording: Recording, duration: float, n_save: int | None) -> t
 
 def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.0, duration: float | None = None,
              n_save: int | None = None, start: str = "steady", widths=None, starts=None, search: float = 2.0,
-             lm_steps: int = 20, integrator="auto", secant: float | bool | None = None, progress=False,
+             lm_steps: int = 20, integrator="auto", secant: float | bool | None = None, progress=False, bounds=None,
              **run) -> Identification:
     """The parameters `parameters` of `scene` that reproduce `recording` (module docstring).
 
@@ -153,9 +153,13 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
       Levenberg-Marquardt runs from the lowest point where it is below the fit: a screen in p
       dimensions lies ~its p-th root of points apart in each, too coarse for a basin a few per
       cent wide. Or a tuple: the starts, as
-      multiples of the scene's values. Every parameter is kept within a factor `BOUND` (100)
-      of the scene's value either side: an estimate at that bound is one the recording does not
-      determine (the table says so).
+      multiples of the scene's values. Every parameter is kept within its bounds: `bounds`.
+    - `bounds`: `{name: (low, high)}` (the parameter's SI unit: m for a clearance or backlash;
+      0 < low < high, the scene's value between them): what the unit can physically have (a
+      drawing's limits, a stiffness's plausible range). Default, for each parameter not named: a
+      factor `fit.BOUND` (100) of the scene's value either side. The screen's points are moved
+      inside them; an estimate at a bound is one the recording does not determine (the table
+      says so), and a profile-likelihood bound open on one side reaches to them.
     - `lm_steps`: Levenberg-Marquardt's steps per width, at most (its first damping Marquardt's,
       `DAMPING` of the largest diagonal of $J^TJ$ at the start; its tolerance: `LM_TOL`; then
       where the best is not within a tenth of a standard error, `POLISH_STEPS` Gauss-Newton steps
@@ -180,7 +184,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     `COMMAND_TOLERANCE` or 1 % of its range; without one, its measured angle's span more than
     `recording.SPAN_FACTOR` times the model's at the scene's values, or less than its inverse; a
     unit slip named) and `ValueError` for unknown parameters, a scene
-    value that is not > 0, or starts outside the bounds.
+    value that is not > 0, starts outside the bounds, or bounds that are not (`bounds`).
     """
     parameters = check_names(scene, parameters)
     if starts is None:
@@ -189,6 +193,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                                                                         start, integrator, run)
     given = None if widths is None else [own_width(scene) if w is None else jnp.asarray(w, dtype=float) for w in widths]
     final = own_width(scene) if given is None else given[-1]  # the estimate's width: the check, screen and choice run at it
+    limits = limits_of(parameters, x0, scale, bounds)  # (2, p), x's units: refused before any run
     clock = time.perf_counter()
     wall = {}
     say = (lambda line: print(line, file=sys.stderr, flush=True)) if progress is True else (progress or None)
@@ -248,8 +253,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance." + _unit_slip(recorded[:, j], commanded[:, j]))
     lap("check", "the recording checked against the scene's drive")
-    centre, reach = np.log(x0), np.full(len(parameters), math.log(BOUND))
-    x_starts, screened = _starts(fit, x0, final, starts, search)
+    centre, reach = centre_reach(limits)
+    x_starts, screened = _starts(fit, x0, final, starts, search, limits)
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
     fit, jacobian = _choose_jacobian(fit, x_starts[0], final, secant)
     lap("jacobian", f"the residual's Jacobian: {jacobian}")
@@ -292,7 +297,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     misfit = recording.noise is not None and best[0] / dof > (recording.noise / UNIT) ** 2 * (1 + LINE_CHI * math.sqrt(2 / dof))
     if screened and len(parameters) > 1 and misfit:
         x_best = np.asarray(_bounded(jnp.asarray(best[1]), jnp.asarray(centre), jnp.asarray(reach)))
-        points = _lines(x_best, x0, search, screened)
+        points = inside(_lines(x_best, x0, search, screened), limits)
         costs = np.sum(_in_batches(fit, points, final, screened) ** 2, axis=1)
         costs = np.where(np.isfinite(costs), costs, np.inf)
         line_screened = len(points)
@@ -331,7 +336,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         else:
             converged = bool(np.all(left <= 1.0))
     converged = converged and math.isfinite(s2)
-    profile, line, realised_x, realised = _profile(fit, estimate_x, x0, cov_x, s2, widths[-1], screened or None, r)
+    profile, line, realised_x, realised = _profile(fit, estimate_x, limits, cov_x, s2, widths[-1], screened or None, r)
     model_cov, model_rms = _model_noise(jac, estimate_x, r, realised_x, realised, cov_x, s2)
     lap("assess", "the Jacobian, covariance and intervals at the estimate, the intervals checked along their profiles, "
                   f"the model's own realisations ({len(realised)}: {model_rms:.2g} µrad rms apart)")
@@ -340,8 +345,8 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     # instead (a backlash on the plateau above its flank).
     se_x, seen = np.sqrt(np.maximum(np.diag(cov_x), 0.0)), np.abs(vectors[:, 1.0 / np.sqrt(values) < DETERMINED]) > LOADING
     walk = [j for j in range(len(parameters)) if not se_x[j] < DETERMINED * estimate_x[j] and not seen[j].any()
-            and not (x0[j] / BOUND < estimate_x[j] - 1.96 * se_x[j] and estimate_x[j] + 1.96 * se_x[j] < x0[j] * BOUND)]
-    bounds, lowest, solves = profile_bounds(fit, estimate_x, float(np.sum(r**2)), s2, widths[-1], x0, walk, screened or None,
+            and not (limits[0, j] < estimate_x[j] - 1.96 * se_x[j] and estimate_x[j] + 1.96 * se_x[j] < limits[1, j])]
+    walked, lowest, solves = profile_bounds(fit, estimate_x, float(np.sum(r**2)), s2, widths[-1], limits, walk, screened or None,
                                             lm_steps, centre, reach)
     lap("profile", walk and f"the profile-likelihood bounds of {', '.join(parameters[j] for j in walk)} (the recording does "
                             f"not see {'them' if len(walk) > 1 else 'it'} at the estimate): {solves} re-fits")
@@ -359,7 +364,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, line_screened=line_screened,
         noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, profile_line=line,
-        jacobian=jacobian, profile_bound=bounds * scale[:, None], profile_lowest=lowest, **torque,
+        jacobian=jacobian, profile_bound=walked * scale[:, None], profile_lowest=lowest, limits=limits.T * scale[:, None], **torque,
     )
 
 

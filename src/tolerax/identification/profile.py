@@ -33,11 +33,11 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from .fit import BOUND, _costs, _in_batches, _solve, _unbounded
+from .fit import _costs, _in_batches, _solve, _unbounded
 from .result import OPEN_RISE
 
 # The grid along each side: GRID points log-spaced from a relative NEAREST of the estimate out to
-# the bounds (a factor `BOUND` of the scene's value): 1.2x apart in the logarithm over [1 %, 4.6].
+# the fit's bounds (by default a factor `fit.BOUND` of the scene's value: 1.2x apart in the logarithm over [1 %, 4.6]).
 GRID, NEAREST = 32, 0.01
 # Levenberg-Marquardt re-fits per side at most, outward from the line's crossing; a side whose
 # profile has not crossed by then is stated open (the wider interval).
@@ -45,13 +45,13 @@ SOLVES = 6
 BISECTIONS = 3
 
 
-def profile_bounds(fit, x, cost: float, s2: float, width, x0, js, batch: int | None, lm_steps: int, centre, reach):
+def profile_bounds(fit, x, cost: float, s2: float, width, limits, js, batch: int | None, lm_steps: int, centre, reach):
     """The 95 % profile-likelihood bounds of the parameters `js` about the estimate `x` (module
     docstring), in x's units: `(bounds (p, 2): lower and upper, -inf / inf where open, NaN for the
     parameters not in js; lowest (p,): the lowest cost met along each one's line and profile,
     µrad², NaN where not walked; solves: the re-fits run)`. `cost` (µrad²) is the estimate's,
-    `s2` the residual variance (µrad²) the threshold is scaled by, `x0` the scene's values (the
-    bounds about them), `batch` the screen's batch (its compiled program; None: one program for
+    `s2` the residual variance (µrad²) the threshold is scaled by, `limits` the fit's bounds
+    (lower and upper ends, x's units, (2, p)), `batch` the screen's batch (its compiled program; None: one program for
     this grid), `centre`, `reach` the fit's bounded variable (`fit._bounded`)."""
     bounds, lowest, solves = np.full((x.size, 2), np.nan), np.full(x.size, np.nan), 0
     if not js or not (math.isfinite(s2) and s2 > 0):
@@ -59,7 +59,7 @@ def profile_bounds(fit, x, cost: float, s2: float, width, x0, js, batch: int | N
     threshold = OPEN_RISE * s2
     grids = {}  # (j, side): the parameter's values along that side, nearest first
     for j in js:
-        for side, (sign, far) in enumerate(((-1.0, math.log(x[j] * BOUND / x0[j])), (1.0, math.log(x0[j] * BOUND / x[j])))):
+        for side, (sign, far) in enumerate(((-1.0, math.log(x[j] / limits[0][j])), (1.0, math.log(limits[1][j] / x[j])))):
             grids[j, side] = x[j] * np.exp(sign * np.geomspace(NEAREST, far * (1 - 1e-9), GRID)) if far > NEAREST else np.empty(0)
     points = np.repeat(x[None], sum(g.size for g in grids.values()), axis=0)
     at = 0

@@ -93,6 +93,8 @@ class Identification:
       (`tolerax.identification.profile`), -inf / inf where the recording leaves that side open;
       NaN for the others. `profile_lowest` (µrad²): the lowest cost met along each such profile,
       below `cost` by more than the threshold where the estimate is not the minimum.
+    - `limits` ((parameters, 2), their units): the bounds the fit kept each parameter within
+      (`identify(bounds=...)`; by default a factor 100 of the scene's value either side).
     - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
       mode through the solve, or central secants), and why, in words.
     - `torque_measured`, `torque_fitted` (N m, (saves, axes)) where the recording had a motor
@@ -128,6 +130,7 @@ class Identification:
     line_screened: int = 0
     profile_bound: np.ndarray | None = dataclasses.field(repr=False, default=None)
     profile_lowest: np.ndarray | None = dataclasses.field(repr=False, default=None)
+    limits: np.ndarray | None = dataclasses.field(repr=False, default=None)  # (p, 2): the fit's bounds, the parameters' units
 
     @property
     def residual_sd(self) -> float:
@@ -436,7 +439,8 @@ class Identification:
         sides = [f"{'below' if k == 0 else 'above'} it the profile (the other parameters re-fitted) rises past the "
                  f"threshold at {show(b, u)}" if np.isfinite(b) else
                  f"{'below' if k == 0 else 'above'} it the cost along its own line (the others held, which costs at least "
-                 "the profile's) stays within the threshold out to the bound of the fit (a factor 100 of the scene's value)"
+                 "the profile's) stays within the threshold out to the bound of the fit ("
+                 + ("a factor 100 of the scene's value" if self.limits is None else show(self.limits[j, k], u)) + ")"
                  for k, b in enumerate((low, high))]
         text = (f"**{n}: the recording does not see it at the estimate** ({show(self.estimate[j], u)}, its linearised interval "
                 f"reaching past the bounds), so its 95 % interval is the profile likelihood's (the values whose cost rises "
