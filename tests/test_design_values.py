@@ -327,8 +327,11 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     scene.write_text(text)
     seen = []
 
-    def stop(problem, solver=None, **_):
+    checks = []
+
+    def stop(problem, solver=None, **options):
         seen.append((problem, solver))
+        checks.append(options.get("check"))
         raise ValueError("stopped here by the test")
 
     monkeypatch.setattr(P, "propose_design", stop)
@@ -389,6 +392,35 @@ def test_the_command_line_and_scene_files_name_the_same_models(tmp_path, capsys,
     line = text.splitlines().index('model = "surface"') + 1
     assert cli.main(["design", str(scene), "--requirement", "500", "--yield", "0.99", "--out", str(tmp_path / "o")]) == 2
     assert f"{scene}:{line}: [tolerances] model: model='surfaces' is unknown" in capsys.readouterr().err
+    # The solver and the check by name in the scene file too ([tolerances] solver, check), the
+    # same objects in Python (SceneFile.solver(), check()) and on the command line, whose
+    # --solver and --check go over them; check = 0 is none.
+    from tolerax.design.check import Check
+
+    named = with_yield.replace("yield = 0.9", 'yield = 0.9\nsolver = "slsqp"\ncheck = { units = 60, rounds = 2 }')
+    scene.write_text(named)
+    f = tx.load_scene(str(scene))
+    assert f.solver() == tx.SLSQP() and f.check() == Check(60, 2)
+    assert cli.main(["design", str(scene), "--out", str(tmp_path / "o")]) == 2
+    assert seen[-1][1] == tx.SLSQP() and checks[-1] == Check(60, 2)
+    assert cli.main(["design", str(scene), "--solver", "sequential", "--check", "30", "--out", str(tmp_path / "o")]) == 2
+    assert seen[-1][1] == tx.Sequential() and checks[-1] == Check(30, 2)
+    scene.write_text(named.replace("check = { units = 60, rounds = 2 }", "check = 0"))
+    assert tx.load_scene(str(scene)).check() is None and cli.main(["design", str(scene), "--out", str(tmp_path / "o")]) == 2
+    assert checks[-1] is None and seen[-1][1] == tx.SLSQP()
+    assert tx.load_scene("scan-azimuth").solver() == tx.Sequential() and tx.load_scene("scan-azimuth").check() is None  # no yield
+    capsys.readouterr()
+    for wrong, message in (('solver = "slsqq"', "solver='slsqq' is unknown; use one of ('sequential', 'augmented-lagrangian', "
+                                                "'slsqp') (the design solver: tolerax.Sequential, tolerax.AugmentedLagrangian, "
+                                                "tolerax.SLSQP) (did you mean 'slsqp'?)"),
+                           ('solver = "augmented-lagrangian"', "the augmented Lagrangian takes no yield"),
+                           ("check = 1", "must be the units per Monte Carlo check (>= 2)"),
+                           ("check = { units = 60, round = 2 }", "round")):
+        scene.write_text(named.replace('solver = "slsqp"' if wrong.startswith("solver") else "check = { units = 60, rounds = 2 }",
+                                       wrong))
+        assert cli.main(["design", str(scene), "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err
+        assert "[tolerances" in err and message in err, err
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,6 +13,7 @@ from .common import DEFAULT_SCENE, check_out, claim_out, command_line, load_aver
 
 def demo_command(parser, args) -> int:
     check_out(parser, args.out, "demo", force=args.force)
+    args.solver = args.solver or "sequential"
     if args.bench:
         return _demo_bench(parser, args)
     given = [f"--{n}" for n in ("rate", "clearance", "backlash") if getattr(args, n) is not None]

@@ -31,6 +31,7 @@ def _design_setup(parser, args, command):
     if not has_features(scene_file, command):
         return None
     tol = scene_file.data.get("tolerances", {})
+    args.solver = args.solver or tol.get("solver", "sequential")  # --solver, else the scene's [tolerances] solver
     if args.yield_ is None and tol.get("yield") is not None:
         args.yield_ = tol["yield"]  # the scene's [tolerances] yield; --yield overrides it
     if args.yield_ is not None and not 0.0 < args.yield_ < 1.0:
@@ -60,7 +61,7 @@ def _design_setup(parser, args, command):
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
     from ..design import solvers, spec
     from ..design.check import Check
-    from ..io.problem import cost_of, model_of, zones_of
+    from ..io.problem import check_of, cost_of, model_of, zones_of
 
     solver = {"sequential": lambda: solvers.Sequential(widths, 20 if args.outer is None else args.outer),
               "augmented-lagrangian": lambda: solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner),
@@ -74,7 +75,7 @@ def _design_setup(parser, args, command):
         statistic=spec.MeanPlusKStd(units=args.draws) if args.yield_ is None else spec.Yield(args.yield_),
         zones=zones_of(scene_file), cost=cost_of(scene_file), allow_proxy=args.allow_proxy, solver=solver, model=model,
         secant_units=args.secant_units,
-        check=None if args.yield_ is None or args.check == 0 else Check(200 if args.check is None else args.check, backend=args.backend),
+        check=None if args.yield_ is None else check_of(scene_file, args.check, backend=args.backend),  # --check over [tolerances] check
         progress=not args.quiet)
     return out, scene_file, values
 

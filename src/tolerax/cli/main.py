@@ -42,6 +42,7 @@ import sys
 import warnings
 
 from .. import __version__  # the package's import is light (tolerax/__init__.py): the options are checked first
+from .._defaults import DESIGN_SOLVERS
 from .commands import montecarlo_command, run_command, studies_command
 from .design import design_command, tradeoff_command
 from .common import (DEFAULT_SCENE, JITTER_CUTOFF, DESIGN_EPILOG, EPILOG, MONTECARLO_EPILOG, band_um, count, figures_to_files, length_in, non_negative, out_options, positive, positive_length,
@@ -58,7 +59,7 @@ RESUME = {
 
 
 # `--solver`'s names -> the design solver classes they build (tolerax.design.solvers).
-SOLVERS = {"sequential": "Sequential", "augmented-lagrangian": "AugmentedLagrangian", "slsqp": "SLSQP"}
+SOLVERS = DESIGN_SOLVERS
 
 
 def solver_option(parser, names, text):
@@ -71,7 +72,8 @@ def solver_option(parser, names, text):
 
 def _solver_of(command_parser, args) -> None:
     """`args.solver` from `--solver`, else the deprecated `--method` (said on stderr), else
-    `"sequential"`; both given and different: refused (exit 2)."""
+    None (the scene file's `[tolerances] solver`, else sequential: the command decides); both
+    given and different: refused (exit 2)."""
     if not hasattr(args, "solver"):
         return
     if args.method is not None:
@@ -80,7 +82,6 @@ def _solver_of(command_parser, args) -> None:
         print(f"tolerax {args.command}: --method is deprecated and will be removed; use --solver {args.method} (the design solver "
               f"tolerax.{SOLVERS[args.method]}()).", file=sys.stderr)
         args.solver = args.method
-    args.solver = args.solver or "sequential"
 
 
 def optimiser_options(parser):
@@ -88,7 +89,7 @@ def optimiser_options(parser):
     parser.add_argument("--draws", type=count(2), default=4,
                         help="manufactured units in the robust objective, mean + 1 std (default 4, at least 2)")
     solver_option(parser, SOLVERS,
-                  "the design solver (default sequential, tolerax.Sequential(): a stack-up linearised from the simulation "
+                  "the design solver (default: the scene file's [tolerances] solver, else sequential, tolerax.Sequential(): a stack-up linearised from the simulation "
                   "at each iterate, solved exactly in a trust region; augmented-lagrangian, tolerax.AugmentedLagrangian(): "
                   "Adam on an augmented Lagrangian, no yield; slsqp, tolerax.SLSQP(): SciPy's SLSQP on the same problem, the "
                   "reference, tangent slopes only)")

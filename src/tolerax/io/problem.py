@@ -15,6 +15,13 @@ The `[tolerances]` keys (docs/scene_files.md) and what they become:
   them by output (`model = { pointing_jitter = "surface" }`: the outputs it does not name auto).
 - `band`/`bands`/`distribution` (the starting zones), `min_clearance`, `band_range`, `fixed`:
   the `Zones`; `cost = {grades, costs}`: a shop's `GradeTable` (default the ISO 286 law).
+
+Beside the problem, how it is solved (`SceneFile.solver()`, `SceneFile.check()`, read by
+`solver_of` and `check_of`): `solver` names the design solver (`"sequential"`, the default:
+`Sequential()`; `"augmented-lagrangian"`; `"slsqp"`), `check` the Monte Carlo check of a yield
+design (its units per check, default 200, 0 for none, or `{units, rounds}`: `Check(units,
+rounds)`). So `tx.propose_design(f.problem(), f.solver(), check=f.check())` is what `tolerax
+design` on the file does with no option.
 """
 
 import dataclasses
@@ -95,3 +102,30 @@ def problem_of(scene_file):
     objective = scene_file.objective(jitter_cutoff=cutoff, **({} if eol else {"life": None}))
     return ToleranceProblem(objective, tuple(requirements), MeanPlusKStd() if level is None else Yield(float(level)),
                             zones_of(scene_file), cost_of(scene_file))
+
+
+def solver_of(scene_file, name: str | None = None, **options):
+    """The design solver `[tolerances] solver` names (or `name`, the command line's `--solver`,
+    over it), built with `options` (its class's fields: `widths`, a budget)."""
+    from ..design import solvers
+    from .._defaults import DESIGN_SOLVERS
+
+    name = name or tolerance_table(scene_file).get("solver", TOLERANCE_KEYS["solver"][1])
+    return getattr(solvers, DESIGN_SOLVERS[name])(**options)
+
+
+def check_of(scene_file, units: int | None = None, **options):
+    """The Monte Carlo check `[tolerances] check` states (`units` over its units where given,
+    the command line's `--check`; `options`: `Check`'s other fields, e.g. its backend), or
+    `None` where it says 0 (a yield design's check; `SceneFile.check()` is `None` without a
+    yield)."""
+    from ..design.check import Check
+    from .schema import CHECK_KEYS
+
+    tol = tolerance_table(scene_file)
+    check = tol.get("check", TOLERANCE_KEYS["check"][1])
+    table = check if isinstance(check, dict) else {"units": check}
+    units = table.get("units", CHECK_KEYS["units"][1]) if units is None else units
+    if units == 0:
+        return None
+    return Check(int(units), int(table.get("rounds", CHECK_KEYS["rounds"][1])), **options)

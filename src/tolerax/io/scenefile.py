@@ -148,6 +148,20 @@ class SceneFile:
 
         return problem_of(self)
 
+    def solver(self):
+        """The design solver `[tolerances] solver` names (default `Sequential()`), for
+        `tolerax.propose_design(self.problem(), self.solver(), check=self.check())`."""
+        from .problem import solver_of
+
+        return solver_of(self)
+
+    def check(self):
+        """The Monte Carlo check of a yield design `[tolerances] check` states (default
+        `Check(200)`), or `None` (`check = 0`, or no `yield`: nothing to check)."""
+        from .problem import check_of, tolerance_table
+
+        return None if tolerance_table(self).get("yield") is None else check_of(self)
+
     @property
     def life(self):
         """The `MissionLife` of `[life]`, or `None` without one."""

@@ -12,7 +12,7 @@ import math
 
 import jax.numpy as jnp
 
-from .._defaults import JITTER_CUTOFF
+from .._defaults import DESIGN_SOLVERS, JITTER_CUTOFF
 from ..physics import contact as _contact
 from ..design import cost as _cost, features as _design
 from ..physics import gears as _gears
@@ -69,10 +69,14 @@ DISTRIBUTIONS = ("uniform", "normal")
 TOLERANCE_KEYS = {"band": (float, 10e-6), "bands": (dict, {}), "distribution": (str, "uniform"), "requirement": (float, None),
                   "fixed": (list, []), "cost": (dict, {}), "min_clearance": (float | dict, 5e-6), "band_range": (tuple[float, float], (1e-6, 50e-6)),
                   "model": (str | dict, "auto"), "yield": (float, None), "jitter": (float, None), "jitter_cutoff": (float, JITTER_CUTOFF),
-                  "require": (dict, {})}
+                  "require": (dict, {}), "solver": (str, "sequential"), "check": (int | dict, 200)}
 # [tolerances] model: how `tolerax design` linearises every requirement's yield (`tolerax.design.spec`),
 # one name for all, or a table of them by output (`model = { pointing_jitter = "surface" }`: the others auto).
 MODELS = ("auto", "tangents", "secants", "surface")
+# [tolerances] solver: the design solver by its command-line name (`_defaults.DESIGN_SOLVERS`), and
+# check: the Monte Carlo check of a yield design (`tolerax.design.check.Check`), its units per
+# check, or a table {units, rounds}; 0 for none.
+CHECK_KEYS = {"units": (int, 200), "rounds": (int, 3)}
 # [life]: the mission's life (`tolerax.design.life.MissionLife`): operating time and wear data.
 LIFE_KEYS = {"years": (float, None), "duty": (float, 1.0), "lubricant": (str, "MoS2 sputtered film, vacuum"),
              "estimate": (str, "median"), "points": (int, 2), "flanks": (bool, True),
@@ -265,6 +269,24 @@ def _check_tolerances(chk: Checker, tol: dict, model):
         if name not in MODELS:
             raise chk.error(f"model={name!r} is unknown; use one of {MODELS} (how a design linearises each requirement's "
                             "yield: tolerax.design.spec), one for all or a table by output.", *where)
+    if tol.get("solver", "sequential") not in DESIGN_SOLVERS:
+        raise chk.error(f"solver={tol['solver']!r} is unknown; use one of {tuple(DESIGN_SOLVERS)} (the design solver: "
+                        f"tolerax.{', tolerax.'.join(DESIGN_SOLVERS.values())}){_suggest(tol['solver'], list(DESIGN_SOLVERS))}.",
+                        table, "solver")
+    if tol.get("solver") == "augmented-lagrangian" and "yield" in tol:
+        raise chk.error("the augmented Lagrangian takes no yield (its Monte Carlo check re-solves the design, which it does "
+                        "not): use solver = \"sequential\" or \"slsqp\", or drop the yield.", table, "solver")
+    check = tol.get("check", 200)
+    if isinstance(check, dict):
+        chk.keys(check, table + ("check",), list(CHECK_KEYS))
+        for key in check:
+            chk.typed(check, table + ("check",), key, CHECK_KEYS[key][0])
+        if check.get("units", 200) < 2 or check.get("rounds", 3) < 1:
+            raise chk.error(f"must have units >= 2 (simulated units per check) and rounds >= 1 (checks at most), got {check!r}.",
+                            table, "check")
+    elif check < 0 or check == 1:
+        raise chk.error(f"must be the units per Monte Carlo check (>= 2), 0 for none, or {{units = 200, rounds = 3}}; got {check!r}.",
+                        table, "check")
     if tol.get("distribution", "uniform") not in DISTRIBUTIONS:
         raise chk.error(f"distribution={tol['distribution']!r} is unknown; use one of {DISTRIBUTIONS}.", table, "distribution")
     if "requirement" in tol and not (math.isfinite(tol["requirement"]) and tol["requirement"] > 0):
