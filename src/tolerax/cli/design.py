@@ -60,7 +60,6 @@ def _design_setup(parser, args, command):
     if model_name == "tangents" and args.secant_units is not None:
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
     from ..design import solvers, spec
-    from ..design.check import Check
     from ..io.problem import check_of, cost_of, model_of, zones_of
 
     solver = {"sequential": lambda: solvers.Sequential(widths, 20 if args.outer is None else args.outer),
