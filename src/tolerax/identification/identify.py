@@ -32,8 +32,8 @@ against the residual itself along its profile path $\\hat\\theta \\pm k\\,\\Sigm
 other parameters at their linearised conditional best), where the linearised cost rises by
 $k^2 s^2$: the measured rise over that at $k$ = 1.96, 10 and 100 (`Identification.profile`) is
 1 where the residual is quadratic (read where that rise exceeds the cost's own spread over the
-model's realisations, `COST_NOISE` times); an interval whose ratio at 1.96 or 10 is off by more than
-`PROFILE_FACTOR` does not hold (`Identification.holds`, the status says so); where it rises on one
+model's realisations, `COST_NOISE` times); an interval whose ratio at 1.96 or 10 is below
+1 / `PROFILE_FACTOR` or above `STEEP_FACTOR` does not hold (`Identification.holds`, the status says so); where it rises on one
 side and stays within the 95 % threshold out to 10 standard errors on the other, the parameter is
 bounded on one side only (`Identification.one_sided`: a backlash larger than the recording takes
 up). Where the recording does not see a parameter at its estimate at all (its linearised interval

@@ -12,11 +12,17 @@ LOADING = 0.3  # a parameter takes part in a direction whose eigenvector compone
 MISFIT = 1.5
 # The interval's check (`identify`'s `_profile`): the cost along each parameter's profile
 # direction at these many standard errors either side of the estimate, against the linearised
-# model's rise. The interval holds where the rise at the first two is within this factor of the
-# linearised one either way (the profile interval's ends then within ~1.4x of the linearised
-# ones); the third says whether the curvature is the basin's or only the estimate's surroundings'.
+# model's rise. The interval holds where the rise at the first two is at least 1 / PROFILE_FACTOR
+# of the linearised one (a flatter cost: the profile interval's ends at most ~1.4x beyond the
+# linearised ones) and at most STEEP_FACTOR times it (a steeper cost ends the profile interval
+# sooner, at no less than half the linearised half-width: the linearised interval conservative,
+# as the lumped dual's pitch drag, whose cost rises 2.0-2.2x the linearised one and whose
+# estimates spread 0.71x their stated error; steeper still, the cost is not quadratic at all: a
+# kink or a rugged residual); the third says whether the curvature is the basin's or only the
+# estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
+STEEP_FACTOR = 4.0
 # A side of an interval that does not hold is open where the cost's rise at 1.96 and 10 standard
 # errors out stays within this many s^2 (the 95 % point of a chi-square on one degree of freedom:
 # the profile likelihood's 95 % interval reaches past 10 standard errors there): the recording
@@ -39,11 +45,11 @@ MODEL_NOTED = 0.1
 
 def interval_holds(ratios) -> bool | None:
     """One parameter's profile check (`Identification.holds`): its ratios ((2 sides, steps), the
-    cost's rise over the linearised one) at 1.96 and 10 standard errors all within
-    `PROFILE_FACTOR` of 1; None where none was read (NaN: not checked)."""
+    cost's rise over the linearised one) at 1.96 and 10 standard errors all above
+    1 / `PROFILE_FACTOR` and below `STEEP_FACTOR`; None where none was read (NaN: not checked)."""
     ratios = np.asarray(ratios)[:, :2]
     seen = ratios[np.isfinite(ratios)]
-    return None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < PROFILE_FACTOR)))
+    return None if seen.size == 0 else bool(np.all((seen > 1 / PROFILE_FACTOR) & (seen < STEEP_FACTOR)))
 
 
 def show(value: float, unit: str) -> str:
@@ -172,8 +178,8 @@ class Identification:
 
     def holds(self) -> tuple[bool | None, ...]:
         """Per parameter: does its linearised interval hold (the cost's rise along its profile at
-        1.96 and 10 standard errors within `PROFILE_FACTOR` of the linearised rise on both
-        sides)? None where it was not checked (an interval reaching past the bounds)."""
+        1.96 and 10 standard errors above 1 / `PROFILE_FACTOR` and below `STEEP_FACTOR` times
+        the linearised rise on both sides)? None where it was not checked (an interval reaching past the bounds)."""
         if self.profile is None:
             return (None,) * len(self.names)
         return tuple(interval_holds(ratios) for ratios in self.profile)
