@@ -855,7 +855,7 @@ def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
     import equinox as eqx
     import jax.numpy as jnp
 
-    from tolerax.identification.fit import UNIT, _Fit, _information, _model_noise, _profile, _realisation_points, _residuals
+    from tolerax.identification.fit import BOUND, UNIT, _Fit, _information, _model_noise, _profile, _realisation_points, _residuals
     from tolerax.identification.result import Identification
 
     rng = np.random.default_rng(1)
@@ -872,6 +872,7 @@ def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
 
     measured = UNIT * (A @ truth + rng.normal(0.0, 0.05, 60))[:, None]
     x0 = truth * 1.1
+    limits = np.stack([x0 / BOUND, x0 * BOUND])  # identify's default bounds about the scene's values
     for amplitude in (0.0, 0.05):
         fit = Scrambled(objective=None, names=("a", "b"), scale=jnp.ones(2), rows=jnp.arange(60), columns=jnp.arange(1),
                         measured=jnp.asarray(measured), amplitude=amplitude)
@@ -879,14 +880,14 @@ def test_the_intervals_count_a_model_that_does_not_reproduce_its_own_run():
         r = np.asarray(fit.residual(jnp.asarray(x), 0.0))
         s2 = float(np.sum(r**2)) / (r.size - 2)
         _, _, cov_x = _information(A, x, s2)
-        profile, line, points, realised = _profile(fit, x, x0, cov_x, s2, 0.0, 65, r)
+        profile, line, points, realised = _profile(fit, x, limits, cov_x, s2, 0.0, 65, r)
         assert len(points) == 65 - 21 + 1  # the batch's rest after the check's 21 points (x, 12 on the paths, 8 on the lines), and x
         if amplitude == 0.0:  # a linear residual: along a parameter's own line the rise over k^2 s^2 is (J^TJ)^-1_jj (J^TJ)_jj
             information = A.T @ A
             np.testing.assert_allclose(line, np.broadcast_to((np.diag(np.linalg.inv(information)) * np.diag(information))[:, None, None],
                                                              (2, 2, 2)), rtol=1e-6)
             # One point at a time (no screen's batch) the lines are costed only where a path's check failed: none here.
-            alone = _profile(fit, x, x0, cov_x, s2, 0.0, None, r)
+            alone = _profile(fit, x, limits, cov_x, s2, 0.0, None, r)
             assert np.allclose(alone[0], profile, atol=1e-6) and np.all(np.isnan(alone[1]))
         model, rms = _model_noise(A, x, r, points, realised, cov_x, s2)
         if amplitude == 0.0:
