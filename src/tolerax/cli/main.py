@@ -105,7 +105,7 @@ def optimiser_options(parser):
                         "middles, checked on --check fresh units); default: the scene's [tolerances] yield, else mean + 1 std "
                         "over --draws units")
     parser.add_argument("--check", type=count(0), default=None,
-                        help="with --yield: fresh units simulated to check (and correct) the yield (default 200; 0: none)")
+                        help="with --yield: fresh units simulated to check (and correct) the yield (default: the scene file's [tolerances] check, else 200; 0: none)")
     parser.add_argument("--backend", default="vmap", choices=("vmap", "processes"),
                         help="how the Monte Carlo checks' units (and design's --verify) are simulated: vmap, batched in this "
                         "process (default), or processes, a pool of one worker per core (each compiles the unit once: worth it "
