@@ -691,7 +691,9 @@ def test_a_parameter_the_recording_does_not_see_is_bounded_by_its_profile():
     # Given bounds: the open side reaches to them (b <= 8 here), the screen's points are kept inside them.
     limits = limits_of(("a", "b"), x0, np.ones(2), {"b": (1.0, 8.0)})
     assert np.allclose(limits, [[3.0 / BOUND, 1.0], [3.0 * BOUND, 8.0]])
-    given, _, _ = profile_bounds(fit, x, cost, s2, 0.0, limits, [1], None, 20, *centre_reach(limits))
+    centre, reach = centre_reach(limits, x0)  # the default's exactly where not given (bitwise: a flat cost's fit follows rounding)
+    assert centre[0] == math.log(3.0) and reach[0] == math.log(BOUND) and np.isclose(centre[1], math.log(math.sqrt(8.0)))
+    given, _, _ = profile_bounds(fit, x, cost, s2, 0.0, limits, [1], None, 20, *centre_reach(limits, x0))
     assert given[1, 1] == math.inf and given[1, 0] == pytest.approx(bounds[1, 0], rel=0.05)
     screen, _ = _starts(fit, x0, 0.0, 64, 4.0, limits)
     assert np.all((screen > limits[0]) & (screen < limits[1]))

@@ -306,11 +306,16 @@ def limits_of(names, x0, scale, bounds) -> np.ndarray:
     return out
 
 
-def centre_reach(limits) -> tuple[np.ndarray, np.ndarray]:
+def centre_reach(limits, x0) -> tuple[np.ndarray, np.ndarray]:
     """`_bounded`'s centre and reach for the bounds `limits` ((2, p)): their geometric middle
-    and half their span, in the logarithm."""
-    logs = np.log(np.asarray(limits, dtype=float))
-    return logs.mean(axis=0), 0.5 * (logs[1] - logs[0])
+    and half their span, in the logarithm; for a parameter at the default bounds (a factor
+    `BOUND` of its scene's value `x0`) $\\log x_0$ and $\\log$ `BOUND` as such (the same to the
+    last bit: a fit on a flat cost ends where rounding sends it)."""
+    limits, x0 = np.asarray(limits, dtype=float), np.asarray(x0, dtype=float)
+    logs = np.log(limits)
+    default = (limits[0] == x0 / BOUND) & (limits[1] == x0 * BOUND)
+    return (np.where(default, np.log(x0), logs.mean(axis=0)),
+            np.where(default, math.log(BOUND), 0.5 * (logs[1] - logs[0])))
 
 
 def inside(points, limits):

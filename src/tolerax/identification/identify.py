@@ -253,7 +253,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
                 "model must run the test's profile (the scene's scan or profile_times/profile_angles), or the difference "
                 "is fitted as clearance." + _unit_slip(recorded[:, j], commanded[:, j]))
     lap("check", "the recording checked against the scene's drive")
-    centre, reach = centre_reach(limits)
+    centre, reach = centre_reach(limits, x0)
     x_starts, screened = _starts(fit, x0, final, starts, search, limits)
     lap("screen", f"{screened} starting points costed, Levenberg-Marquardt from the best {len(x_starts)}" if screened else None)
     fit, jacobian = _choose_jacobian(fit, x_starts[0], final, secant)
