@@ -59,12 +59,15 @@ def _design_setup(parser, args, command):
         model_name = "auto"
     if model_name == "tangents" and args.secant_units is not None:
         parser.error("--secant-units is the units of --model secants or surface (tangents fit no units)")
+    from .._defaults import DESIGN_SOLVERS
     from ..design import solvers, spec
-    from ..io.problem import check_of, cost_of, model_of, zones_of
+    from ..io.problem import check_of, cost_of, model_of, solver_of, zones_of
 
-    solver = {"sequential": lambda: solvers.Sequential(widths, 20 if args.outer is None else args.outer),
-              "augmented-lagrangian": lambda: solvers.AugmentedLagrangian(widths, 6 if args.outer is None else args.outer, args.inner),
-              "slsqp": lambda: solvers.SLSQP(widths, 100 if args.outer is None else args.outer)}[args.solver]()
+    # The solver the name builds (`solver_of`, as a scene file's), --outer its budget (each class's
+    # own field: `budget`), --inner the augmented Lagrangian's steps per outer iteration.
+    options = {} if args.outer is None else {getattr(solvers, DESIGN_SOLVERS[args.solver]).budget: args.outer}
+    solver = solver_of(scene_file, args.solver, widths=widths, **options,
+                       **({"inner_steps": args.inner} if args.solver == "augmented-lagrangian" else {}))
     model = model_of(model_name)
     if args.secant_units is not None and model is not None:
         model = dataclasses.replace(model, units=args.secant_units)
