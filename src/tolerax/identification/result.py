@@ -15,11 +15,9 @@ MISFIT = 1.5
 # model's rise. The interval holds where the rise at the first two is at least 1 / PROFILE_FACTOR
 # of the linearised one (a flatter cost: the profile interval's ends at most ~1.4x beyond the
 # linearised ones) and at most STEEP_FACTOR times it (a steeper cost ends the profile interval
-# sooner, at no less than half the linearised half-width: the linearised interval conservative,
-# as the lumped dual's pitch drag, whose cost rises 2.0-2.2x the linearised one and whose
-# estimates spread 0.71x their stated error; steeper still, the cost is not quadratic at all: a
-# kink or a rugged residual); the third says whether the curvature is the basin's or only the
-# estimate's surroundings'.
+# sooner, at no less than half the linearised half-width: the linearised interval conservative;
+# steeper still, the cost is not quadratic at all: a kink or a rugged residual); the third says
+# whether the curvature is the basin's or only the estimate's surroundings'.
 PROFILE_STEPS = (1.96, 10.0, 100.0)
 PROFILE_FACTOR = 2.0
 STEEP_FACTOR = 4.0
@@ -233,8 +231,7 @@ class Identification:
         "in combination" read "determined (model misfit)" and "in combination (model misfit)":
         the recording determines the parameter *of this model*, but the interval counts only the
         residual's spread, not the bias of what the model leaves out (a lower fidelity than the
-        unit's, a parameter left at the scene's value), which can be many standard errors (the
-        full stage read by the lumped joint: +5 % on a backlash, 16 standard errors)."""
+        unit's, a parameter left at the scene's value), which can be many standard errors."""
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
