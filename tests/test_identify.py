@@ -189,6 +189,46 @@ def test_a_recording_of_another_test_is_refused_and_a_misfit_is_said():
     assert "misses part of the unit" not in dataclasses.replace(exact, noise=0.01e-6).table()
 
 
+
+def test_an_estimate_stopped_at_a_bound_is_said_and_not_written():
+    """An estimate that stopped at a bound of the fit (`identify(bounds=...)`: Levenberg-Marquardt's
+    tanh box keeps it inside) is "at its lower/upper bound", not "interval does not hold": the
+    Gauss-Newton step from it points past the bound (`fit.at_bound`), so the recording asks for a
+    value the bounds exclude. It is not written into the identified scene, whose zones all lie
+    within the fit's bounds (by hand on the lumped scan, truth 60 µm, bounds 61-300 µm: the
+    estimate 61.00 µm, the residual 1.6x the noise, now said as this status)."""
+    from tolerax.identification.fit import at_bound
+    from tolerax.identification.result import Identification
+
+    limits = np.array([[60.999, 1.0, 60.999], [300.0, 1e4, 300.0]])
+    # Near the lower bound and asked past it; far from both; near it but its minimum inside.
+    assert at_bound(np.array([61.0, 100.0, 61.0]), np.array([-1.0, 0.01, 0.5]), np.array([0.1, 1.0, 0.1]), limits) == ("lower", None, None)
+    assert at_bound(np.array([299.99]), np.array([3.0]), np.array([0.1]), np.array([[1.0], [300.0]])) == ("upper",)
+    assert at_bound(np.array([61.0]), np.array([np.nan]), np.array([0.1]), limits[:, :1]) == (None,)  # a failed run says nothing
+    got = Identification(names=("azimuth.ring_backlash",), units=("m",), estimate=np.array([61e-6]), covariance=np.array([[0.09e-6**2]]),
+                         sigma=4.1e-6, n=141, cost=140 * 4.1**2, times=None, measured=None, fitted=None,
+                         directions=((0.0015, np.ones(1)),), steps=4, converged=False, starts=(1.0,), screened=0, noise=2.64e-6,
+                         limits=np.array([[60.999e-6, 300e-6]]), at_bound=("lower",))
+    assert got.status() == ("at its lower bound",) and got.stopped() == ("lower",)
+    table = got.table()
+    assert "**azimuth.ring_backlash stopped at the fit's lower bound** (61.00 µm)" in table and "the recording asks for less" in table
+    assert "does not hold**" not in table and "| at its lower bound |" in table
+    drawn = tx.load_scene("scan-azimuth")
+    k = drawn.tolerances().names.index("azimuth.ring_backlash")
+    written = got.scene_file(drawn, "unit.csv")
+    assert (float(written.tolerances().nominal[k]), float(written.tolerances().band[k])) == (100e-6, 10e-6)  # as drawn: inside 61-300
+    assert "azimuth.ring_backlash 61.00 um (at its lower bound of the fit: the recording asks for less)" in written.data["description"]
+    # A bound inside the drawn zone (90-110 µm) keeps the part of it within the bounds.
+    cut = dataclasses.replace(got, estimate=np.array([95e-6]), limits=np.array([[94.999e-6, 300e-6]])).scene_file(drawn).tolerances()
+    assert (float(cut.nominal[k]), float(cut.band[k])) == pytest.approx((0.5 * (94.999e-6 + 110e-6), 0.5 * (110e-6 - 94.999e-6)))
+    # An estimate written: its zone (sqrt(3) standard errors: the file's zones are uniform) cut at the bounds.
+    assert drawn.tolerances().distribution == "uniform"
+    inside = dataclasses.replace(got, estimate=np.array([60e-6]), covariance=np.array([[0.1e-6**2]]), at_bound=(None,),
+                                 limits=np.array([[59.9e-6, 300e-6]]))
+    assert inside.status() == ("determined (model misfit)",)
+    zone, top = inside.scene_file(drawn).tolerances(), 60e-6 + math.sqrt(3.0) * 0.1e-6
+    assert (float(zone.nominal[k]), float(zone.band[k])) == pytest.approx((0.5 * (59.9e-6 + top), 0.5 * (top - 59.9e-6)))
+
 @pytest.mark.slow
 def test_a_noise_free_recording_is_identified_at_what_the_simulation_resolves():
     """A recording of the model itself with no noise (what a user trying the tool first makes):

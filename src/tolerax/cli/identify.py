@@ -111,7 +111,8 @@ def identify_command(parser, args) -> int:
     # The identified unit: its clearances and backlash under [design], their uncertainty as zones
     # (Identification.scene_file), the drag where the file can hold it, the meshes' stiffness and damping.
     physical = got.unwritten()
-    rugged = [n for n, held, walked in zip(got.names, got.holds(), got.walked()) if held is False or walked]
+    rugged = [n for n, held, walked, stop in zip(got.names, got.holds(), got.walked(), got.stopped())
+              if held is False or walked or stop is not None]
     from ..io import scenefile as F
 
     path = F.save_scene(got.scene_file(scene_file, recording.source), out / "identified.toml")
@@ -124,8 +125,8 @@ def identify_command(parser, args) -> int:
                                    " (`--life YEARS`: at the end of a mission of that many years too, where a joint wears)") + "."
         + (f" Not in it: {', '.join(physical)} (the scene file's one drag_torque would set another joint's "
            "drag too: the estimates are in identification.json)." if physical else "")
-        + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold, or bound them on one side "
-                    "only or by their profile: the part of a drawn zone inside the bounds is kept)." if rugged else ""),
+        + (f" Kept at the scene's values and zones: {', '.join(rugged)} (their intervals do not hold, stop at a bound of the fit, "
+                    "or bound them on one side only or by their profile: the part of a drawn zone inside the bounds is kept)." if rugged else ""),
         "", "Reproduce with:", "", "```", command_line(args), "```", "",
         *scene_and_settings(scene_file)])
     atomic_write(out / "identification.md", text + "\n")

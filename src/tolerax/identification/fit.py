@@ -323,6 +323,19 @@ def inside(points, limits):
     return np.clip(points, limits[0] * (1 + 1e-9), limits[1] * (1 - 1e-9))
 
 
+def at_bound(x, step, se, limits) -> tuple[str | None, ...]:
+    """Per parameter, `"lower"` or `"upper"` where the estimate `x` stopped at that bound of
+    `limits` ((2, p)): it lies within one standard error `se` of it and the Gauss-Newton step
+    `step` from it (all in x's units) points past it, so the residual's local quadratic has its
+    minimum beyond the bound (the recording asks for a value the bounds exclude); else None."""
+    out = []
+    for j, (v, s, e) in enumerate(zip(x, step, se)):
+        near = [abs(v - limits[k, j]) < e for k in (0, 1)]
+        past = [v + s < limits[0, j], v + s > limits[1, j]]
+        out.append(next((side for side, n, p in zip(("lower", "upper"), near, past) if n and p and np.isfinite(s)), None))
+    return tuple(out)
+
+
 def _bounded(w, centre, reach):
     """x from the optimiser's unbounded variable `w`: $\\log x = c + R\\tanh(w/R)$, inside a factor
     $e^R$ either side of $e^c$, the bounds' geometric middle (`limits_of`); $w = \\log x - c$ near

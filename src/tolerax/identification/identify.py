@@ -76,7 +76,7 @@ import numpy as np
 from ..design.features import with_design
 from ..design.objectives import PointingObjective, _widths
 from ..eta import human_seconds, rough_wall
-from .fit import (REALISATIONS_ALONE, centre_reach, inside, limits_of, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
+from .fit import (REALISATIONS_ALONE, at_bound, centre_reach, inside, limits_of, SECANT_STEP, STARTS_KEPT, UNIT, _bounded, _choose_jacobian, _Fit, _fit_and_jacobian, _information,
                   _in_batches, _model_noise, _polish, _profile, _solve, _starts, _unbounded)
 from .profile import profile_bounds
 from .parameters import check_names, parameter_units, parameter_values, with_parameters
@@ -346,6 +346,9 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
     se_x, seen = np.sqrt(np.maximum(np.diag(cov_x), 0.0)), np.abs(vectors[:, 1.0 / np.sqrt(values) < DETERMINED]) > LOADING
     walk = [j for j in range(len(parameters)) if not se_x[j] < DETERMINED * estimate_x[j] and not seen[j].any()
             and not (limits[0, j] < estimate_x[j] - 1.96 * se_x[j] and estimate_x[j] + 1.96 * se_x[j] < limits[1, j])]
+    # An estimate stopped at a bound: the Gauss-Newton step from it points past the bound.
+    finite = bool(np.all(np.isfinite(jac)) and np.all(np.isfinite(r)))
+    stopped = at_bound(estimate_x, -np.linalg.lstsq(jac, r, rcond=None)[0] if finite else np.full(len(parameters), np.nan), se_x, limits)
     walked, lowest, solves = profile_bounds(fit, estimate_x, float(np.sum(r**2)), s2, widths[-1], limits, walk, screened or None,
                                             lm_steps, centre, reach)
     lap("profile", walk and f"the profile-likelihood bounds of {', '.join(parameters[j] for j in walk)} (the recording does "
@@ -364,7 +367,7 @@ def identify(scene, recording: Recording, parameters=None, *, settle: float = 0.
         steps=steps, converged=converged, starts=tuple(t[0] for t in tried), screened=screened, line_screened=line_screened,
         noise=recording.noise,
         scene=with_parameters(scene, parameters, jnp.asarray(estimate)), wall=wall, profile=profile, profile_line=line,
-        jacobian=jacobian, profile_bound=walked * scale[:, None], profile_lowest=lowest, limits=limits.T * scale[:, None], **torque,
+        jacobian=jacobian, profile_bound=walked * scale[:, None], profile_lowest=lowest, limits=limits.T * scale[:, None], at_bound=stopped, **torque,
     )
 
 

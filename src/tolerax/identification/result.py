@@ -98,7 +98,9 @@ class Identification:
       NaN for the others. `profile_lowest` (µrad²): the lowest cost met along each such profile,
       below `cost` by more than the threshold where the estimate is not the minimum.
     - `limits` ((parameters, 2), their units): the bounds the fit kept each parameter within
-      (`identify(bounds=...)`; by default a factor 100 of the scene's value either side).
+      (`identify(bounds=...)`; by default a factor 100 of the scene's value either side);
+      `at_bound`: per parameter `"lower"` / `"upper"` where the estimate stopped at that bound
+      (`fit.at_bound`: the recording asks for a value beyond it), else None.
     - `jacobian`: which Jacobian of the residual the fit and the intervals rest on (forward
       mode through the solve, or central secants), and why, in words.
     - `torque_measured`, `torque_fitted` (N m, (saves, axes)) where the recording had a motor
@@ -135,6 +137,7 @@ class Identification:
     profile_bound: np.ndarray | None = dataclasses.field(repr=False, default=None)
     profile_lowest: np.ndarray | None = dataclasses.field(repr=False, default=None)
     limits: np.ndarray | None = dataclasses.field(repr=False, default=None)  # (p, 2): the fit's bounds, the parameters' units
+    at_bound: tuple = ()  # per parameter: "lower" / "upper" where the estimate stopped at that bound, else None
 
     @property
     def residual_sd(self) -> float:
@@ -217,15 +220,22 @@ class Identification:
         False where no noise is stated (nothing to judge it against)."""
         return bool(self.noise and self.residual_sd > max(MISFIT * self.noise, RESOLVED))
 
+    def stopped(self) -> tuple[str | None, ...]:
+        """`at_bound` where no other side or profile statement is made (`status`'s order)."""
+        given = self.at_bound or (None,) * len(self.names)
+        return tuple(None if side is not None or walk else b for b, side, walk in zip(given, self.one_sided(), self.walked()))
+
     def status(self) -> tuple[str, ...]:
         """Per parameter: "determined", "in combination", "not determined" (module docstring),
         "bounded below only" / "bounded above only" where the recording bounds it on one side
         (`one_sided`: the linearised interval's end there, or the profile likelihood's, the other
         open), "bounded by its profile" where the profile-likelihood interval is read and closed
         on both sides (`profile_bound`: the recording does not see it at the estimate, yet bounds
-        it; "not determined" where that interval is open on both), or "interval does not
-        hold" where the residual is otherwise not quadratic over it (`holds`): the estimate is
-        where the search stopped, not a minimum the recording determines.
+        it; "not determined" where that interval is open on both), "at its lower bound" / "at its
+        upper bound" where the estimate stopped at a bound of the fit (`at_bound`: the recording
+        asks for a value beyond it), or "interval does not hold" where the residual is otherwise
+        not quadratic over it (`holds`): the estimate is where the search stopped, not a minimum
+        the recording determines.
 
         With a misfit (`misfit`: the residual well above the recording's noise) "determined" and
         "in combination" read "determined (model misfit)" and "in combination (model misfit)":
@@ -235,12 +245,14 @@ class Identification:
         relative = self.standard_error / np.maximum(np.abs(self.estimate), 1e-12)
         good = [vector for se, vector in self.directions if se < DETERMINED]
         out = []
-        walked, misfit = self.walked(), self.misfit()
+        walked, misfit, stopped = self.walked(), self.misfit(), self.stopped()
         for j, (holds, side) in enumerate(zip(self.holds(), self.one_sided())):
             if side is not None:
                 out.append(f"bounded {side} only")
             elif walked[j]:
                 out.append("bounded by its profile" if np.all(np.isfinite(self.profile_bound[j])) else "not determined")
+            elif stopped[j] is not None:
+                out.append(f"at its {stopped[j]} bound")
             elif holds is False:
                 out.append("interval does not hold")
             elif relative[j] < DETERMINED:
@@ -272,7 +284,9 @@ class Identification:
         stays the drawing's; one the recording bounds on one side only (`one_sided`) keeps the
         part of the drawing's zone on the bound's side (the drawing's zone whole where it lies
         there, the description saying so where none of it does), and one whose profile-likelihood
-        interval was read (`profile_bound`) the part of the drawing's zone inside it. With a
+        interval was read (`profile_bound`) the part of the drawing's zone inside it, and one
+        stopped at a bound of the fit (`at_bound`) the part inside the fit's bounds. Every zone
+        written lies within the fit's bounds (`limits`: the user's, where given). With a
         misfit (`misfit`) the estimates are written as identified, their status in the
         description saying "(model misfit)": their zones do not count the misfit's bias.
         """
@@ -280,23 +294,26 @@ class Identification:
         from ..uncertainty.sampling import Tolerances
         from .parameters import MESH_KEYS
 
-        walked = self.walked()
-        features = [j for j, (u, held) in enumerate(zip(self.units, self.holds())) if u == "m" and held is not False and not walked[j]]
+        walked, stopped = self.walked(), self.stopped()
+        features = [j for j, (u, kept) in enumerate(zip(self.units, self._kept())) if u == "m" and kept and not walked[j]]
         out, (lo, hi) = scene_file, self.bounds()
+        limits = np.tile([-math.inf, math.inf], (len(self.names), 1)) if self.limits is None else self.limits
         drawn = scene_file.tolerances()
         if features:
             per_sigma = 3.0 if drawn.distribution == "normal" else math.sqrt(3.0)  # band / standard deviation
-            out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), self.estimate[features],
-                                                        per_sigma * self.standard_error[features], drawn.distribution))
+            low = np.maximum(self.estimate[features] - per_sigma * self.standard_error[features], limits[features, 0])
+            high = np.minimum(self.estimate[features] + per_sigma * self.standard_error[features], limits[features, 1])
+            out = scene_file.with_tolerances(Tolerances(tuple(self.names[j] for j in features), 0.5 * (low + high),
+                                                        0.5 * (high - low), drawn.distribution))
         beyond = []  # bounded parameters whose whole drawn zone lies outside the recording's bounds
         cut = {}
         for j, side in enumerate(self.one_sided()):
-            if (side is None and not walked[j]) or self.units[j] != "m" or self.names[j] not in drawn.names:
+            if (side is None and not walked[j] and stopped[j] is None) or self.units[j] != "m" or self.names[j] not in drawn.names:
                 continue
             k = drawn.names.index(self.names[j])
             low, high = float(drawn.nominal[k] - drawn.band[k]), float(drawn.nominal[k] + drawn.band[k])
-            least = float(lo[j]) if walked[j] or side == "below" else -math.inf  # the recording's bounds, open: inf
-            most = float(hi[j]) if walked[j] or side == "above" else math.inf
+            least = max(float(lo[j]) if walked[j] or side == "below" else -math.inf, limits[j, 0])  # the recording's bounds, open: inf
+            most = min(float(hi[j]) if walked[j] or side == "above" else math.inf, limits[j, 1])
             if least >= high or most <= low:
                 beyond.append(j)
             elif least > low or most < high:  # else the whole drawn zone is inside the bounds: kept as drawn
@@ -306,17 +323,20 @@ class Identification:
             out = out.with_tolerances(Tolerances(tuple(cut), np.array([c[0] for c in cut.values()]),
                                                  np.array([c[1] for c in cut.values()]), drawn.distribution))
         scene, writable = dict(out.data["scene"]), self._drag_writable()
-        for name, value, held in zip(self.names, self.estimate, self.holds()):
+        for name, value, held in zip(self.names, self.estimate, self._kept()):
             if name in writable:
                 scene["drag_torque"] = float(value)
             joint, _, key = name.partition(".")
-            if key in MESH_KEYS and held is not False:
+            if key in MESH_KEYS and held:
                 scene[f"{joint}_stage"] = dict(scene.get(f"{joint}_stage", {})) | {key: float(value)}
         statuses = self.status()
 
         def said(j):
             n, u, st = self.names[j], self.units[j], statuses[j]
-            if st == "bounded below only":
+            if stopped[j] is not None:
+                text = f"{n} {show(limits[j, int(stopped[j] == 'upper')], u)} ({st} of the fit: the recording asks for " + \
+                    ("less" if stopped[j] == "lower" else "more")
+            elif st == "bounded below only":
                 text = f"{n} >= {show(lo[j], u)} (95 %, {st}"
             elif st == "bounded above only":
                 text = f"{n} <= {show(hi[j], u)} (95 %, {st}"
@@ -332,13 +352,17 @@ class Identification:
                            + "; ".join(said(j) for j in range(len(self.names))).replace("µm", "um")}
         return F.SceneFile.from_data(data, "identified", "<identified>")
 
+    def _kept(self) -> list[bool]:
+        """Per parameter: can its estimate be written (its interval not failed, not at a bound)?"""
+        return [held is not False and stop is None for held, stop in zip(self.holds(), self.stopped())]
+
     def unwritten(self) -> tuple[str, ...]:
         """The identified parameters `scene_file` cannot write (no scene-file key holds them; those
-        whose interval does not hold are not written either, and not listed here)."""
+        whose interval does not hold, or stopped at a bound, are not written either, and not listed here)."""
         from .parameters import MESH_KEYS
 
-        return tuple(n for n, u, held in zip(self.names, self.units, self.holds())
-                     if u != "m" and held is not False and n not in self._drag_writable() and n.partition(".")[2] not in MESH_KEYS)
+        return tuple(n for n, u, held in zip(self.names, self.units, self._kept())
+                     if u != "m" and held and n not in self._drag_writable() and n.partition(".")[2] not in MESH_KEYS)
 
     def _drag_writable(self) -> tuple[str, ...]:
         """`("joint.drag_torque",)` where that joint's drag was identified and no other joint's
@@ -346,7 +370,7 @@ class Identification:
         from ..mechanism.drives import TorqueDrive
         from ..mechanism.joints import IdealJoint
 
-        drags = [n for n, held in zip(self.names, self.holds()) if n.endswith(".drag_torque") and held is not False]
+        drags = [n for n, held in zip(self.names, self._kept()) if n.endswith(".drag_torque") and held]
         if len(drags) != 1 or self.scene is None or not hasattr(self.scene, "named_joints"):
             return ()
         joint = drags[0].split(".")[0]
@@ -357,7 +381,7 @@ class Identification:
         """The estimates, intervals and identifiability as Markdown."""
         (lo, hi), walked = self.bounds(), self.walked()
         rows = ["| parameter | estimate | 95 % interval | relative standard error | determined? |", "|---|---|---|---|---|"]
-        sides = self.one_sided()
+        sides, stopped = self.one_sided(), self.stopped()
         for j, (name, status) in enumerate(zip(self.names, self.status())):
             rel = self.standard_error[j] / max(abs(self.estimate[j]), 1e-300)
             interval = f"{show(lo[j], self.units[j])} – {show(hi[j], self.units[j])}" if rel < 1 else "not bounded by the recording"
@@ -367,6 +391,8 @@ class Identification:
             if sides[j] is not None:
                 interval = (f"≥ {show(lo[j], self.units[j])}, not bounded above" if sides[j] == "below"
                             else f"≤ {show(hi[j], self.units[j])}, not bounded below")
+            if stopped[j] is not None:
+                interval = f"{'below' if stopped[j] == 'lower' else 'above'} the bound, by the recording"
             rows.append(f"| {name} | {show(self.estimate[j], self.units[j])} | {interval} | {rel:.3g} | {status} |")
         below = self.residual_sd < RESOLVED * (1 - 1e-9)
         lines = [(f"Residual standard deviation {1e6 * self.residual_sd:.3g} µrad over {self.n} samples, below what the "
@@ -412,7 +438,16 @@ class Identification:
                       "or a larger amplitude)."]
         for j in np.flatnonzero(walked):
             notes += ["", self._walked_note(j, lo[j], hi[j])]
-        rugged = [j for j, (held, side) in enumerate(zip(self.holds(), sides)) if held is False and side is None]
+        for j in (j for j, side in enumerate(stopped) if side is not None):
+            less = "less" if stopped[j] == "lower" else "more"
+            notes += ["", f"**{self.names[j]} stopped at the fit's {stopped[j]} bound** "
+                      f"({show(self.limits[j, int(stopped[j] == 'upper')], self.units[j])}): the Gauss-Newton step from it points "
+                      f"past the bound, so the residual's minimum lies beyond it: the recording asks for {less}. The estimate is the "
+                      "bound, not a value the recording determines, and is not written into the identified scene (a clearance "
+                      "or backlash keeps the part of its drawn zone inside the bounds). Widen the bound where such a value is "
+                      "physical; where it is not, the model misses the unit (a parameter left at the scene's value, a lower "
+                      "fidelity than the unit's) or the recording is not of this unit."]
+        rugged = [j for j, (held, side, stop) in enumerate(zip(self.holds(), sides, stopped)) if held is False and side is stop is None]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
             many = len(rugged) > 1
@@ -434,7 +469,6 @@ class Identification:
             terms = " ".join(f"{v:+.2f}·{n}" for v, n in zip(vector, self.names) if abs(v) > 0.05)
             lines.append(f"- {se:.3g}: {terms}")
         return "\n".join(lines)
-
 
     def _walked_note(self, j, low, high) -> str:
         """The table's note on a parameter whose profile-likelihood bounds were read."""
