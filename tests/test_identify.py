@@ -569,7 +569,7 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     noise = math.hypot(NOISE, ENCODER / math.sqrt(12))
     a0 = float(scene.azimuth.drive.amplitude)
     said = []
-    plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25],
+    plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25], dwells=(),
                        progress=said.append)
     # A rough time before the work, a line per candidate as it is done (the CLI prints them).
     assert said[0].startswith("design_test [0:00] 2 candidate scans") and "roughly" in said[0] and len(said) == 3, said
@@ -592,10 +592,67 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")
     with pytest.raises(ValueError, match="no candidate scan inside the limits"):
-        design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0], periods=[0.1])
+        design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0], periods=[0.1], dwells=())
+    with pytest.raises(ValueError, match="dwells=.* must be > 0"):
+        design_test(scene, names, duration=0.35, n_save=141, noise=noise, dwells=[0.0])
     with pytest.raises(ValueError, match=r'has no joint driven by one \(a scene file with \[scene\] kind = "scan"'):
         design_test(tx.scan("azimuth", fidelity=("lumped", "ideal"), profile_times=[0.0, 1.0], profile_angles=[0.0, 0.01]),
                     names, duration=0.35, n_save=141, noise=noise)
+
+
+def test_the_command_line_writes_a_proposed_slew_test_as_a_profile(tmp_path, monkeypatch):
+    """Where `tolerax plan-test` proposes slews with dwells, test.toml drives the scan by their
+    profile (`profile_times`/`profile_angles`, the scan's amplitude and period removed: the file
+    reads back). The plan is a hand-made one (a real design is the test below); the command's
+    writing of it is what this tests."""
+    from tolerax import cli
+    from tolerax.identification import testdesign as T
+
+    def slewing(scene, parameters, **options):
+        assert options["dwells"] == [0.05]  # --dwells, s
+        return T.TestDesign(names=tuple(parameters), units=("m",), values=np.array([100e-6]), amplitude=np.array([0.0087, 0.0087]),
+                            period=np.array([1.0, 1.05]), relative_error=np.array([[1e-3], [5e-4]]), rugged=np.zeros((2, 1), bool),
+                            score=np.array([1e-3, 5e-4]), plain=0, best=1, criterion="weakest", noise=2.6e-6, duration=0.35, settle=0.0,
+                            undetermined=(), slew=np.array([np.nan, 0.477]), dwell=np.array([np.nan, 0.05]))
+
+    monkeypatch.setattr(T, "design_test", slewing)
+    assert cli.main(["plan-test", "scan-azimuth", "--parameters", "azimuth.ring_backlash", "--duration", "0.35", "--dwells", "0.05",
+                     "--quiet", "--out", str(tmp_path / "plan")]) == 0
+    test = tx.load_scene(str(tmp_path / "plan" / "test.toml"))
+    times, angles = T.slew_profile(0.0087, 0.477, 0.05, 0.35)
+    assert "amplitude" not in test.data["scene"] and "period" not in test.data["scene"]
+    drive = test.build().azimuth.drive
+    assert isinstance(drive, tx.ProfileServo) and np.allclose(drive.times, times) and np.allclose(drive.angles, angles)
+    assert "Proposed test: a ±0.498° slews of 0.477 s with 0.05 s dwells" in (tmp_path / "plan" / "test_plan.md").read_text()
+
+def test_a_slew_test_with_dwells_is_a_candidate_run_by_the_same_program():
+    """`design_test`'s slews with dwells (`slew_profile`: between +-A, each slew at the rate limit,
+    passing 0 at its peak rate at t = 0, a steady start) run through the one program of the sine
+    scans (`_TestServo` selects by a value); what that program simulates is what a scene driven by
+    the profile alone (`ProfileServo`, a separately compiled program) simulates."""
+    from tolerax.identification.testdesign import _Candidate, _with_test, design_test, slew_profile, with_profile
+
+    scene = _scene()
+    a0, t0 = float(scene.azimuth.drive.amplitude), float(scene.azimuth.drive.period)
+    noise = math.hypot(NOISE, ENCODER / math.sqrt(12))
+    plan = design_test(scene, ("azimuth.ring_backlash",), duration=0.35, n_save=141, noise=noise, amplitudes=[], periods=[],
+                       dwells=[0.05])
+    assert [plan.slewing(k) for k in range(3)] == [False, True, True] and plan.plain == 0
+    rate = 2 * math.pi * a0 / t0  # the plain scan's peak rate: the default limit
+    assert list(plan.amplitude[1:]) == pytest.approx([a0 / 4, a0]) and list(plan.slew[1:]) == pytest.approx([0.75 * a0 / rate, 3 * a0 / rate])
+    times, angles = plan.profile(2)
+    assert times[:4] == pytest.approx([-plan.slew[2] / 2 - 0.05, -plan.slew[2] / 2, plan.slew[2] / 2, plan.slew[2] / 2 + 0.05])
+    assert list(angles[:6]) == pytest.approx([-a0, -a0, a0, a0, -a0, -a0]) and times[-1] > 0.35
+    assert "slews of" in plan.table() and "| — (sine) |" in plan.table() and np.all(np.isfinite(plan.relative_error))
+    assert f"peak rate {math.degrees(rate):.3g} °/s" in plan.test_of(2)
+    # The one program against the profile's drive alone (the sine's is `jnp.where`'s other branch).
+    knots = len(slew_profile(a0, plan.slew[2], 0.05, 0.35)[0]) + 2  # padded, as design_test pads to its longest profile
+    slews = _Candidate(a0, plan.period[2], *slew_profile(a0, plan.slew[2], 0.05, 0.35, knots), True)
+    ran, own = (tx.simulate(s, 0.35, n_save=141, start="steady").joint_angle for s in (_with_test(scene, slews),
+                                                                                       with_profile(scene, times, angles)))
+    assert np.max(np.abs(ran - own)) < 1e-12 and np.ptp(own[:, 0]) > a0 / 2
+    with pytest.raises(ValueError, match="do not reach past"):
+        slew_profile(a0, plan.slew[2], 0.05, 0.35, 2)
 
 
 @pytest.mark.slow

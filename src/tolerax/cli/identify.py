@@ -216,7 +216,8 @@ def add_parser(sub, out_options, positive, non_negative, epilog):
 
 
 def plan_test_command(parser, args) -> int:
-    """`tolerax plan-test SCENE --parameters ...`: the scan whose recording determines them best."""
+    """`tolerax plan-test SCENE --parameters ...`: the test (a sine scan, or slews with dwells)
+    whose recording determines them best."""
     from ..identification.testdesign import design_test
 
     read = _scene_and_parameters(parser, args)
@@ -228,12 +229,12 @@ def plan_test_command(parser, args) -> int:
     limits = dict(max_amplitude=None if args.max_amplitude is None else math.radians(args.max_amplitude),
                   max_rate=None if args.max_rate is None else math.radians(args.max_rate))
     run = _run_settings(scene_file)
-    print(f"tolerax plan-test: the scan of {scene_file.title} whose {args.duration:g} s recording determines "
+    print(f"tolerax plan-test: the test of {scene_file.title} whose {args.duration:g} s recording determines "
           f"{', '.join(parameters)} best; results in {out}/", flush=True)
     start = time.perf_counter()
     try:
         plan = design_test(scene, parameters, duration=args.duration, n_save=args.samples, noise=noise, settle=args.settle,
-                           criterion=args.criterion, progress=not args.quiet, **limits, **run)
+                           dwells=args.dwells, criterion=args.criterion, progress=not args.quiet, **limits, **run)
     except ValueError as err:
         print(f"tolerax plan-test: {err}", file=sys.stderr)
         return 2
@@ -242,9 +243,16 @@ def plan_test_command(parser, args) -> int:
     from ..io import scenefile as F
 
     data = scene_file.data | {"title": f"Test: {scene_file.title}"}
-    prefix = "scan_" if data["scene"].get("kind") == "antenna" else ""  # an antenna's keys are scan_amplitude, scan_period
-    data["scene"] = dict(data["scene"]) | {f"{prefix}amplitude": float(plan.amplitude[plan.best]),
-                                           f"{prefix}period": float(plan.period[plan.best])}
+    antenna = data["scene"].get("kind") == "antenna"  # an antenna's keys are scan_amplitude, scan_period; drive = "profile"
+    prefix, scene = "scan_" if antenna else "", dict(data["scene"])
+    if plan.slewing(plan.best):  # the tabulated profile in place of the scan's amplitude and period
+        times, angles = plan.profile(plan.best)
+        scene = {k: v for k, v in scene.items() if k not in (f"{prefix}amplitude", f"{prefix}period")} | (
+            {"drive": "profile"} if antenna else {}) | {"profile_times": [float(v) for v in times],
+                                                         "profile_angles": [float(v) for v in angles]}
+    else:
+        scene |= {f"{prefix}amplitude": float(plan.amplitude[plan.best]), f"{prefix}period": float(plan.period[plan.best])}
+    data["scene"] = scene
     data["run"] = dict(data.get("run", {})) | {"duration": args.duration, "settle": args.settle, "n_save": args.samples}
     path = F.save_scene(F.SceneFile.from_data(data, "test", "<plan-test>"), out / "test.toml")
     text = "\n".join([
@@ -261,9 +269,10 @@ def plan_test_command(parser, args) -> int:
 
 def add_plan_parser(sub, out_options, positive, non_negative, epilog):
     parser = sub.add_parser(
-        "plan-test", help="the scan whose recording determines the chosen clearances and parameters best",
-        description="Before a unit's acceptance test: of the sine scans inside the mechanism's limits (amplitude, peak "
-        "rate; default the scene's own scan's), the one whose recording of --duration s through the encoder determines "
+        "plan-test", help="the test (a scan, or slews with dwells) whose recording determines the chosen clearances and "
+        "parameters best",
+        description="Before a unit's acceptance test: of the sine scans and the slews with dwells at each end inside the "
+        "mechanism's limits (amplitude, peak rate; default the scene's own scan's), the one whose recording of --duration s through the encoder determines "
         "--parameters best at the scene's values (tolerax.identification.testdesign), against the scene's own scan. "
         "Writes test_plan.md and test.toml (the scene running the proposed test, for tolerax identify).", epilog=epilog)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file whose joints scan")
@@ -278,6 +287,9 @@ def add_plan_parser(sub, out_options, positive, non_negative, epilog):
                         help="the largest scan amplitude the unit may run, deg (default the scene's)")
     parser.add_argument("--max-rate", type=positive, default=None, metavar="DEG_PER_S",
                         help="the highest rate, deg/s (default the scene's scan's peak rate)")
+    parser.add_argument("--dwells", type=positive, nargs="*", default=None, metavar="S",
+                        help="the slew tests' dwells at each end, s (default 1/8 and 1/4 of the fitted window; give none, "
+                        "--dwells with no value, for sine scans only)")
     parser.add_argument("--criterion", default="weakest", choices=("weakest", "D"),
                         help="the weakest parameter's error (default) or the joint region's volume (D-optimal)")
     parser.add_argument("--quiet", action="store_true", help="no time estimate or line per candidate while it runs (the plan "
