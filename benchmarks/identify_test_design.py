@@ -1,7 +1,8 @@
 """The test design measured: recordings of the plain scan and of the proposed one, identified.
 
 `tolerax.identification.testdesign.design_test` proposes, at the scene's values (the guess before
-the test), the scan that makes the chosen parameters best determined, from the linearised
+the test), the test (a sine scan, or slews with dwells: `--dwells`) that makes the chosen
+parameters best determined, from the linearised
 information of each candidate. This checks the prediction where it matters: a unit whose
 values are not the guess (`--truth`: ring backlash 0.8x the scene's 100 µm, drag 1.2x its
 0.05 N m) is recorded `--n` times through each test (a 20-bit
@@ -39,6 +40,8 @@ def main(argv=None) -> int:
     parser.add_argument("--n", type=int, default=8, help="recordings per test (default 8)")
     parser.add_argument("--truth", type=float, nargs=2, default=(0.8, 1.2), metavar=("BACKLASH", "DRAG"),
                         help="the unit's ring backlash and drag as factors of the scene's (default 0.8 1.2)")
+    parser.add_argument("--dwells", type=float, nargs="*", default=None, metavar="S",
+                        help="the slew tests' dwells, s (default design_test's; none: sine scans only)")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
     scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
@@ -48,7 +51,7 @@ def main(argv=None) -> int:
     a0 = float(scene.azimuth.drive.amplitude)
     # The mechanism's limits: twice the acceptance scan's peak rate, four times its amplitude.
     proposal = design_test(scene, NAMES, duration=DURATION, n_save=N_SAVE, noise=math.hypot(NOISE, ENCODER / math.sqrt(12)),
-                           max_amplitude=4 * a0, max_rate=2 * (2 * math.pi * a0 / 1.0), periods=PERIODS)
+                           max_amplitude=4 * a0, max_rate=2 * (2 * math.pi * a0 / 1.0), periods=PERIODS, dwells=args.dwells)
     design_wall = time.perf_counter() - start
     print(proposal.table(), flush=True)
     tests = {"plain": scene, "proposed": proposal.scene}
@@ -81,16 +84,16 @@ def main(argv=None) -> int:
         measured = np.mean(summary["plain"]["se"][:, j]) / np.mean(summary["proposed"]["se"][:, j])
         spread = np.std(summary["plain"]["est"][:, j], ddof=1) / np.std(summary["proposed"]["est"][:, j], ddof=1)
         rows.append(f"| {name} | {' | '.join(cells)} | {proposal.sharper()[j]:.3g}x | {measured:.3g}x | {spread:.3g}x |")
-    a, t = proposal.amplitude, proposal.period
+    a = proposal.amplitude
     text = "\n".join([
         "# Test design, measured: the plain scan against the proposed one", "",
-        f"`python benchmarks/identify_test_design.py --n {args.n} --truth {args.truth[0]:g} {args.truth[1]:g}`; {os.cpu_count()} cores, one used; load average "
+        f"`python benchmarks/identify_test_design.py --n {args.n} --truth {args.truth[0]:g} {args.truth[1]:g}"
+        + ("" if args.dwells is None else " --dwells " + " ".join(f"{d:g}" for d in args.dwells)) + f"`; {os.cpu_count()} cores, one used; load average "
         f"{os.getloadavg()[0]:.2f} at the end.", "",
         f"Lumped azimuth scan (`tx.scan('azimuth', fidelity=('lumped', 'ideal'))`), {DURATION:g} s recorded, {N_SAVE} "
         f"samples, 20-bit encoder and 2 µrad of noise. The unit: ring backlash {args.truth[0]:g}x and drag {args.truth[1]:g}x the scene's values; the test designed and each recording identified from the scene's values.", "",
-        f"Proposed by `design_test` in {design_wall:.1f} s ({len(a)} candidates, compilation included): ±"
-        f"{math.degrees(a[proposal.best]):.3g}° × {t[proposal.best]:.3g} s against the plain ±{math.degrees(a[0]):.3g}° × "
-        f"{t[0]:.3g} s; limits: amplitude <= {math.degrees(4 * a0):.3g}°, peak rate <= "
+        f"Proposed by `design_test` in {design_wall:.1f} s ({len(a)} candidates, compilation included): "
+        f"{proposal.test_of(proposal.best)} against the plain {proposal.test_of(proposal.plain)}; limits: amplitude <= {math.degrees(4 * a0):.3g}°, peak rate <= "
         f"{math.degrees(4 * math.pi * a0):.3g} °/s.", "",
         "Per parameter, relative to the truth: the stated standard error (mean over the recordings), the estimates' "
         "spread (standard deviation), the 95 % intervals holding the truth; then plain / proposed as predicted at the "
