@@ -212,7 +212,7 @@ def test_an_estimate_stopped_at_a_bound_is_said_and_not_written():
     assert got.status() == ("at its lower bound",) and got.stopped() == ("lower",)
     table = got.table()
     assert "**azimuth.ring_backlash stopped at the fit's lower bound** (61.00 µm)" in table and "the recording asks for less" in table
-    assert "does not hold**" not in table and "| at its lower bound |" in table
+    assert "does not hold**" not in table and "| at its lower bound |" in table and "an estimate is held at a bound of the fit" in table
     drawn = tx.load_scene("scan-azimuth")
     k = drawn.tolerances().names.index("azimuth.ring_backlash")
     written = got.scene_file(drawn, "unit.csv")

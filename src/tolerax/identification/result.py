@@ -399,7 +399,7 @@ class Identification:
                   f"simulation resolves ({1e6 * RESOLVED:.3g} µrad: its own integration error, as from a noise-free recording "
                   f"of the model itself), so the intervals are stated at {1e6 * RESOLVED:.3g} µrad; "
                   if below else f"Residual standard deviation {1e6 * self.sigma:.3g} µrad over {self.n} samples; ")
-                 + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor)'} "
+                 + f"Levenberg-Marquardt {'converged' if self.converged else 'NOT converged (the step left exceeds a tenth of a standard error, or one at the cost floor' + ('; an estimate is held at a bound of the fit, below' if any(stopped) else '') + ')'} "
                  f"after {self.steps} steps "
                  f"(best of {len(self.starts)} starts" + (f", chosen from {self.screened} screened" + (f", the last from {self.line_screened} along each parameter's "
                                                                    "line through the best fit" if self.line_screened else "")
