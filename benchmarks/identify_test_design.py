@@ -40,8 +40,8 @@ def main(argv=None) -> int:
     parser.add_argument("--n", type=int, default=8, help="recordings per test (default 8)")
     parser.add_argument("--truth", type=float, nargs=2, default=(0.8, 1.2), metavar=("BACKLASH", "DRAG"),
                         help="the unit's ring backlash and drag as factors of the scene's (default 0.8 1.2)")
-    parser.add_argument("--dwells", type=float, nargs="*", default=None, metavar="S",
-                        help="the slew tests' dwells, s (default design_test's; none: sine scans only)")
+    parser.add_argument("--dwells", type=float, nargs="+", default=(), metavar="S",
+                        help="slew tests with these dwells (s) join the candidates (default none: design_test's)")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
     scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     text = "\n".join([
         "# Test design, measured: the plain scan against the proposed one", "",
         f"`python benchmarks/identify_test_design.py --n {args.n} --truth {args.truth[0]:g} {args.truth[1]:g}"
-        + ("" if args.dwells is None else " --dwells " + " ".join(f"{d:g}" for d in args.dwells)) + f"`; {os.cpu_count()} cores, one used; load average "
+        + ("" if not args.dwells else " --dwells " + " ".join(f"{d:g}" for d in args.dwells)) + f"`; {os.cpu_count()} cores, one used; load average "
         f"{os.getloadavg()[0]:.2f} at the end.", "",
         f"Lumped azimuth scan (`tx.scan('azimuth', fidelity=('lumped', 'ideal'))`), {DURATION:g} s recorded, {N_SAVE} "
         f"samples, 20-bit encoder and 2 µrad of noise. The unit: ring backlash {args.truth[0]:g}x and drag {args.truth[1]:g}x the scene's values; the test designed and each recording identified from the scene's values.", "",

@@ -569,7 +569,7 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     noise = math.hypot(NOISE, ENCODER / math.sqrt(12))
     a0 = float(scene.azimuth.drive.amplitude)
     said = []
-    plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25], dwells=(),
+    plan = design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0 / 4], periods=[0.25],
                        progress=said.append)
     # A rough time before the work, a line per candidate as it is done (the CLI prints them).
     assert said[0].startswith("design_test [0:00] 2 candidate scans") and "roughly" in said[0] and len(said) == 3, said
@@ -592,7 +592,7 @@ def test_the_test_design_keeps_to_a_test_whose_fit_has_one_basin_and_names_what_
     with pytest.raises(ValueError, match="criterion='E' is unknown"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, criterion="E")
     with pytest.raises(ValueError, match="no candidate scan inside the limits"):
-        design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0], periods=[0.1], dwells=())
+        design_test(scene, names, duration=0.35, n_save=141, noise=noise, amplitudes=[a0], periods=[0.1])
     with pytest.raises(ValueError, match="dwells=.* must be > 0"):
         design_test(scene, names, duration=0.35, n_save=141, noise=noise, dwells=[0.0])
     with pytest.raises(ValueError, match=r'has no joint driven by one \(a scene file with \[scene\] kind = "scan"'):

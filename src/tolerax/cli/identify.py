@@ -269,10 +269,9 @@ def plan_test_command(parser, args) -> int:
 
 def add_plan_parser(sub, out_options, positive, non_negative, epilog):
     parser = sub.add_parser(
-        "plan-test", help="the test (a scan, or slews with dwells) whose recording determines the chosen clearances and "
-        "parameters best",
-        description="Before a unit's acceptance test: of the sine scans and the slews with dwells at each end inside the "
-        "mechanism's limits (amplitude, peak rate; default the scene's own scan's), the one whose recording of --duration s through the encoder determines "
+        "plan-test", help="the scan whose recording determines the chosen clearances and parameters best",
+        description="Before a unit's acceptance test: of the sine scans (and, with --dwells, slews with dwells at each end) "
+        "inside the mechanism's limits (amplitude, peak rate; default the scene's own scan's), the one whose recording of --duration s through the encoder determines "
         "--parameters best at the scene's values (tolerax.identification.testdesign), against the scene's own scan. "
         "Writes test_plan.md and test.toml (the scene running the proposed test, for tolerax identify).", epilog=epilog)
     parser.add_argument("scene", help="built-in scene name or path to a .toml scene file whose joints scan")
@@ -287,9 +286,9 @@ def add_plan_parser(sub, out_options, positive, non_negative, epilog):
                         help="the largest scan amplitude the unit may run, deg (default the scene's)")
     parser.add_argument("--max-rate", type=positive, default=None, metavar="DEG_PER_S",
                         help="the highest rate, deg/s (default the scene's scan's peak rate)")
-    parser.add_argument("--dwells", type=positive, nargs="*", default=None, metavar="S",
-                        help="the slew tests' dwells at each end, s (default 1/8 and 1/4 of the fitted window; give none, "
-                        "--dwells with no value, for sine scans only)")
+    parser.add_argument("--dwells", type=positive, nargs="+", default=(), metavar="S",
+                        help="slews between the ends at the rate limit with these dwells at each end (s) join the candidates "
+                        "(default none: their fits were rugged where measured, benchmarks/identify_test_design.py)")
     parser.add_argument("--criterion", default="weakest", choices=("weakest", "D"),
                         help="the weakest parameter's error (default) or the joint region's volume (D-optimal)")
     parser.add_argument("--quiet", action="store_true", help="no time estimate or line per candidate while it runs (the plan "
