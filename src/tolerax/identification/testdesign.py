@@ -380,7 +380,9 @@ def design_test(scene, parameters, *, duration: float, n_save: int, noise: float
             "points" + ("" if one is None else f": roughly {human_seconds(max(len(grid) * runs * one, 1.0))} on one core") +
             " plus compilation")
     for k, c in enumerate(candidates):  # one compiled program for all: each test's values are arrays of the scene
-        candidate = eqx.tree_at(lambda o: o.scene, objective, _with_test(scene, c))
+        # (sine scans alone: the scene's own ScanServo, the program as without slews)
+        test = _with_test(scene, c) if slews else with_scan(scene, c.amplitude, c.period)
+        candidate = eqx.tree_at(lambda o: o.scene, objective, test)
         fit = _Fit(candidate, parameters, jnp.asarray(scale), rows, columns, measured)
         if k == 0:  # the plain scan: the Jacobian chosen once for every candidate (one compiled program)
             chosen, jacobian = _choose_jacobian(fit, x, width, secant)
