@@ -4,7 +4,7 @@ encoder's rounding, not its noise, widen the estimates' spread past the stated e
 The unit: the azimuth scan (`tx.scan("azimuth", fidelity=("lumped", "ideal"))`, 0.35 s from a
 steady start, 141 samples, one reversal), ring backlash 60 µm, drag the scene's 0.05 N m, both
 identified with `identify`'s defaults from the scene's values. `--n` recordings (noise keys
-3000 + k: those of `identify_fidelity_bias.py`'s control), each in two versions: through the
+`--keys` + k, default 3000 + k: those of `identify_fidelity_bias.py`'s control), each in two versions: through the
 20-bit encoder (2 µrad of noise, then rounded to 6.0 µrad steps) and with the same total noise
 as Gaussian alone ($\\sqrt{2^2 + 6^2/12}$ = 2.64 µrad, no rounding). Reported per parameter: the
 estimates' spread over the mean stated standard error, the RMS of the standardised errors, and
@@ -32,13 +32,14 @@ MODES = ("20-bit encoder (2 µrad noise, rounded)", "Gaussian alone (2.64 µrad)
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=20, help="recordings (default 20)")
+    parser.add_argument("--keys", type=int, default=3000, help="the first recording's noise key (default 3000)")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
     lumped = tx.scan("azimuth", fidelity=("lumped", "ideal"))
     truth = np.array([60e-6, float(parameter_values(lumped, [NAMES[1]])[0])])
     rows = {mode: [] for mode in MODES}
     for seed in range(args.n):
-        key = jax.random.key(3000 + seed)
+        key = jax.random.key(args.keys + seed)
         for mode in MODES:
             noise, quantum = (NOISE, ENCODER) if mode == MODES[0] else (math.hypot(NOISE, ENCODER / math.sqrt(12)), 0.0)
             rec = tx.synthetic_recording(lumped, dict(zip(NAMES, truth)), duration=0.35, n_save=141, noise=noise, quantum=quantum,
@@ -47,7 +48,8 @@ def main(argv=None) -> int:
             rows[mode].append((got.estimate, got.standard_error, got.status()))
             print(seed, mode, got.estimate, got.standard_error, got.status(), flush=True)
     lines = ["# The drag's interval: the encoder's rounding against its noise", "",
-             f"`python benchmarks/identify_drag_coverage.py --n {args.n}`; {os.cpu_count()} cores; load average "
+             f"`python benchmarks/identify_drag_coverage.py --n {args.n}" + (f" --keys {args.keys}" if args.keys != 3000 else "")
+             + f"`; {os.cpu_count()} cores; load average "
              f"{os.getloadavg()[0]:.2f} at the end.", "",
              "Lumped azimuth unit (ring backlash 60 µm, drag 0.05 N m) identified by the lumped joint, both parameters from the "
              "scene's values with `identify`'s defaults; the same noise keys in both versions of each recording.", "",

@@ -447,7 +447,7 @@ class Identification:
                       "or backlash keeps the part of its drawn zone inside the bounds). Widen the bound where such a value is "
                       "physical; where it is not, the model misses the unit (a parameter left at the scene's value, a lower "
                       "fidelity than the unit's) or the recording is not of this unit."]
-        rugged = [j for j, (held, side, stop) in enumerate(zip(self.holds(), sides, stopped)) if held is False and side is stop is None]
+        rugged = [j for j, (held, side, stop) in enumerate(zip(self.holds(), sides, stopped)) if held is False and side is None and stop is None]
         if rugged:
             near, far = self.profile[rugged][:, :, :2], self.profile[rugged][:, :, 2]
             many = len(rugged) > 1

@@ -32,15 +32,16 @@ the recorded window (from a steady start, at $T/4 + kT/2$). Asked for (`dwells`)
 dwells too (`slew_profile`: a `ProfileServo` slewing between $\\pm A$ with dwells of $d$ at
 each end, passing 0 at $t = 0$, each slew as fast as the rate limit lets its shape-preserving
 cubic go: $3A/$`max_rate` for the $2A$, whose peak rate is 1.5 times its mean), where the
-output stops at each end and each reversal starts from rest. All run through one compiled
-program (the scanning joints' drive selects the sine or the profile by a value). Slews are not
-a default candidate: their stops make the fit's cost rugged about a unit away from the guess,
-which the check above (at the guess) does not see, so a proposed slew test can identify worse
-than the plain scan it was predicted to beat (`benchmarks/identify_test_design.py --dwells`). The prediction is
-linearised at the guess: how much sharper the proposed test really is, at a unit's own values,
-comes from identifying recordings of both (`benchmarks/identify_test_design.py`). A parameter
-no candidate determines is named: no test of these families separates it (the two backlashes
-of a lumped joint: the output sees their sum).
+output stops at each end and each reversal starts from rest; then every candidate runs through
+one compiled program (the scanning joints' drive selects the sine or the profile by a value).
+Slews are not a default candidate: their stops make the fit's cost rugged about a unit away
+from the guess, which the check above (at the guess) does not see, so a proposed slew test can
+identify worse than the plain scan it was predicted to beat
+(`benchmarks/identify_test_design.py --dwells`). The prediction is linearised at the guess:
+how much sharper the proposed test really is, at a unit's own values, comes from identifying
+recordings of both (`benchmarks/identify_test_design.py`). A parameter no candidate determines
+is named: no test of these families separates it (the two backlashes of a lumped joint: the
+output sees their sum).
 """
 
 import dataclasses
