@@ -27,28 +27,39 @@ from tolerax.identification.parameters import parameter_values
 ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6
 NAMES = ("azimuth.ring_backlash", "azimuth.drag_torque")
 MODES = ("20-bit encoder (2 µrad noise, rounded)", "Gaussian alone (2.64 µrad)")
+KEYS = 3000  # the first recording's noise key by default: identify_fidelity_bias.py's control's
+
+
+def unit():
+    """The lumped unit and its truth (ring backlash 60 µm, the scene's drag)."""
+    lumped = tx.scan("azimuth", fidelity=("lumped", "ideal"))
+    return lumped, np.array([60e-6, float(parameter_values(lumped, [NAMES[1]])[0])])
+
+
+def recording(lumped, truth, key, mode):
+    """One recording of the unit with noise `key`, in `mode` (`MODES`: rounded, or Gaussian of the same total)."""
+    noise, quantum = (NOISE, ENCODER) if mode == MODES[0] else (math.hypot(NOISE, ENCODER / math.sqrt(12)), 0.0)
+    return tx.synthetic_recording(lumped, dict(zip(NAMES, truth)), duration=0.35, n_save=141, noise=noise, quantum=quantum,
+                                  key=key)
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=20, help="recordings (default 20)")
-    parser.add_argument("--keys", type=int, default=3000, help="the first recording's noise key (default 3000)")
+    parser.add_argument("--keys", type=int, default=KEYS, help=f"the first recording's noise key (default {KEYS})")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
-    lumped = tx.scan("azimuth", fidelity=("lumped", "ideal"))
-    truth = np.array([60e-6, float(parameter_values(lumped, [NAMES[1]])[0])])
+    lumped, truth = unit()
     rows = {mode: [] for mode in MODES}
     for seed in range(args.n):
         key = jax.random.key(args.keys + seed)
         for mode in MODES:
-            noise, quantum = (NOISE, ENCODER) if mode == MODES[0] else (math.hypot(NOISE, ENCODER / math.sqrt(12)), 0.0)
-            rec = tx.synthetic_recording(lumped, dict(zip(NAMES, truth)), duration=0.35, n_save=141, noise=noise, quantum=quantum,
-                                         key=key)
+            rec = recording(lumped, truth, key, mode)
             got = tx.identify(lumped, rec, NAMES)
             rows[mode].append((got.estimate, got.standard_error, got.status()))
             print(seed, mode, got.estimate, got.standard_error, got.status(), flush=True)
     lines = ["# The drag's interval: the encoder's rounding against its noise", "",
-             f"`python benchmarks/identify_drag_coverage.py --n {args.n}" + (f" --keys {args.keys}" if args.keys != 3000 else "")
+             f"`python benchmarks/identify_drag_coverage.py --n {args.n}" + (f" --keys {args.keys}" if args.keys != KEYS else "")
              + f"`; {os.cpu_count()} cores; load average "
              f"{os.getloadavg()[0]:.2f} at the end.", "",
              "Lumped azimuth unit (ring backlash 60 µm, drag 0.05 N m) identified by the lumped joint, both parameters from the "

@@ -28,10 +28,8 @@ import jax
 import numpy as np
 
 import tolerax as tx
-from tolerax.identification.parameters import parameter_values
 
-NAMES = ("azimuth.ring_backlash", "azimuth.drag_torque")
-ENCODER, NOISE = 2 * math.pi / 2**20, 2e-6
+from identify_drag_coverage import ENCODER, KEYS, MODES, NAMES, NOISE, recording, unit
 
 
 def main(argv=None) -> int:
@@ -40,8 +38,7 @@ def main(argv=None) -> int:
     parser.add_argument("--recordings", type=int, default=0, help="identify_drag_coverage.py's first N recordings, linearly fitted")
     parser.add_argument("--out", type=pathlib.Path, default=None, help="write the Markdown result here")
     args = parser.parse_args(argv)
-    scene = tx.scan("azimuth", fidelity=("lumped", "ideal"))
-    truth = np.array([60e-6, float(parameter_values(scene, [NAMES[1]])[0])])
+    scene, truth = unit()  # identify_drag_coverage.py's
 
     def output(values):
         rec = tx.synthetic_recording(scene, dict(zip(NAMES, values)), duration=0.35, n_save=141)
@@ -64,11 +61,10 @@ def main(argv=None) -> int:
         for j, name in enumerate(NAMES):
             rows.append(f"| {label} | {name} | {np.mean(np.abs(z[j]) < 1.96):.4f} | {np.std(z[j]):.3f} | {np.mean(z[j]):+.3f} |")
     same = []
-    for label, (noise, quantum) in (("20-bit encoder", (NOISE, ENCODER)), ("Gaussian alone", (total, 0.0))):
+    for label, mode in zip(("20-bit encoder", "Gaussian alone"), MODES):
         z = []
         for seed in range(args.recordings):  # identify_drag_coverage.py's recordings: the same keys, noise and rounding
-            rec = tx.synthetic_recording(scene, dict(zip(NAMES, truth)), duration=0.35, n_save=141, noise=noise, quantum=quantum,
-                                         key=jax.random.key(3000 + seed))
+            rec = recording(scene, truth, jax.random.key(KEYS + seed), mode)
             e = np.asarray(rec.measured)[:, 0] - y
             d = np.linalg.solve(J.T @ J, J.T @ e)
             z.append(d / np.sqrt(np.diag(cov) * np.sum((e - J @ d) ** 2) / (y.size - 2)))
