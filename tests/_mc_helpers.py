@@ -4,6 +4,7 @@ processes, Dask workers, the sharding subprocess) import them by reference."""
 import functools
 import os
 import sys
+import time
 
 import equinox as eqx
 import jax
@@ -95,3 +96,22 @@ class DieOnce(eqx.Module):
         shape = jax.ShapeDtypeStruct(y.shape, y.dtype)
         y = jax.pure_callback(functools.partial(_die_once, marker=self.marker), shape, y, vmap_method="broadcast_all")
         return {"y": y, "success": jnp.array(True)}
+
+
+def _sleep_then_pid(x, seconds):
+    time.sleep(seconds)
+    return np.full(np.shape(x), float(os.getpid()))
+
+
+class Slow(eqx.Module):
+    """`sum(x)`, and the id of the process that evaluated the unit, after sleeping `seconds` per
+    chunk (one host callback per chunk): a model slow enough that a worker process has started
+    before the run ends."""
+
+    seconds: float = eqx.field(static=True, default=1.0)
+
+    def __call__(self, x):
+        y = jnp.sum(x)
+        shape = jax.ShapeDtypeStruct(y.shape, y.dtype)
+        pid = jax.pure_callback(functools.partial(_sleep_then_pid, seconds=self.seconds), shape, y, vmap_method="broadcast_all")
+        return {"y": y, "pid": pid, "success": jnp.array(True)}

@@ -331,6 +331,41 @@ def test_processes_backend_and_killed_worker_resume(tmp_path):
     np.testing.assert_array_equal(resumed.dataset["sample"].values, np.arange(40))
 
 
+def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
+    """The default backend ("auto") with one worker process beside this one: the worker takes
+    chunks (a second process id among the units: the run is 8 chunks of 1.5 s sleeps, 12 s for
+    this process alone, and a worker starts in a few), and every output is bitwise the
+    one-process run's. Speculation: the run ends as soon as every chunk has a result, here or
+    there."""
+    from tolerax.uncertainty.montecarlo import helper_count
+
+    assert helper_count(1) == (0, "one chunk")
+    assert helper_count(5, workers=3)[0] == 3 and helper_count(2, workers=3)[0] == 1  # at most a chunk each beside this one
+    model = helpers.Slow(1.5)
+    auto = monte_carlo(model, TOLERANCES, 16, KEY, chunk_size=2, workers=1, **QUIET).dataset
+    pids = set(auto["pid"].values)
+    assert float(os.getpid()) in pids and len(pids) == 2, pids
+    alone = monte_carlo(helpers.Slow(0.0), TOLERANCES, 16, KEY, chunk_size=2, backend="vmap", **QUIET).dataset
+    # (the settings differ in the model's fingerprint: another sleep)
+    assert auto.drop_vars("pid").drop_attrs(deep=False).identical(alone.drop_vars("pid").drop_attrs(deep=False))
+
+
+def test_auto_backend_starts_no_worker_from_an_unguarded_script(tmp_path, monkeypatch):
+    """A spawned worker imports the main script again: without the `__main__` guard it would run
+    the script's Monte Carlo once more, so "auto" computes in this process alone there."""
+    import types
+
+    from tolerax.uncertainty import montecarlo as MC
+
+    for text, safe in (("monte_carlo(...)\n", False), ("if __name__ == '__main__':\n    monte_carlo(...)\n", True)):
+        script = tmp_path / "script.py"
+        script.write_text(text)
+        monkeypatch.setitem(sys.modules, "__main__", types.SimpleNamespace(__file__=str(script)))
+        assert MC._spawn_safe() is safe
+        count, why = MC.helper_count(4)
+        assert (count == 0 and "guard" in why) if not safe else "guard" not in why
+
+
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
                     reason="pinning needs Linux and two cores")
 def test_processes_backend_pins_each_worker_to_a_core_of_its_own():

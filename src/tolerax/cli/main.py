@@ -106,10 +106,10 @@ def optimiser_options(parser):
                         "over --draws units")
     parser.add_argument("--check", type=count(0), default=None,
                         help="with --yield: fresh units simulated to check (and correct) the yield (default: the scene file's [tolerances] check, else 200; 0: none)")
-    parser.add_argument("--backend", default="vmap", choices=("vmap", "processes"),
-                        help="how the Monte Carlo checks' units (and design's --verify) are simulated: vmap, batched in this "
-                        "process (default), or processes, a pool of one worker per core (each compiles the unit once: worth it "
-                        "on a machine with more cores than the check's chunks take to compile)")
+    parser.add_argument("--backend", default="auto", choices=("auto", "vmap", "processes"),
+                        help="how the Monte Carlo checks' units (and design's --verify) are simulated: auto (default), "
+                        "batched in this process with worker processes beside it on idle cores; vmap, this process alone; "
+                        "processes, a pool of one worker per core")
     parser.add_argument("--allow-unconverged", action="store_true",
                         help="write the best design reached as proposal.toml (and exit 0) even where it is not a proposal: "
                         "not converged, infeasible, noise-limited, or its Monte Carlo check missed (otherwise it is written as "
@@ -292,7 +292,9 @@ def main(argv=None) -> int:
                     "lubricant, duty, points, flanks, spread; without one, sputtered MoS2 at its median rate, duty 1, 2 life "
                     "points). Each unit costs points + 1 runs. Needs a joint at planetary fidelity (default: the scene's "
                     "[life], if any)")
-    mc.add_argument("--backend", default="vmap", choices=("vmap", "processes"))
+    mc.add_argument("--backend", default="auto", choices=("auto", "vmap", "processes"),
+                    help="auto (default): chunks batched in this process and in worker processes beside it on idle cores "
+                    "(bitwise the same units); vmap: this process alone; processes: a pool of one worker per core")
     mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
     mc.add_argument("--seed", type=int, default=0)
     mc.add_argument("--allow-clip", action="store_true",

@@ -102,8 +102,9 @@ class Check:
     the last one.
 
     How the units run (each check is one `tolerax.monte_carlo` run; its arguments of the same
-    names): `chunk_size` units per compiled batch (default 50); `backend` `"vmap"` (this
-    process, the default), `"processes"` (with `workers`) or `"dask"` (with `client`); `out`, a
+    names): `chunk_size` units per compiled batch (default 50); `backend` `"auto"` (the
+    default: this process and worker processes on idle cores, `tolerax.monte_carlo`'s), `"vmap"`
+    (this process alone), `"processes"` (with `workers`) or `"dask"` (with `client`); `out`, a
     folder where each check keeps its chunks (in a subfolder named by the design, the units, the
     key and the model, so a design run again with the same arguments reads its finished checks back
     instead of simulating them again; default none).
@@ -113,7 +114,7 @@ class Check:
     rounds: int = 3
     key: object = None
     chunk_size: int = 50
-    backend: str = "vmap"
+    backend: str = "auto"
     workers: int | None = None
     client: object = None
     out: str | os.PathLike | None = None
@@ -273,7 +274,7 @@ def unit_tolerances(pointing, x: Design) -> Tolerances:
 
 
 def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50, *,
-                backend: str = "vmap", workers=None, client=None, out=None, progress: bool = False):
+                backend: str = "auto", workers=None, client=None, out=None, progress: bool = False):
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m) with
     `objective`'s pointing model and compare them with its linearised model on the same units
     (see `YieldCheck`); each unit draws the objective's uncertain inputs too (a life's wear

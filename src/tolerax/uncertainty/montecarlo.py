@@ -14,6 +14,7 @@ plots `tolerax.uncertainty.results`.
 """
 
 import concurrent.futures
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -22,6 +23,9 @@ import multiprocessing
 import os
 import pickle
 import queue
+import re
+import sys
+import time
 import uuid
 from collections.abc import Callable, Mapping
 
@@ -39,7 +43,7 @@ from .results import MonteCarloResult
 from .sampling import Tolerances, sample
 
 
-BACKENDS = ("vmap", "processes", "dask")
+BACKENDS = ("auto", "vmap", "processes", "dask")
 _FORMAT = "tolerax-samples/1"
 
 
@@ -224,6 +228,161 @@ def _farm(futures: dict, as_completed, cancel, handle, save) -> None:
         raise
 
 
+def _spawn_safe() -> bool:
+    """Whether worker processes can be started here with the spawn method: not inside a worker
+    itself, and the main module either none (a notebook, `python -c`) or a file that guards its
+    work with `if __name__ == "__main__":` (a spawned worker imports the main file again; without
+    the guard it would run the script's Monte Carlo once more, then fail)."""
+    if multiprocessing.parent_process() is not None:
+        return False
+    path = getattr(sys.modules.get("__main__"), "__file__", None)
+    if path is None:
+        return True
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            return re.search(r"__name__\s*==\s*['\"]__main__['\"]", f.read()) is not None
+    except OSError:
+        return False
+
+
+def helper_count(chunks: int, workers: int | None = None) -> tuple[int, str]:
+    """`(helpers, why)`: how many worker processes `backend="auto"` adds beside this one for a run
+    of `chunks` chunks, and why in words. Helpers where the JAX backend is the CPU, the run has
+    two chunks or more, this session can start workers (`_spawn_safe`) and cores are idle:
+    the idle cores this process may use (`_idle_cores`: work already running on the others
+    counts), less one for this process, at most one per chunk beyond the first; `workers`
+    overrides the count."""
+    if chunks < 2:
+        return 0, "one chunk"
+    if jax.default_backend() != "cpu":
+        return 0, f"on {jax.default_backend()}"
+    if not _spawn_safe():
+        return 0, ("this script has no `if __name__ == \"__main__\":` guard, which worker processes need "
+                   "(or this is a worker itself)")
+    if workers is not None:
+        return max(0, min(int(workers), chunks - 1)), f"workers={workers}"
+    cores, idle = _idle_cores()
+    helpers = max(0, min(idle - 1, chunks - 1))
+    return helpers, f"{cores} cores, {idle} idle"
+
+
+def _idle_cores(interval: float = 0.1) -> tuple[int, int]:
+    """`(cores this process may use, how many of them are idle now)`: the machine's idle share over
+    `interval` seconds (Linux's /proc/stat), else over the last minute (the load average), times
+    the cores, rounded."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    total = os.cpu_count() or cores
+
+    def ticks():
+        with open("/proc/stat") as f:
+            values = [int(x) for x in f.readline().split()[1:]]
+        return sum(values), values[3] + (values[4] if len(values) > 4 else 0)  # all, idle + iowait
+
+    try:
+        (all0, idle0), _, (all1, idle1) = ticks(), time.sleep(interval), ticks()
+        busy = total * (1.0 - (idle1 - idle0) / max(all1 - all0, 1))
+    except (OSError, ValueError, IndexError):
+        busy = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    return cores, max(0, min(cores, round(total - busy)))
+
+
+def _run_auto(model, plan: Plan, todo, handle, save, workers, pin_workers, progress) -> None:
+    """`backend="auto"`: this process evaluates chunks as `"vmap"` does (in a thread of its own,
+    so that it can hand results on while it computes) and `helper_count` worker processes, each
+    on an idle core, take chunks beside it, one at a time. Nothing waits for a worker: once no
+    chunk is left to start, this process computes a chunk a worker still holds itself and keeps
+    whichever result comes first (the backends' outputs are bitwise alike), so a run is never
+    slower than `"vmap"` by more than starting the workers, and a short run never waits for a
+    worker to start. Workers that fail (a model that does not pickle or import there) are dropped
+    and their chunks computed here."""
+    todo = list(todo)
+    helpers, why = helper_count(len(todo), workers)
+    payload = None
+    if helpers:
+        try:
+            payload = cloudpickle.dumps(model)
+        except Exception as err:  # noqa: BLE001 (any pickling failure: compute here)
+            helpers, why = 0, f"the model does not pickle ({type(err).__name__})"
+    if not helpers:
+        return _run_chunks(model, plan, "vmap", todo, handle, save, None, None)
+    if progress:
+        tqdm.write(f"Monte Carlo: {len(todo)} chunks, computed here and in {helpers} worker process"
+                   f"{'es' if helpers > 1 else ''} on idle cores ({why})")
+    x64 = bool(jax.config.read("jax_enable_x64"))
+    cache_dir = compilation_cache_dir()
+    context = multiprocessing.get_context("spawn")
+    pinning = {}
+    if pin_workers is not False and hasattr(os, "sched_setaffinity"):
+        cores = sorted(os.sched_getaffinity(0))
+        if len(cores) > helpers:  # the last cores: this process keeps the others
+            shared = context.Queue()
+            for core in cores[-helpers:]:
+                shared.put(core)
+            pinning = dict(initializer=_pin_worker, initargs=(shared,))
+    pool = concurrent.futures.ProcessPoolExecutor(helpers, mp_context=context, **pinning)
+    here = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="tolerax-chunks")
+    waiting = list(todo)  # chunks not started anywhere
+    running = {}  # future -> (chunk, "here" or "worker")
+    done = set()
+    pool_ok = True
+
+    def start_here():
+        if waiting:
+            k = waiting.pop(0)
+        else:  # nothing left to start: compute a chunk a worker holds (the oldest), first result kept
+            held = [k for k, where in running.values() if where == "worker" and k not in done]
+            if not held:
+                return
+            k = held[0]
+        running[here.submit(evaluate, model, plan.draw(*plan.span(k)), plan.chunk_size)] = (k, "here")
+
+    def start_worker():
+        if waiting and pool_ok:
+            k = waiting.pop(0)
+            args = (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size, cache_dir)
+            running[pool.submit(*args)] = (k, "worker")
+
+    try:
+        start_here()
+        for _ in range(helpers):
+            start_worker()
+        while len(done) < len(todo):
+            finished, _ = concurrent.futures.wait(list(running), return_when=concurrent.futures.FIRST_COMPLETED)
+            for future in finished:
+                k, where = running.pop(future)
+                if where == "worker" and future.exception() is not None:
+                    if pool_ok and progress:
+                        tqdm.write(f"Monte Carlo: a worker process failed ({type(future.exception()).__name__}: "
+                                   f"{future.exception()}); its chunks are computed here")
+                    pool_ok = False
+                    if k not in done and k not in [c for c, _ in running.values()]:
+                        waiting.insert(0, k)
+                    continue
+                outputs = future.result()  # an error here (this process) is the model's: raised
+                if k not in done:
+                    done.add(k)
+                    handle(k, outputs)
+                if where == "here":
+                    start_here()
+                else:
+                    start_worker()
+            if not any(where == "here" for _, where in running.values()):
+                start_here()  # a failed worker's chunk, or the last ones
+    except BaseException:
+        for future, (k, _) in list(running.items()):
+            if k not in done and _finished_ok(future):
+                done.add(k)
+                save(k, future.result())
+        raise
+    finally:
+        processes = list((getattr(pool, "_processes", None) or {}).values())  # gone after shutdown
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:  # a worker may still compute a chunk already kept from here
+            with contextlib.suppress(Exception):
+                process.terminate()
+        here.shutdown(wait=False, cancel_futures=True)
+
+
 def _run_chunks(model, plan: Plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
     if backend == "vmap":
         for k in todo:
@@ -305,7 +464,10 @@ def run_samples(
 
     todo = [k for k in range(plan.n_chunks) if k not in chunks]
     try:
-        _run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_workers)
+        if backend == "auto":
+            _run_auto(model, plan, todo, handle, save, workers, pin_workers, progress)
+        else:
+            _run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_workers)
     except BaseException as err:
         if folder is not None and hasattr(err, "add_note"):  # Python >= 3.11
             err.add_note(
@@ -351,7 +513,7 @@ def monte_carlo(
     n: int,
     key: PRNGKeyArray,
     *,
-    backend: str = "vmap",
+    backend: str = "auto",
     chunk_size: int = 64,
     out: str | os.PathLike | None = None,
     progress: bool = True,
@@ -378,6 +540,14 @@ def monte_carlo(
 
     **Backends** (each runs the samples in chunks of `chunk_size`, with a tqdm bar over chunks):
 
+    - `"auto"` (the default): `"vmap"` in this process, and beside it, where the CPU has idle
+      cores and the run two chunks or more, worker processes that take chunks too (`"processes"`'
+      evaluation, one per idle core, pinned; `helper_count` says how many and why). Once no chunk
+      is left to start, this process also computes the chunk a worker still holds and keeps the
+      first result, so a short run never waits for a worker to start; the outputs are bitwise
+      those of `"vmap"`. No workers (plain `"vmap"`) on a GPU, with one chunk, on a busy machine,
+      for a model that does not pickle, or in a script without the `if __name__ == "__main__":`
+      guard. A speculative chunk still computing when the run ends finishes in the background.
     - `"vmap"`: in this process, `jax.vmap(model)` over each chunk, jit-compiled once; with
       several local devices (GPUs, or `XLA_FLAGS=--xla_force_host_platform_device_count=N` on a
       CPU), each chunk is split over them with `jax.shard_map` (the model's arrays replicated on
@@ -422,12 +592,13 @@ def monte_carlo(
     - `tolerances`: the `Tolerances` to draw from.
     - `n`: number of samples.
     - `key`: JAX PRNG key.
-    - `backend`: `"vmap"`, `"processes"` or `"dask"`.
+    - `backend`: `"auto"`, `"vmap"`, `"processes"` or `"dask"`.
     - `chunk_size`: samples per chunk (the vmap batch, the unit of work and of checkpointing).
     - `out`: folder for checkpoints, or `None` to keep the run in memory only.
     - `progress`: show a progress bar.
     - `client`: Dask client or scheduler address (for `backend="dask"`).
-    - `workers`: processes for `backend="processes"` (default: CPU count).
+    - `workers`: processes for `backend="processes"` (default: CPU count); for `"auto"`, the
+      worker processes beside this one (default: one per idle core).
     - `pin_workers`: for `backend="processes"`, run each worker on one core of its own
       (`os.sched_setaffinity`, Linux): `None` (default) does so on a CPU backend when there are
       at least as many cores as workers, `True` insists (an error otherwise), `False` leaves the

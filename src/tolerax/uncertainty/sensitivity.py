@@ -46,7 +46,7 @@ def sobol_indices(
     key: PRNGKeyArray,
     *,
     output: str,
-    backend: str = "vmap",
+    backend: str = "auto",
     chunk_size: int = 64,
     out=None,
     progress: bool = True,
