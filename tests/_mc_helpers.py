@@ -100,18 +100,19 @@ class DieOnce(eqx.Module):
 
 def _sleep_then_pid(x, seconds):
     time.sleep(seconds)
-    return np.full(np.shape(x), float(os.getpid()))
+    return np.full(np.shape(x), float(os.getpid())), np.full(np.shape(x), float(os.nice(0)))
 
 
 class Slow(eqx.Module):
-    """`sum(x)`, and the id of the process that evaluated the unit, after sleeping `seconds` per
-    chunk (one host callback per chunk): a model slow enough that a worker process has started
-    before the run ends."""
+    """`sum(x)`, and the id and scheduling priority (nice value) of the process that evaluated the
+    unit, after sleeping `seconds` per chunk (one host callback per chunk): a model slow enough
+    that a worker process has started before the run ends."""
 
     seconds: float = eqx.field(static=True, default=1.0)
 
     def __call__(self, x):
         y = jnp.sum(x)
         shape = jax.ShapeDtypeStruct(y.shape, y.dtype)
-        pid = jax.pure_callback(functools.partial(_sleep_then_pid, seconds=self.seconds), shape, y, vmap_method="broadcast_all")
-        return {"y": y, "pid": pid, "success": jnp.array(True)}
+        pid, nice = jax.pure_callback(functools.partial(_sleep_then_pid, seconds=self.seconds), (shape, shape), y,
+                                      vmap_method="broadcast_all")
+        return {"y": y, "pid": pid, "nice": nice, "success": jnp.array(True)}

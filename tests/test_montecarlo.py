@@ -334,8 +334,8 @@ def test_processes_backend_and_killed_worker_resume(tmp_path):
 def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
     """The default backend ("auto") with one worker process beside this one: the worker takes
     chunks (a second process id among the units: the run is 8 chunks of 1.5 s sleeps, 12 s for
-    this process alone, and a worker starts in a few), and every output is bitwise the
-    one-process run's. Speculation: the run ends as soon as every chunk has a result, here or
+    this process alone, and a worker starts in a few) at the lowest priority (nice 19), and
+    every output is bitwise the one-process run's. Speculation: the run ends as soon as every chunk has a result, here or
     there."""
     from tolerax.uncertainty.montecarlo import helper_count
 
@@ -345,9 +345,12 @@ def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
     auto = monte_carlo(model, TOLERANCES, 16, KEY, chunk_size=2, workers=1, **QUIET).dataset
     pids = set(auto["pid"].values)
     assert float(os.getpid()) in pids and len(pids) == 2, pids
+    worker = auto["pid"].values != os.getpid()
+    assert set(auto["nice"].values[worker]) == {19.0} and set(auto["nice"].values[~worker]) == {float(os.nice(0))}
     alone = monte_carlo(helpers.Slow(0.0), TOLERANCES, 16, KEY, chunk_size=2, backend="vmap", **QUIET).dataset
     # (the settings differ in the model's fingerprint: another sleep)
-    assert auto.drop_vars("pid").drop_attrs(deep=False).identical(alone.drop_vars("pid").drop_attrs(deep=False))
+    mine = ["pid", "nice"]
+    assert auto.drop_vars(mine).drop_attrs(deep=False).identical(alone.drop_vars(mine).drop_attrs(deep=False))
 
 
 def test_auto_backend_starts_no_worker_from_an_unguarded_script(tmp_path, monkeypatch):

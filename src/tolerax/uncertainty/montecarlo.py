@@ -140,6 +140,16 @@ def _pin_worker(cores) -> None:
     os.sched_setaffinity(0, {core})
 
 
+def _helper_init(cores) -> None:
+    """Initializer of a `backend="auto"` worker: the lowest scheduling priority (it takes only
+    time no other work wants: the calling process, or another program started meanwhile, keeps
+    its cores), then pinned as `_pin_worker` does where `cores` is a queue of cores."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(19)
+    if cores is not None:
+        _pin_worker(cores)
+
+
 def _worker_cores(workers: int | None, pin: bool | None) -> list[int] | None:
     """The cores to pin `backend="processes"` workers to, one each, or None to leave them free:
     `pin=None` pins on a CPU backend when there are at least as many cores as workers."""
@@ -289,7 +299,7 @@ def _idle_cores(interval: float = 0.1) -> tuple[int, int]:
 def _run_auto(model, plan: Plan, todo, handle, save, workers, pin_workers, progress) -> None:
     """`backend="auto"`: this process evaluates chunks as `"vmap"` does (in a thread of its own,
     so that it can hand results on while it computes) and `helper_count` worker processes, each
-    on an idle core, take chunks beside it, one at a time. Nothing waits for a worker: once no
+    on an idle core at the lowest priority (`_helper_init`), take chunks beside it, one at a time. Nothing waits for a worker: once no
     chunk is left to start, this process computes a chunk a worker still holds itself and keeps
     whichever result comes first (the backends' outputs are bitwise alike), so a run is never
     slower than `"vmap"` by more than starting the workers, and a short run never waits for a
@@ -311,15 +321,14 @@ def _run_auto(model, plan: Plan, todo, handle, save, workers, pin_workers, progr
     x64 = bool(jax.config.read("jax_enable_x64"))
     cache_dir = compilation_cache_dir()
     context = multiprocessing.get_context("spawn")
-    pinning = {}
+    shared = None
     if pin_workers is not False and hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))
         if len(cores) > helpers:  # the last cores: this process keeps the others
             shared = context.Queue()
             for core in cores[-helpers:]:
                 shared.put(core)
-            pinning = dict(initializer=_pin_worker, initargs=(shared,))
-    pool = concurrent.futures.ProcessPoolExecutor(helpers, mp_context=context, **pinning)
+    pool = concurrent.futures.ProcessPoolExecutor(helpers, mp_context=context, initializer=_helper_init, initargs=(shared,))
     here = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="tolerax-chunks")
     waiting = list(todo)  # chunks not started anywhere
     running = {}  # future -> (chunk, "here" or "worker")
@@ -542,7 +551,8 @@ def monte_carlo(
 
     - `"auto"` (the default): `"vmap"` in this process, and beside it, where the CPU has idle
       cores and the run two chunks or more, worker processes that take chunks too (`"processes"`'
-      evaluation, one per idle core, pinned; `helper_count` says how many and why). Once no chunk
+      evaluation, one per idle core, pinned, at the lowest scheduling priority so that they take
+      only time nothing else wants; `helper_count` says how many and why). Once no chunk
       is left to start, this process also computes the chunk a worker still holds and keeps the
       first result, so a short run never waits for a worker to start; the outputs are bitwise
       those of `"vmap"`. No workers (plain `"vmap"`) on a GPU, with one chunk, on a busy machine,
