@@ -118,9 +118,12 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     estimate = rough_wall(pointing.scene, pointing.duration, pointing.integrator)
     runs = n * (1 if pointing.life is None else pointing.life.points + 1)
     if estimate is not None and not quiet:
+        helpers = MC.helper_count(-(-(n - kept * chunk) // chunk))[0] if backend == "auto" else 0
+        beside = (f", about {human_seconds(max(estimate * runs / (helpers + 1), 1.0))} here with {helpers} worker process"
+                  f"{'es' if helpers > 1 else ''} beside this one on idle cores" if helpers else "")
         print(f"tolerax {command}: integrated with {pointing.integrated_with}; roughly {human_seconds(max(estimate * runs, 1.0))} "
-              f"on one core plus compilation ({runs} runs of {pointing.duration} s; a rattling unit can take several times "
-              "longer); the bar below shows the chunks done and the time left.", flush=True)
+              f"on one core{beside} plus compilation ({runs} runs of {pointing.duration} s; a rattling unit can take several "
+              "times longer); the bar below shows the chunks done and the time left.", flush=True)
     if pointing.uncertain_inputs:  # a [life] with spread: each unit's wear-rate factor is drawn with its zones
         tolerances = tolerances.joined(pointing.life.spread_tolerances(tolerances.distribution))
     try:
