@@ -25,6 +25,10 @@ elif "TOLERAX_CACHE_DIR" not in os.environ or os.environ.get(_OWNER) != os.envir
 
 jax.config.update("jax_enable_x64", True)
 
+# Monte Carlo's "auto" backend starts no worker processes in the suite (its two processes keep both
+# cores busy, and a worker spawned in a gap would take time from the other): the tests that
+# exercise the workers ask for them (`workers=`).
+os.environ.setdefault("TOLERAX_MC_WORKERS", "0")
 import tolerax  # noqa: E402  (after the environment above: it reads the cache settings)
 
 tolerax.enable_compilation_cache()
