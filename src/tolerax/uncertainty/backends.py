@@ -106,6 +106,14 @@ def _evaluate_payload(payload: bytes, x64: bool, values: np.ndarray, size: int, 
     return evaluate(_MODELS[digest], values, size)
 
 
+def _tasks(payload: bytes, plan):
+    """`task(k)`: the arguments that submit chunk `k` of `plan` to a worker (`_evaluate_payload`
+    with the pickled model, this process's float64 setting and compilation-cache folder)."""
+    x64 = bool(jax.config.read("jax_enable_x64"))
+    cache_dir = compilation_cache_dir()
+    return lambda k: (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size, cache_dir)
+
+
 def _pin_worker(cores) -> None:
     """Initializer of a `backend="processes"` worker: run on one core of its own, taken from the
     shared queue `cores`, before JAX starts (its CPU client sizes its thread pool to the process's
@@ -117,6 +125,14 @@ def _pin_worker(cores) -> None:
     except queue.Empty:  # more workers than cores were queued: run free
         return
     os.sched_setaffinity(0, {core})
+
+
+def _core_queue(context, cores):
+    """A queue of `cores` that `_pin_worker` takes one from per worker process."""
+    shared = context.Queue()
+    for core in cores:
+        shared.put(core)
+    return shared
 
 
 def _helper_init(cores) -> None:
@@ -255,16 +271,13 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
     if progress:
         tqdm.write(f"Monte Carlo: {len(todo)} chunks, computed here and in {helpers} worker process"
                    f"{'es' if helpers > 1 else ''} on idle cores ({why})")
-    x64 = bool(jax.config.read("jax_enable_x64"))
-    cache_dir = compilation_cache_dir()
+    task = _tasks(payload, plan)
     context = multiprocessing.get_context("spawn")
     shared = None
     if pin_workers is not False and hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))
         if len(cores) > helpers:  # the last cores: this process keeps the others
-            shared = context.Queue()
-            for core in cores[-helpers:]:
-                shared.put(core)
+            shared = _core_queue(context, cores[-helpers:])
     pool = concurrent.futures.ProcessPoolExecutor(helpers, mp_context=context, initializer=_helper_init, initargs=(shared,))
     here = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="tolerax-chunks")
     waiting = list(todo)  # chunks not started anywhere
@@ -285,8 +298,7 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
     def start_worker():
         if waiting and pool_ok:
             k = waiting.pop(0)
-            args = (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size, cache_dir)
-            running[pool.submit(*args)] = (k, "worker")
+            running[pool.submit(*task(k))] = (k, "worker")
 
     try:
         start_here()
@@ -334,19 +346,13 @@ def run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_wo
         for k in todo:
             handle(k, evaluate(model, plan.draw(*plan.span(k)), plan.chunk_size))
         return
-    payload = cloudpickle.dumps(model)
-    x64 = bool(jax.config.read("jax_enable_x64"))
-    cache_dir = compilation_cache_dir()
-    args = lambda k: (_evaluate_payload, payload, x64, plan.draw(*plan.span(k)), plan.chunk_size, cache_dir)  # noqa: E731
+    args = _tasks(cloudpickle.dumps(model), plan)
     if backend == "processes":
         context = multiprocessing.get_context("spawn")
         pinning = {}
         cores = _worker_cores(workers, pin_workers)
         if cores is not None:
-            shared = context.Queue()
-            for core in cores:
-                shared.put(core)
-            pinning = dict(initializer=_pin_worker, initargs=(shared,))
+            pinning = dict(initializer=_pin_worker, initargs=(_core_queue(context, cores),))
         pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, **pinning)
         finished = False
         try:
