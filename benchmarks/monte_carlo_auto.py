@@ -11,7 +11,7 @@ minute with no option given >= 2x today's default").
 Each row is `tolerax montecarlo SCENE --n N --chunk C` in a fresh process (imports, tracing,
 compilation or the compilation cache, the run, writing its results), with the options in the
 row; rounds interleave the rows and the fastest is kept (these machines are noisy). One
-compilation cache for all, warmed by a first untimed run of each row, so the rows compare
+compilation cache for all, warmed by a first untimed run of each row (of `--warm-n` units), so the rows compare
 running, not compiling: what a user's second command pays. Units per minute: N over the wall.
 The machine should be otherwise idle: "auto" adds workers only on idle cores.
 """
@@ -41,6 +41,8 @@ def main():
     parser.add_argument("--n", type=int, default=64)
     parser.add_argument("--chunk", type=int, default=8)
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--warm-n", type=int, default=None,
+                        help="units of the untimed warm-up runs (default --n; the same --chunk compiles the same programs)")
     args = harness.parse_args(parser)
     work = pathlib.Path(tempfile.mkdtemp(prefix="mc_auto_"))
     cache = work / "cache"
@@ -50,7 +52,8 @@ def main():
     tail = ["--n", str(args.n), "--chunk", str(args.chunk), "--quiet", "--force"]
     walls = {name: [] for name in ROWS}
     for k, (name, extra) in enumerate(ROWS.items()):  # warm the cache: each row's programs compiled once, untimed
-        harness.cli(["montecarlo", scenes[k], *tail, *extra], work / "warm", cache)
+        warm = ["--n", str(args.warm_n or args.n), *tail[2:]]
+        harness.cli(["montecarlo", scenes[k], *warm, *extra], work / "warm", cache)
     for r in range(args.rounds):
         for k, (name, extra) in enumerate(ROWS.items()):
             wall = harness.cli(["montecarlo", scenes[k], *tail, *extra], work / f"row{k}", cache)

@@ -135,6 +135,30 @@ def _core_queue(context, cores):
     return shared
 
 
+@contextlib.contextmanager
+def _threads_kept_to(cores):
+    """Every thread of this process (XLA's pool among them) kept to `cores` while the block runs,
+    then all of them given the calling thread's cores back (Linux; elsewhere nothing changes): a
+    process whose XLA runtime spreads a solve's kernels over every core would otherwise take time
+    on the cores its workers were pinned to."""
+    tasks = "/proc/self/task"
+    if not cores or not os.path.isdir(tasks) or not hasattr(os, "sched_setaffinity"):
+        yield
+        return
+    before = os.sched_getaffinity(0)
+
+    def every(mask):
+        for tid in os.listdir(tasks):
+            with contextlib.suppress(OSError, ValueError):
+                os.sched_setaffinity(int(tid), mask)
+
+    every(set(cores))
+    try:
+        yield
+    finally:
+        every(before)
+
+
 def _helper_init(cores) -> None:
     """Initializer of a `backend="auto"` worker: the lowest scheduling priority (it takes only
     time no other work wants: the calling process, or another program started meanwhile, keeps
@@ -273,11 +297,11 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
                    f"{'es' if helpers > 1 else ''} on idle cores ({why})")
     task = _tasks(payload, plan)
     context = multiprocessing.get_context("spawn")
-    shared = None
+    shared, mine = None, None
     if pin_workers is not False and hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))
         if len(cores) > helpers:  # the last cores: this process keeps the others
-            shared = _core_queue(context, cores[-helpers:])
+            shared, mine = _core_queue(context, cores[-helpers:]), cores[:-helpers]
     pool = concurrent.futures.ProcessPoolExecutor(helpers, mp_context=context, initializer=_helper_init, initargs=(shared,))
     here = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="tolerax-chunks")
     waiting = list(todo)  # chunks not started anywhere
@@ -300,45 +324,46 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
             k = waiting.pop(0)
             running[pool.submit(*task(k))] = (k, "worker")
 
-    try:
-        start_here()
-        for _ in range(helpers):
-            start_worker()
-        while len(done) < len(todo):
-            finished, _ = concurrent.futures.wait(list(running), return_when=concurrent.futures.FIRST_COMPLETED)
-            for future in finished:
-                k, where = running.pop(future)
-                if where == "worker" and future.exception() is not None:
-                    if pool_ok and progress:
-                        tqdm.write(f"Monte Carlo: a worker process failed ({type(future.exception()).__name__}: "
-                                   f"{future.exception()}); its chunks are computed here")
-                    pool_ok = False
-                    if k not in done and k not in [c for c, _ in running.values()]:
-                        waiting.insert(0, k)
-                    continue
-                outputs = future.result()  # an error here (this process) is the model's: raised
-                if k not in done:
+    with _threads_kept_to(mine):
+        try:
+            start_here()
+            for _ in range(helpers):
+                start_worker()
+            while len(done) < len(todo):
+                finished, _ = concurrent.futures.wait(list(running), return_when=concurrent.futures.FIRST_COMPLETED)
+                for future in finished:
+                    k, where = running.pop(future)
+                    if where == "worker" and future.exception() is not None:
+                        if pool_ok and progress:
+                            tqdm.write(f"Monte Carlo: a worker process failed ({type(future.exception()).__name__}: "
+                                       f"{future.exception()}); its chunks are computed here")
+                        pool_ok = False
+                        if k not in done and k not in [c for c, _ in running.values()]:
+                            waiting.insert(0, k)
+                        continue
+                    outputs = future.result()  # an error here (this process) is the model's: raised
+                    if k not in done:
+                        done.add(k)
+                        handle(k, outputs)
+                    if where == "here":
+                        start_here()
+                    else:
+                        start_worker()
+                if not any(where == "here" for _, where in running.values()):
+                    start_here()  # a failed worker's chunk, or the last ones
+        except BaseException:
+            for future, (k, _) in list(running.items()):
+                if k not in done and _finished_ok(future):
                     done.add(k)
-                    handle(k, outputs)
-                if where == "here":
-                    start_here()
-                else:
-                    start_worker()
-            if not any(where == "here" for _, where in running.values()):
-                start_here()  # a failed worker's chunk, or the last ones
-    except BaseException:
-        for future, (k, _) in list(running.items()):
-            if k not in done and _finished_ok(future):
-                done.add(k)
-                save(k, future.result())
-        raise
-    finally:
-        processes = list((getattr(pool, "_processes", None) or {}).values())  # gone after shutdown
-        pool.shutdown(wait=False, cancel_futures=True)
-        for process in processes:  # a worker may still compute a chunk already kept from here
-            with contextlib.suppress(Exception):
-                process.terminate()
-        here.shutdown(wait=False, cancel_futures=True)
+                    save(k, future.result())
+            raise
+        finally:
+            processes = list((getattr(pool, "_processes", None) or {}).values())  # gone after shutdown
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in processes:  # a worker may still compute a chunk already kept from here
+                with contextlib.suppress(Exception):
+                    process.terminate()
+            here.shutdown(wait=False, cancel_futures=True)
 
 
 def run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
