@@ -355,6 +355,37 @@ def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
     assert auto.drop_vars(mine).drop_attrs(deep=False).identical(alone.drop_vars(mine).drop_attrs(deep=False))
 
 
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2 or not os.path.isdir("/proc/self/task"),
+                    reason="thread affinity needs Linux and two cores")
+def test_auto_backend_keeps_this_process_off_its_workers_cores_then_gives_them_back():
+    """While "auto"'s workers run, every thread of the calling process keeps to the other cores
+    (XLA's pool would spread onto theirs), and afterwards has its cores back, new threads too."""
+    import threading
+
+    from tolerax.uncertainty.backends import _threads_kept_to
+
+    def masks():  # every live thread's cores (one ending meanwhile is skipped)
+        out = set()
+        for tid in os.listdir("/proc/self/task"):
+            try:
+                out.add(frozenset(os.sched_getaffinity(int(tid))))
+            except OSError:
+                pass
+        return out
+
+    before = os.sched_getaffinity(0)
+    first = min(before)
+    seen = {}
+    with _threads_kept_to([first]):
+        seen["main"] = os.sched_getaffinity(0)
+        thread = threading.Thread(target=lambda: seen.setdefault("new", os.sched_getaffinity(0)))
+        thread.start()
+        thread.join()
+        inside = masks()
+    assert seen["main"] == seen["new"] == {first} and inside == {frozenset({first})}
+    assert os.sched_getaffinity(0) == before and masks() == {frozenset(before)}
+
+
 def test_auto_backend_starts_no_worker_from_an_unguarded_script(tmp_path, monkeypatch):
     """A spawned worker imports the main script again: without the `__main__` guard it would run
     the script's Monte Carlo once more, so "auto" computes in this process alone there."""
