@@ -3,8 +3,9 @@
 The lines a yield design reads where tangents mislead (the jitter's chaotic rattle): `fit_surface`
 fits one per output over a fixed box of feature values (`Surface`), `secant_standard_error` says
 how far the fitted value moves from one set of units to the next (the noise an optimiser must not
-chase), and `secant_gradient_noise` how far the linearised quantile's gradient does. Each is one
-batch of forward solves over `LinearisedYield.secant_units` units (`tolerax.design.reliability`).
+chase), and `secant_gradient_noise` how far the linearised quantile's gradient does. Each simulates
+`LinearisedYield.secant_units` units (`tolerax.design.reliability`) by forward solves, shared with
+worker processes on idle cores as a Monte Carlo run's chunks are (`evaluate_rows`).
 """
 
 import equinox as eqx
@@ -13,14 +14,28 @@ import jax.numpy as jnp
 import jax.scipy.special
 import numpy as np
 
+from ..uncertainty.backends import evaluate_rows
 from .objectives import unit_output
 from .reliability import LinearisedYield, Surface, _design_rows, _fitted, _uncertain_count, _with_uncertain
 from .types import Design, realise, robust
 
 
-@eqx.filter_jit
-def _simulate_units(pointing, output, values, width):
-    return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
+class _UnitOutputs(eqx.Module):
+    """One unit's outputs at its feature values (m), as a Monte Carlo model: `{"value": ...}`
+    (`unit_output`: NaN where its solve failed). A module, so worker processes unpickle it."""
+
+    pointing: object
+    output: str | tuple[str, ...] = eqx.field(static=True)
+    width: object
+
+    def __call__(self, values):
+        return {"value": unit_output(values, self.pointing, self.output, self.width)}
+
+
+def _simulate_units(pointing, output, values, width) -> np.ndarray:
+    """`unit_output` at each row of `values` (units, features; m): one forward solve each, in
+    chunks shared with worker processes on idle cores (`tolerax.uncertainty.backends.evaluate_rows`)."""
+    return evaluate_rows(_UnitOutputs(pointing, output, width), np.asarray(values))["value"]
 
 
 def _secant_noise(objective: LinearisedYield, x: Design, width):

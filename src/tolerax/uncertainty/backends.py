@@ -366,6 +366,40 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
             here.shutdown(wait=False, cancel_futures=True)
 
 
+class _Rows:
+    """A plan over given rows (`evaluate_rows`): chunk k is rows [k c, (k + 1) c) of `values`."""
+
+    def __init__(self, values: np.ndarray, chunk_size: int):
+        self.values, self.chunk_size = values, chunk_size
+        self.n_chunks = -(-len(values) // chunk_size)
+
+    def span(self, k: int) -> tuple[int, int]:
+        return k * self.chunk_size, min((k + 1) * self.chunk_size, len(self.values))
+
+    def draw(self, start: int, stop: int) -> np.ndarray:
+        return self.values[start:stop]
+
+
+ROW_CHUNKS = 4  # `evaluate_rows` on a CPU: the rows in this many chunks (two or more cores share them)
+
+
+def evaluate_rows(model, values, *, workers: int | None = None, pin_workers: bool | None = None) -> dict[str, np.ndarray]:
+    """`jax.vmap(model)` over the rows of `values` (a model as `monte_carlo` takes: a row of
+    feature values -> a dict of arrays), computed as Monte Carlo's `"auto"` backend computes its
+    chunks: on a CPU the rows in `ROW_CHUNKS` chunks, this process taking them one by one and a
+    worker process on each idle core beside it (`run_auto`, `helper_count`; `workers` as
+    `monte_carlo`'s), else (another backend) in one batch. The chunking depends on the backend
+    alone, never on how many cores are idle, so the same rows give bitwise the same outputs on a
+    busy or an idle machine. What a design's response surfaces and secant fits simulate."""
+    values = np.asarray(values)
+    n = len(values)
+    chunk = -(-n // ROW_CHUNKS) if jax.default_backend() == "cpu" else n
+    plan = _Rows(values, max(chunk, 1))
+    parts = {}
+    run_auto(model, plan, range(plan.n_chunks), parts.__setitem__, parts.__setitem__, workers, pin_workers, False)
+    return {name: np.concatenate([parts[k][name] for k in range(plan.n_chunks)]) for name in parts[0]}
+
+
 def run_chunks(model, plan, backend, todo, handle, save, client, workers, pin_workers=None) -> None:
     if backend == "vmap":
         for k in todo:
