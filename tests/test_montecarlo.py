@@ -331,6 +331,21 @@ def test_processes_backend_and_killed_worker_resume(tmp_path):
     np.testing.assert_array_equal(resumed.dataset["sample"].values, np.arange(40))
 
 
+def test_the_default_chunk_follows_the_scene():
+    """With no chunk size, a run takes its scene's `unit_chunk()` on a CPU: 10 units where a joint
+    carries the full planetary stage (its rattling units' step counts differ, and a batch steps
+    until its slowest is done), 50 otherwise; a model without a scene 64. `Check` and the probe
+    take it too."""
+    from tolerax.uncertainty.montecarlo import default_chunk
+
+    assert default_chunk(helpers.Nonlinear()) == 64
+    assert tx.antenna("dual", fidelity="planetary").unit_chunk() == 10
+    assert tx.antenna("dual", fidelity="lumped").unit_chunk() == 50 and tx.antenna("dual", fidelity=("lumped", "planetary")).unit_chunk() == 10
+    assert default_chunk(tx.load_scene("scan-azimuth-planetary").objective()) == 10
+    assert default_chunk(tx.load_scene("scan-azimuth").objective()) == 50
+    assert tx.Check().chunk_size is None
+
+
 def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
     """The default backend ("auto") with one worker process beside this one: the worker takes
     chunks (a second process id among the units: the run is 8 chunks of 1.5 s sleeps, 12 s for

@@ -24,7 +24,7 @@ from .reliability import LinearisedYield, _uncertain_columns, _uncertain_count, 
 from .outcome import MODEL_OFF
 from .phases import Phases
 from .types import Design, chain_results
-from ..uncertainty.montecarlo import BACKENDS, _fingerprint, key_settings, monte_carlo
+from ..uncertainty.montecarlo import BACKENDS, _fingerprint, default_chunk, key_settings, monte_carlo
 from ..uncertainty.results import wilson_interval
 from ..uncertainty.sampling import Tolerances
 
@@ -102,7 +102,8 @@ class Check:
     the last one.
 
     How the units run (each check is one `tolerax.monte_carlo` run; its arguments of the same
-    names): `chunk_size` units per compiled batch (default 50); `backend` `"auto"` (the
+    names): `chunk_size` units per compiled batch (default: the scene's `unit_chunk()` on a CPU,
+    10 for a full planetary stage and 50 otherwise; 64 elsewhere); `backend` `"auto"` (the
     default: this process and worker processes on idle cores, `tolerax.monte_carlo`'s), `"vmap"`
     (this process alone), `"processes"` (with `workers`) or `"dask"` (with `client`); `out`, a
     folder where each check keeps its chunks (in a subfolder named by the design, the units, the
@@ -113,7 +114,7 @@ class Check:
     units: int = 200
     rounds: int = 3
     key: object = None
-    chunk_size: int = 50
+    chunk_size: int | None = None
     backend: str = "auto"
     workers: int | None = None
     client: object = None
@@ -124,7 +125,7 @@ class Check:
             raise ValueError(f"Check: units must be >= 2 simulated units, got {self.units!r} (no check: check=None).")
         if int(self.rounds) < 1:
             raise ValueError(f"Check: rounds must be >= 1 (checks at most), got {self.rounds!r}.")
-        if int(self.chunk_size) < 1:
+        if self.chunk_size is not None and int(self.chunk_size) < 1:
             raise ValueError(f"Check: chunk_size must be >= 1 unit per batch, got {self.chunk_size!r}.")
         if self.backend not in BACKENDS:
             raise ValueError(f"Check: backend must be one of {BACKENDS}, got {self.backend!r}.")
@@ -146,7 +147,7 @@ class Check:
         the linear model at `width` (m, the one the design was solved at): a tuple of
         `YieldCheck`s, one per requirement, however many."""
         got = yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
-                          int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
+                          None if self.chunk_size is None else int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
                           progress=progress)
         return got if isinstance(got, tuple) else (got,)
 
@@ -273,7 +274,7 @@ def unit_tolerances(pointing, x: Design) -> Tolerances:
     return zones.joined(Tolerances(pointing.uncertain_inputs, *pointing.uncertain_box(), "uniform", lower=None))
 
 
-def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int = 50, *,
+def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key, width=None, chunk: int | None = None, *,
                 backend: str = "auto", workers=None, client=None, out=None, progress: bool = False):
     """Simulate `n` fresh units of design `x` (`Design(middle, half-width)`, m) with
     `objective`'s pointing model and compare them with its linearised model on the same units
@@ -283,7 +284,8 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     smoothing widths (`own_width`), what a built unit is, so the check's shift carries the
     smoothing's bias (a wider width rounds the contacts off, which moves the vibration
     outputs) as well as the line's. The units are one `tolerax.monte_carlo` run
-    (`unit_tolerances`, `key`) in chunks of `chunk` units on `backend` (`workers`,
+    (`unit_tolerances`, `key`) in chunks of `chunk` units (default `default_chunk` of the pointing
+    model: its scene's `unit_chunk()` on a CPU) on `backend` (`workers`,
     `client`, a progress bar with `progress`, as `monte_carlo`'s), its chunks kept under `out`
     where given (a subfolder per design, units, key and model). A tuple `output` (two
     requirements, e.g. RMS and jitter): `requirement` one per output, and one `YieldCheck` per
@@ -300,6 +302,7 @@ def yield_check(objective: LinearisedYield, x: Design, requirement, n: int, key,
     if out is not None:  # one subfolder per design, units, key and model: another never meets these chunks
         said = json.dumps([tolerances.to_json(), key_settings(key), int(n), _fingerprint(model)], sort_keys=True)
         folder = pathlib.Path(out) / f"units-{hashlib.sha256(said.encode()).hexdigest()[:16]}"
+    chunk = default_chunk(objective.pointing) if chunk is None else chunk
     run = monte_carlo(model, tolerances, int(n), key, backend=backend, chunk_size=min(int(chunk), int(n)), out=folder,
                       progress=progress, workers=workers, client=client)
     ds = run.dataset

@@ -23,18 +23,18 @@ import numpy as np
 from .check import AtWidth, unit_tolerances
 from .surface import line_fit
 from .types import Design
-from ..uncertainty.montecarlo import monte_carlo
+from ..uncertainty.montecarlo import default_chunk, monte_carlo
 
-PROBE_UNITS = 50  # one chunk of a yield check's (`Check.chunk_size`'s default): the same compiled program
+PROBE_UNITS = 50  # whole chunks of a yield check's (`Check.chunk_size`'s default: 10 or 50): the same compiled program
 PROBE_KEY = 3  # the units' key: another stream than the checks' (`Check.key_for`: 1 and 2)
 
 
 def scatter_share(pointing, outputs, x: Design, width=None, *, units: int = PROBE_UNITS, key=None,
-                  chunk_size: int = PROBE_UNITS) -> np.ndarray:
+                  chunk_size: int | None = None) -> np.ndarray:
     """The share of each of `outputs`' variance over `units` units drawn uniformly within the
     zones `x` (`Design(middle, half-width)`, m) that a line in the features does not carry (module
     docstring), simulated with `pointing` at smoothing `width` (m; `None`: the objective's own)
-    in chunks of `chunk_size`, from `key` (default `jax.random.key(PROBE_KEY)`). Shape (k,), one
+    in chunks of `chunk_size` (default: as `Check`'s), from `key` (default `jax.random.key(PROBE_KEY)`). Shape (k,), one
     per output, in [0, 1]; units whose solve failed are left out. Features held fixed (a zero
     half-width) carry nothing and take no degree of freedom."""
     outputs = tuple(outputs)
@@ -44,7 +44,7 @@ def scatter_share(pointing, outputs, x: Design, width=None, *, units: int = PROB
                          f"give at least {n + 3}.")
     tolerances = unit_tolerances(pointing, Design(jnp.asarray(x.nominal), jnp.asarray(x.band)))
     run = monte_carlo(AtWidth(pointing, None if width is None else jnp.asarray(width, dtype=float)), tolerances, int(units),
-                      jax.random.key(PROBE_KEY) if key is None else key, chunk_size=min(int(chunk_size), int(units)), progress=False)
+                      jax.random.key(PROBE_KEY) if key is None else key, chunk_size=min(int(default_chunk(pointing) if chunk_size is None else chunk_size), int(units)), progress=False)
     ds = run.dataset
     values = np.stack([ds[name].values for name in tolerances.names[:n]], axis=1)
     y = np.stack([np.asarray(ds[o].values, dtype=float) for o in outputs], axis=1)

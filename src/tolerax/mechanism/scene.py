@@ -51,6 +51,16 @@ class AbstractScene(eqx.Module):
         returns that one."""
         return ACCURATE, "no full planetary stage: accuracy, not the stage's contact modes, sets the step"
 
+    def unit_chunk(self) -> int:
+        """Units per vmapped batch (a Monte Carlo chunk) in which this scene's units run best on a
+        CPU: what `monte_carlo`, `Check` and `Auto()`'s probe take where no chunk size is given. A
+        batch steps until its slowest unit is done. A scene with a full planetary stage (a joint
+        with `stiff_contact_modes`) rattles, its units' step counts differing widely: batches of
+        10 ran 1.3-1.4x the units per second of 50 there, and 50 1.1x those of 10 on a lumped
+        drive (`benchmarks/monte_carlo_chunks.py`)."""
+        joints = getattr(self, "named_joints", tuple)()
+        return 10 if any(getattr(joint, "stiff_contact_modes", False) for _, joint in joints) else 50
+
     def check_runnable(self) -> None:
         """Raise a `ValueError` saying what to change if this scene has nothing to integrate."""
 

@@ -55,6 +55,17 @@ class Plan:
         return k * self.chunk_size, min((k + 1) * self.chunk_size, self.n)
 
 
+def default_chunk(model) -> int:
+    """The chunk size `monte_carlo` takes where none is given: on a CPU, the `unit_chunk()` of the
+    model's scene where it has one (a `PointingObjective`: 10 for a full planetary stage, whose
+    rattling units' step counts differ, 50 otherwise); else 64 (a GPU wants larger batches: give
+    `chunk_size`)."""
+    scene = getattr(model, "scene", None)
+    if jax.default_backend() == "cpu" and callable(getattr(scene, "unit_chunk", None)):
+        return int(scene.unit_chunk())
+    return 64
+
+
 def _fingerprint(model) -> str | None:
     try:  # plain pickle: deterministic for module-level classes/functions and arrays
         return hashlib.sha256(pickle.dumps(model)).hexdigest()
@@ -174,7 +185,7 @@ def monte_carlo(
     key: PRNGKeyArray,
     *,
     backend: str = "auto",
-    chunk_size: int = 64,
+    chunk_size: int | None = None,
     out: str | os.PathLike | None = None,
     progress: bool = True,
     client=None,
@@ -254,7 +265,8 @@ def monte_carlo(
     - `n`: number of samples.
     - `key`: JAX PRNG key.
     - `backend`: `"auto"`, `"vmap"`, `"processes"` or `"dask"`.
-    - `chunk_size`: samples per chunk (the vmap batch, the unit of work and of checkpointing).
+    - `chunk_size`: samples per chunk (the vmap batch, the unit of work and of checkpointing);
+      default `default_chunk(model)` (a scene's `unit_chunk()` on a CPU, else 64).
     - `out`: folder for checkpoints, or `None` to keep the run in memory only.
     - `progress`: show a progress bar.
     - `client`: Dask client or scheduler address (for `backend="dask"`).
@@ -275,6 +287,7 @@ def monte_carlo(
 
     A `MonteCarloResult`: every sample's outputs, success flag and sampled values.
     """
+    chunk_size = default_chunk(model) if chunk_size is None else chunk_size
     check_run(tolerances, n=n, chunk_size=chunk_size)
     key = typed_key(key)
     settings = {"kind": "monte_carlo", "key": key_settings(key), "tolerances": tolerances.to_json()}
