@@ -101,6 +101,7 @@ def run_monte_carlo(parser, scene_file, out, *, n, seed, backend, chunk, require
     pointing = scene_file.objective(jitter_cutoff=jitter_cutoff)
     tolerances = scene_file.tolerances(pointing.scene)
     check_clipping(parser, tolerances, allow_clip)
+    chunk = MC.default_chunk(pointing) if chunk is None else chunk  # the scene's (`AbstractScene.unit_chunk`)
     claim_out(out, "montecarlo", fresh=fresh)  # design's --verify writes here too: its folder is montecarlo's
     kept = len(list((out / "chunks").glob("chunk-*.nc")))
     bands = ", ".join(f"{name} {m * 1e6:.4g} +- {b * 1e6:.3g}" for name, m, b in

@@ -252,7 +252,8 @@ def main(argv=None) -> int:
                         help="with --verify: simulate the units at this fidelity (every joint that is not ideal), e.g. a "
                         "lumped design verified on the planetary stage (default: the scene's own; with --jitter, planetary)")
     design.add_argument("--seed", type=int, default=0, help="with --verify: the units' random seed (as montecarlo's)")
-    design.add_argument("--chunk", type=count(1), default=8, help="with --verify: units per chunk (default 8)")
+    design.add_argument("--chunk", type=count(1), default=None,
+                        help="with --verify: units per chunk (default: the scene's, 10 with a full planetary stage, else 50)")
     tradeoff = sub.add_parser(
         "tradeoff", help="the cost of the cheapest tolerances against the pointing requirement",
         description="One proposal (as `tolerax design`) per requirement: writes tradeoff.md (the table), tradeoff.json, "
@@ -295,7 +296,8 @@ def main(argv=None) -> int:
     mc.add_argument("--backend", default="auto", choices=("auto", "vmap", "processes"),
                     help="auto (default): chunks batched in this process and in worker processes beside it on idle cores "
                     "(bitwise the same units); vmap: this process alone; processes: a pool of one worker per core")
-    mc.add_argument("--chunk", type=count(1), default=8, help="units per chunk (default 8)")
+    mc.add_argument("--chunk", type=count(1), default=None,
+                    help="units per chunk (default: the scene's, 10 with a full planetary stage, else 50)")
     mc.add_argument("--seed", type=int, default=0)
     mc.add_argument("--allow-clip", action="store_true",
                     help="accept bands reaching below zero (units drawn there are clipped to 0 um); refused otherwise")

@@ -221,7 +221,7 @@ def feature_growth(pointing, values) -> dict[str, tuple[float, float]]:
     return out
 
 
-def life_comparison(pointing, designed, alone, requirements: dict, units: int, key, chunk: int = 8, progress: bool = False):
+def life_comparison(pointing, designed, alone, requirements: dict, units: int, key, chunk: int | None = None, progress: bool = False):
     """Markdown: what designing for the end of life takes, against designing for the beginning of
     life alone. `designed`, `alone`: the two `DesignReport`s (the first designed for the end of
     life too, its status said in the text); `pointing`: the objective with the life (`PointingObjective(life=...)`);
