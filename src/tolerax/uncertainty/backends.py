@@ -256,18 +256,23 @@ def helper_count(chunks: int, workers: int | None = None) -> tuple[int, str]:
 def _idle_cores(interval: float = 0.1) -> tuple[int, int]:
     """`(cores this process may use, how many of them are idle now)`: the machine's idle share over
     `interval` seconds (Linux's /proc/stat), else over the last minute (the load average), times
-    the cores, rounded."""
+    the cores, rounded. This process's own use counts as idle (read from /proc/self/stat): its
+    work is what the workers share (a chunk still finishing from the last run, XLA's threads)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     total = os.cpu_count() or cores
 
     def ticks():
         with open("/proc/stat") as f:
             values = [int(x) for x in f.readline().split()[1:]]
-        return sum(values), values[3] + (values[4] if len(values) > 4 else 0)  # all, idle + iowait
+        with open("/proc/self/stat") as f:
+            own = f.read().rsplit(")", 1)[1].split()  # after the command's name: fields 3 onwards
+        # all, idle + iowait, this process's user + system time (the same clock ticks)
+        return sum(values), values[3] + (values[4] if len(values) > 4 else 0), int(own[11]) + int(own[12])
 
     try:
-        (all0, idle0), _, (all1, idle1) = ticks(), time.sleep(interval), ticks()
-        busy = total * (1.0 - (idle1 - idle0) / max(all1 - all0, 1))
+        (all0, idle0, own0), _, (all1, idle1, own1) = ticks(), time.sleep(interval), ticks()
+        elapsed = max(all1 - all0, 1)
+        busy = total * (1.0 - (idle1 - idle0) / elapsed) - total * (own1 - own0) / elapsed
     except (OSError, ValueError, IndexError):
         busy = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
     return cores, max(0, min(cores, round(total - busy)))
@@ -276,12 +281,13 @@ def _idle_cores(interval: float = 0.1) -> tuple[int, int]:
 def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) -> None:
     """`backend="auto"`: this process evaluates chunks as `"vmap"` does (in a thread of its own,
     so that it can hand results on while it computes) and `helper_count` worker processes, each
-    on an idle core at the lowest priority (`_helper_init`), take chunks beside it, one at a time. Nothing waits for a worker: once no
-    chunk is left to start, this process computes a chunk a worker still holds itself and keeps
-    whichever result comes first (the backends' outputs are bitwise alike), so a run is never
-    slower than `"vmap"` by more than starting the workers, and a short run never waits for a
-    worker to start. Workers that fail (a model that does not pickle or import there) are dropped
-    and their chunks computed here."""
+    on an idle core at the lowest priority (`_helper_init`), take chunks beside it, one at a time.
+    Nothing waits for a worker to start: once no chunk is left to start while no worker has handed
+    back a chunk yet, this process computes a chunk a worker holds itself and keeps whichever result
+    comes first (the backends' outputs are bitwise alike), so a run is never slower than `"vmap"` by
+    more than starting the workers. Once workers deliver, nothing is duplicated: a duplicate would
+    finish after the worker's own and run on in the background. Workers that fail (a model that
+    does not pickle or import there) are dropped and their chunks computed here."""
     todo = list(todo)
     helpers, why = helper_count(len(todo), workers)
     payload = None
@@ -308,15 +314,21 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
     running = {}  # future -> (chunk, "here" or "worker")
     done = set()
     pool_ok = True
+    delivered = False  # whether a worker has handed back a chunk (it has started and runs at its core's pace)
 
     def start_here():
         if waiting:
             k = waiting.pop(0)
-        else:  # nothing left to start: compute a chunk a worker holds (the oldest), first result kept
+        elif not delivered:  # nothing left to start and no worker has finished a chunk yet (still starting):
+            # compute a chunk a worker holds (the oldest), first result kept. Once workers deliver, a
+            # duplicate would finish after the worker's own and run on in the background, where it
+            # takes a core from whatever comes next.
             held = [k for k, where in running.values() if where == "worker" and k not in done]
             if not held:
                 return
             k = held[0]
+        else:
+            return
         running[here.submit(evaluate, model, plan.draw(*plan.span(k)), plan.chunk_size)] = (k, "here")
 
     def start_worker():
@@ -342,6 +354,7 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
                             waiting.insert(0, k)
                         continue
                     outputs = future.result()  # an error here (this process) is the model's: raised
+                    delivered = delivered or where == "worker"
                     if k not in done:
                         done.add(k)
                         handle(k, outputs)
