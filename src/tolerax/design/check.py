@@ -146,9 +146,9 @@ class Check:
         (chunks, backend, checkpoints), simulated at the scene's own smoothing widths against
         the linear model at `width` (m, the one the design was solved at): a tuple of
         `YieldCheck`s, one per requirement, however many."""
-        got = yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width,
-                          None if self.chunk_size is None else int(self.chunk_size), backend=self.backend, workers=self.workers, client=self.client, out=self.out,
-                          progress=progress)
+        chunk = None if self.chunk_size is None else int(self.chunk_size)
+        got = yield_check(objective, x, as_requirement(requirements), int(self.units), self.key_for(drawn), width, chunk,
+                          backend=self.backend, workers=self.workers, client=self.client, out=self.out, progress=progress)
         return got if isinstance(got, tuple) else (got,)
 
     def run(self, solver, problem, trusted, result, requirements, tol, progress=False, callback=None, say=None):

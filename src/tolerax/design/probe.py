@@ -34,17 +34,19 @@ def scatter_share(pointing, outputs, x: Design, width=None, *, units: int = PROB
     """The share of each of `outputs`' variance over `units` units drawn uniformly within the
     zones `x` (`Design(middle, half-width)`, m) that a line in the features does not carry (module
     docstring), simulated with `pointing` at smoothing `width` (m; `None`: the objective's own)
-    in chunks of `chunk_size` (default: as `Check`'s), from `key` (default `jax.random.key(PROBE_KEY)`). Shape (k,), one
-    per output, in [0, 1]; units whose solve failed are left out. Features held fixed (a zero
-    half-width) carry nothing and take no degree of freedom."""
+    in chunks of `chunk_size` (default: as `Check`'s), from `key` (default
+    `jax.random.key(PROBE_KEY)`). Shape (k,), one per output, in [0, 1]; units whose solve failed
+    are left out. Features held fixed (a zero half-width) carry nothing and take no degree of
+    freedom."""
     outputs = tuple(outputs)
     n = int(np.shape(x.nominal)[0])
     if int(units) < n + 3:
         raise ValueError(f"scatter_share: {units} units leave too few degrees of freedom for a line in {n} features: "
                          f"give at least {n + 3}.")
     tolerances = unit_tolerances(pointing, Design(jnp.asarray(x.nominal), jnp.asarray(x.band)))
+    chunk = int(default_chunk(pointing) if chunk_size is None else chunk_size)
     run = monte_carlo(AtWidth(pointing, None if width is None else jnp.asarray(width, dtype=float)), tolerances, int(units),
-                      jax.random.key(PROBE_KEY) if key is None else key, chunk_size=min(int(default_chunk(pointing) if chunk_size is None else chunk_size), int(units)), progress=False)
+                      jax.random.key(PROBE_KEY) if key is None else key, chunk_size=min(chunk, int(units)), progress=False)
     ds = run.dataset
     values = np.stack([ds[name].values for name in tolerances.names[:n]], axis=1)
     y = np.stack([np.asarray(ds[o].values, dtype=float) for o in outputs], axis=1)
