@@ -368,14 +368,15 @@ def test_auto_backend_computes_beside_a_worker_and_matches_vmap():
     # (the settings differ in the model's fingerprint: another sleep)
     mine = ["pid", "nice"]
     assert auto.drop_vars(mine).drop_attrs(deep=False).identical(alone.drop_vars(mine).drop_attrs(deep=False))
-    # Given rows (a design's response surface): in `ROW_CHUNKS` chunks whatever the idle cores, shared with a worker.
-    from tolerax.uncertainty.backends import ROW_CHUNKS, evaluate_rows
+    # Given rows (a design's response surface): in chunks of about `unit` whatever the idle cores, shared with a worker.
+    from tolerax.uncertainty.backends import evaluate_rows
 
     rows = np.stack([auto[name].values[:10] for name in TOLERANCES.names], axis=1)
-    shared = evaluate_rows(helpers.Slow(1.5), rows, workers=1, pin_workers=False)
+    shared = evaluate_rows(helpers.Slow(1.5), rows, 3, workers=1, pin_workers=False)
     assert len(set(shared["pid"])) == 2 and set(shared["nice"][shared["pid"] != os.getpid()]) == {19.0}
     np.testing.assert_array_equal(shared["y"], auto["y"].values[:10])
-    assert ROW_CHUNKS == 4  # 10 rows: chunks of 3, 3, 3, 1 (the docstring's 1.5 s per chunk keeps a worker busy)
+    # 10 rows at about 3: three chunks of 4, 4, 2 (the docstring's 1.5 s per chunk keeps a worker busy); one where they fit
+    assert len(set(evaluate_rows(helpers.Slow(0.0), rows, 50, workers=1, pin_workers=False)["pid"])) == 1
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2 or not os.path.isdir("/proc/self/task"),

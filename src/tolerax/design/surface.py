@@ -15,6 +15,7 @@ import jax.scipy.special
 import numpy as np
 
 from ..uncertainty.backends import evaluate_rows
+from ..uncertainty.montecarlo import default_chunk
 from .objectives import unit_output
 from .reliability import LinearisedYield, Surface, _design_rows, _fitted, _uncertain_count, _with_uncertain
 from .types import Design, realise, robust
@@ -34,8 +35,9 @@ class _UnitOutputs(eqx.Module):
 
 def _simulate_units(pointing, output, values, width) -> np.ndarray:
     """`unit_output` at each row of `values` (units, features; m): one forward solve each, in
-    chunks shared with worker processes on idle cores (`tolerax.uncertainty.backends.evaluate_rows`)."""
-    return evaluate_rows(_UnitOutputs(pointing, output, width), np.asarray(values))["value"]
+    chunks of about the scene's `unit_chunk()` shared with worker processes on idle cores
+    (`tolerax.uncertainty.backends.evaluate_rows`)."""
+    return evaluate_rows(_UnitOutputs(pointing, output, width), np.asarray(values), default_chunk(pointing))["value"]
 
 
 def _secant_noise(objective: LinearisedYield, x: Design, width):

@@ -393,21 +393,20 @@ class _Rows:
         return self.values[start:stop]
 
 
-ROW_CHUNKS = 4  # `evaluate_rows` on a CPU: the rows in this many chunks (two or more cores share them)
-
-
-def evaluate_rows(model, values, *, workers: int | None = None, pin_workers: bool | None = None) -> dict[str, np.ndarray]:
+def evaluate_rows(model, values, unit: int, *, workers: int | None = None, pin_workers: bool | None = None
+                  ) -> dict[str, np.ndarray]:
     """`jax.vmap(model)` over the rows of `values` (a model as `monte_carlo` takes: a row of
     feature values -> a dict of arrays), computed as Monte Carlo's `"auto"` backend computes its
-    chunks: on a CPU the rows in `ROW_CHUNKS` chunks, this process taking them one by one and a
-    worker process on each idle core beside it (`run_auto`, `helper_count`; `workers` as
-    `monte_carlo`'s), else (another backend) in one batch. The chunking depends on the backend
-    alone, never on how many cores are idle, so the same rows give bitwise the same outputs on a
-    busy or an idle machine. What a design's response surfaces and secant fits simulate."""
+    chunks: the rows in chunks of about `unit` (the scene's `unit_chunk()`, `default_chunk`: as
+    many chunks as `unit` fits the rows, rounded, evened out), this process taking them one by one
+    and a worker process on each idle core beside it (`run_auto`, `helper_count`; `workers` as
+    `monte_carlo`'s). The chunking depends on `unit` and the rows alone, never on how many cores
+    are idle, so the same rows give bitwise the same outputs on a busy or an idle machine. What a
+    design's response surfaces and secant fits simulate."""
     values = np.asarray(values)
     n = len(values)
-    chunk = -(-n // ROW_CHUNKS) if jax.default_backend() == "cpu" else n
-    plan = _Rows(values, max(chunk, 1))
+    chunks = max(1, round(n / max(int(unit), 1)))
+    plan = _Rows(values, max(-(-n // chunks), 1))
     parts = {}
     run_auto(model, plan, range(plan.n_chunks), parts.__setitem__, parts.__setitem__, workers, pin_workers, False)
     return {name: np.concatenate([parts[k][name] for k in range(plan.n_chunks)]) for name in parts[0]}
