@@ -55,9 +55,9 @@ class AbstractScene(eqx.Module):
         """Units per vmapped batch (a Monte Carlo chunk) in which this scene's units run best on a
         CPU: what `monte_carlo`, `Check` and `Auto()`'s probe take where no chunk size is given. A
         batch steps until its slowest unit is done. A scene with a full planetary stage (a joint
-        with `stiff_contact_modes`) rattles, its units' step counts differing widely: batches of
-        10 ran 1.36-1.40x the units per second of 50 there, and 50 1.01-1.20x those of 10 on a
-        lumped drive (`benchmarks/monte_carlo_chunks.py`)."""
+        with `stiff_contact_modes`) rattles, its units' step counts differing widely: small
+        batches (10) run faster there, larger ones (50) elsewhere, measured by
+        `benchmarks/monte_carlo_chunks.py`."""
         joints = getattr(self, "named_joints", tuple)()
         return 10 if any(getattr(joint, "stiff_contact_modes", False) for _, joint in joints) else 50
 
