@@ -33,19 +33,11 @@ class _UnitOutputs(eqx.Module):
         return {"value": unit_output(values, self.pointing, self.output, self.width)}
 
 
-@eqx.filter_jit
-def _one_batch(pointing, output, values, width):
-    return jax.vmap(lambda v: unit_output(v, pointing, output, width))(values)
-
-
 def _simulate_units(pointing, output, values, width) -> np.ndarray:
     """`unit_output` at each row of `values` (units, features; m): one forward solve each, in
     chunks of about the scene's `unit_chunk()` shared with worker processes on idle cores
-    (`tolerax.uncertainty.backends.evaluate_rows`); rows that make one chunk in one batch here."""
-    unit = default_chunk(pointing)
-    if round(len(values) / unit) <= 1:
-        return np.asarray(_one_batch(pointing, output, values, width))
-    return evaluate_rows(_UnitOutputs(pointing, output, width), np.asarray(values), unit)["value"]
+    (`tolerax.uncertainty.backends.evaluate_rows`: rows that make one chunk, one batch here)."""
+    return evaluate_rows(_UnitOutputs(pointing, output, width), np.asarray(values), default_chunk(pointing))["value"]
 
 
 def _secant_noise(objective: LinearisedYield, x: Design, width):

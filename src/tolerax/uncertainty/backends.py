@@ -5,6 +5,7 @@ assembles the result."""
 
 import concurrent.futures
 import contextlib
+import dataclasses
 import functools
 import hashlib
 import multiprocessing
@@ -14,6 +15,7 @@ import re
 import sys
 import time
 import uuid
+from collections.abc import Callable
 
 import cloudpickle
 import equinox as eqx
@@ -23,6 +25,25 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from tqdm import tqdm
 
 from ..cache import compilation_cache_dir, enable_compilation_cache, exported_jit
+
+@dataclasses.dataclass(frozen=True)
+class Plan:
+    """Chunk k of a run is rows `span(k)` of the `n` rows `draw(start, stop)` gives (the features
+    `names`); `settings` are what a resumed run must share (`monte_carlo`'s checkpoints)."""
+
+    names: tuple[str, ...]
+    n: int
+    chunk_size: int
+    draw: Callable[[int, int], np.ndarray]  # (start, stop) -> values, shape (stop - start, n_features)
+    settings: dict  # JSON-ready; a resumed run must have the same
+
+    @property
+    def n_chunks(self) -> int:
+        return -(-self.n // self.chunk_size)
+
+    def span(self, k: int) -> tuple[int, int]:
+        return k * self.chunk_size, min((k + 1) * self.chunk_size, self.n)
+
 
 WORKERS_VARIABLE = "TOLERAX_MC_WORKERS"  # at most this many worker processes beside the caller under "auto" (0: none)
 
@@ -379,20 +400,6 @@ def run_auto(model, plan, todo, handle, save, workers, pin_workers, progress) ->
             here.shutdown(wait=False, cancel_futures=True)
 
 
-class _Rows:
-    """A plan over given rows (`evaluate_rows`): chunk k is rows [k c, (k + 1) c) of `values`."""
-
-    def __init__(self, values: np.ndarray, chunk_size: int):
-        self.values, self.chunk_size = values, chunk_size
-        self.n_chunks = -(-len(values) // chunk_size)
-
-    def span(self, k: int) -> tuple[int, int]:
-        return k * self.chunk_size, min((k + 1) * self.chunk_size, len(self.values))
-
-    def draw(self, start: int, stop: int) -> np.ndarray:
-        return self.values[start:stop]
-
-
 def evaluate_rows(model, values, unit: int, *, workers: int | None = None, pin_workers: bool | None = None
                   ) -> dict[str, np.ndarray]:
     """`jax.vmap(model)` over the rows of `values` (a model as `monte_carlo` takes: a row of
@@ -406,7 +413,7 @@ def evaluate_rows(model, values, unit: int, *, workers: int | None = None, pin_w
     values = np.asarray(values)
     n = len(values)
     chunks = max(1, round(n / max(int(unit), 1)))
-    plan = _Rows(values, max(-(-n // chunks), 1))
+    plan = Plan((), n, max(-(-n // chunks), 1), lambda start, stop: values[start:stop], {})
     parts = {}
     run_auto(model, plan, range(plan.n_chunks), parts.__setitem__, parts.__setitem__, workers, pin_workers, False)
     return {name: np.concatenate([parts[k][name] for k in range(plan.n_chunks)]) for name in parts[0]}

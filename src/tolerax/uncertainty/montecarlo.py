@@ -13,7 +13,6 @@ The checkpoint folder is `tolerax.uncertainty.checkpoint`; the result type, its 
 plots `tolerax.uncertainty.results`.
 """
 
-import dataclasses
 import hashlib
 import json
 import os
@@ -26,7 +25,7 @@ import xarray as xr
 from jaxtyping import PRNGKeyArray
 from tqdm import tqdm  # the text bar: tqdm.auto warns in notebooks without ipywidgets
 
-from .backends import evaluate, helper_count, run_auto, run_chunks  # noqa: F401 (evaluate, helper_count: used from here)
+from .backends import Plan, evaluate, helper_count, run_auto, run_chunks  # noqa: F401 (evaluate, helper_count: used from here)
 from .checkpoint import atomic_write, chunk_path, open_folder
 from .results import MonteCarloResult
 from .sampling import Tolerances, sample
@@ -37,22 +36,6 @@ _FORMAT = "tolerax-samples/1"
 
 # ---------------------------------------------------------------------------------------------
 # Runs: chunks, checkpoints.
-
-
-@dataclasses.dataclass(frozen=True)
-class Plan:
-    names: tuple[str, ...]
-    n: int
-    chunk_size: int
-    draw: Callable[[int, int], np.ndarray]  # (start, stop) -> values, shape (stop - start, n_features)
-    settings: dict  # JSON-ready; a resumed run must have the same
-
-    @property
-    def n_chunks(self) -> int:
-        return -(-self.n // self.chunk_size)
-
-    def span(self, k: int) -> tuple[int, int]:
-        return k * self.chunk_size, min((k + 1) * self.chunk_size, self.n)
 
 
 def default_chunk(model) -> int:
