@@ -106,14 +106,17 @@ def timed(
 # Options, environment, result files
 
 
-def cli(argv: Sequence[str], out, cache, quiet_stderr: bool = True) -> float:
+def cli(argv: Sequence[str], out, cache, quiet_stderr: bool = True, command: Callable | None = None) -> float:
     """Wall time (s) of `tolerax ARGV --out OUT` in a fresh Python process whose compilation
     cache is the folder `cache` (the `TOLERAX_CACHE_DIR` a user would set; never off), its
-    output discarded: a command as a user starts it, cold or warm."""
+    output discarded: a command as a user starts it, cold or warm. `command` (optional): the
+    process's whole command line from `[*ARGV, "--out", OUT]` (another tolerax's command line,
+    a Python call), instead of `python -m tolerax.cli.main ...`."""
     env = dict(os.environ, TOLERAX_CACHE_DIR=str(cache))
     env.pop("TOLERAX_CACHE", None)
+    argv = [*argv, "--out", str(out)]
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "tolerax.cli.main", *argv, "--out", str(out)], env=env, check=True,
+    subprocess.run([sys.executable, "-m", "tolerax.cli.main", *argv] if command is None else command(argv), env=env, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL if quiet_stderr else None)
     return time.perf_counter() - start
 

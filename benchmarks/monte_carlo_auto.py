@@ -20,12 +20,9 @@ wall. The machine should be otherwise idle: "auto" adds workers only on idle cor
 `--before` (there chunks of 64, the Python default then; the command line's was 8).
 """
 
-import os
 import pathlib
-import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 import xarray as xr
@@ -73,20 +70,6 @@ def api(rev=None):
     return command
 
 
-def today_cli(argv):
-    return [sys.executable, "-m", "tolerax.cli.main", *argv]
-
-
-def run(command, argv, out, cache) -> float:
-    """Wall time (s) of `command(argv + ["--out", out])` with the compilation cache `cache`."""
-    env = dict(os.environ, TOLERAX_CACHE_DIR=str(cache))
-    env.pop("TOLERAX_CACHE", None)
-    start = time.perf_counter()
-    subprocess.run(command([*argv, "--out", str(out)]), env=env, check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
-
-
 def main():
     parser = harness.argument_parser(__doc__)
     parser.add_argument("--scene", default="scan-azimuth-planetary")
@@ -102,8 +85,8 @@ def main():
     work = pathlib.Path(tempfile.mkdtemp(prefix="mc_auto_"))
     cache = work / "cache"
     rows = {  # name: (command line, options)
-        "no option (today: auto, this process and a worker on each idle core; the scene's chunk)": (today_cli, ["--quiet"]),
-        "--backend vmap (today, this process alone; the scene's chunk)": (today_cli, ["--quiet", "--backend", "vmap"]),
+        "no option (today: auto, this process and a worker on each idle core; the scene's chunk)": (None, ["--quiet"]),
+        "--backend vmap (today, this process alone; the scene's chunk)": (None, ["--quiet", "--backend", "vmap"]),
         f"no option at {args.before} (then: one process, chunks of 8)": (before_cli(args.before), []),
     }
     if args.api:
@@ -113,11 +96,11 @@ def main():
         }
     names = list(rows)
     for k, (command, extra) in enumerate(rows.values()):  # warm the cache: each row's programs compiled once, untimed
-        run(command, ["montecarlo", args.scene, "--n", str(args.warm_n), *extra], work / f"warm{k}", cache)
+        harness.cli(["montecarlo", args.scene, "--n", str(args.warm_n), *extra], work / f"warm{k}", cache, command=command)
     walls = {name: [] for name in rows}
     for r in range(args.rounds):
         for k, (name, (command, extra)) in enumerate(rows.items()):
-            wall = run(command, ["montecarlo", args.scene, "--n", str(args.n), *extra], work / f"row{k}_{r}", cache)
+            wall = harness.cli(["montecarlo", args.scene, "--n", str(args.n), *extra], work / f"row{k}_{r}", cache, command=command)
             walls[name].append(wall)
             print(f"round {r}: {name}: {wall:.1f} s", flush=True)
     data = {name: xr.load_dataset(work / f"row{k}_0" / "montecarlo.nc") for k, name in enumerate(rows)}
